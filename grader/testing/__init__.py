@@ -1,0 +1,1 @@
+"""Helpers for testing with a live ROS graph and with bags (also a pytest plugin)."""

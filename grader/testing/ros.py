@@ -1,0 +1,40 @@
+"""In-process rclpy helpers for tests and the scenario driver: own context, bounded spinning."""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from typing import Callable, Iterator
+
+
+@contextlib.contextmanager
+def rclpy_node(domain_id: int, name: str = "test_client") -> Iterator[tuple]:
+    """Yield ``(node, executor)`` on ``domain_id`` with a private rclpy Context.
+
+    A private context (not ``rclpy.init()``) lets one test process talk to several isolated
+    graphs and never leaks global state between tests.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    node = rclpy.create_node(name, context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    try:
+        yield node, executor
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+def spin_until(executor, predicate: Callable[[], bool], timeout: float, step: float = 0.02) -> bool:
+    """Spin until ``predicate()`` is true or ``timeout`` seconds pass; returns the predicate."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        executor.spin_once(timeout_sec=step)
+    return predicate()
