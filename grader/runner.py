@@ -218,11 +218,13 @@ class ManagedProcess:
 
     def output(self) -> str:
         """Everything the process printed to stdout so far."""
-        self._out.flush()
+        if not self._out.closed:
+            self._out.flush()
         return self.stdout_path.read_text(errors="replace")
 
     def errors(self) -> str:
-        self._err.flush()
+        if not self._err.closed:
+            self._err.flush()
         return self.stderr_path.read_text(errors="replace")
 
     def __repr__(self) -> str:

@@ -1,0 +1,71 @@
+"""`grader doctor`: is this machine ready to grade? Prints facts and one pass/fail per check."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from grader import __version__
+from grader.rosenv import ros_info
+
+INTERFACE_PACKAGES = ("turtlesim", "std_msgs", "geometry_msgs", "std_srvs", "action_msgs",
+                      "rcl_interfaces", "service_msgs")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("doctor", help="check the ROS 2 environment (exit 0 when ready)")
+    p.add_argument("--timeout", type=float, default=20.0, help="self-test time limit in seconds")
+    p.set_defaults(func=run)
+
+
+def _interface_location(pkg: str) -> str | None:
+    try:
+        mod = importlib.import_module(f"{pkg}.msg") if pkg not in ("std_srvs",) else importlib.import_module(f"{pkg}.srv")
+    except ImportError:
+        return None
+    return str(Path(mod.__file__).resolve().parent.parent)
+
+
+def live_selftest(timeout: float) -> tuple[bool, str]:
+    """Start a talker and a listener as separate processes in an isolated graph."""
+    from grader.runner import Limits, ProcessSpec, RosGraph, python_argv
+
+    with tempfile.TemporaryDirectory(prefix="grader-doctor-") as tmp, RosGraph(Path(tmp)) as graph:
+        t0 = time.monotonic()
+        graph.start(ProcessSpec("talker", python_argv("grader.selftest", "talk")))
+        listener = graph.start(ProcessSpec("listener", python_argv("grader.selftest", "listen", str(timeout)),
+                                           limits=Limits(wall_s=timeout + 5)))
+        rc = listener.wait(timeout + 10)
+        detail = (listener.output().strip() or listener.errors().strip().splitlines()[-1:] or ["no output"])
+        detail = detail if isinstance(detail, str) else detail[0]
+        return rc == 0, f"{detail} in {time.monotonic() - t0:.1f}s on ROS_DOMAIN_ID {graph.domain_id}"
+
+
+def run(args: argparse.Namespace) -> int:
+    ok = True
+    info = ros_info()
+    print(f"grader {__version__}")
+    print(f"python   {info['python']} ({sys.executable})")
+    mode = {"wheels": "PyPI wheels in this venv", "system": "system install (sourced)",
+            "missing": "NOT FOUND"}[info["mode"]]
+    print(f"ROS 2    {info['distro']} from {mode}; rclpy {info['rclpy']}; RMW {info['rmw']}")
+    discovery = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET (default; runs use LOCALHOST)")
+    print(f"network  discovery range {discovery}")
+    if info["mode"] == "missing":
+        print("FAIL rclpy is not importable: run `make bootstrap` (or source ROS 2 Jazzy).")
+        return 1
+    print("interfaces:")
+    for pkg in INTERFACE_PACKAGES:
+        where = _interface_location(pkg)
+        ok &= where is not None
+        print(f"  {'ok  ' if where else 'FAIL'} {pkg:15} {where or 'not importable (run make bootstrap)'}")
+    passed, detail = live_selftest(args.timeout)
+    ok &= passed
+    print(f"{'PASS' if passed else 'FAIL'} live pub/sub self-test between two processes: {detail}")
+    print("doctor: everything works" if ok else "doctor: problems found (see FAIL lines)")
+    return 0 if ok else 1

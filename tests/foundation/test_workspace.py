@@ -1,0 +1,110 @@
+"""Workspace builder: colcon builds of ament_python + ament_cmake interface packages, caching,
+isolation of broken packages, archives, and running executables through the runner."""
+
+from __future__ import annotations
+
+import shutil
+import tarfile
+from pathlib import Path
+
+import pytest
+
+from grader.cli import main as grader_main
+from grader.errors import GraderError
+from grader.runner import ProcessSpec, RosGraph
+from grader.workspace import build_workspace
+
+WS = Path(__file__).parent / "ws"
+
+
+@pytest.fixture(scope="module")
+def cache_dir(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("build-cache")
+
+
+@pytest.fixture(scope="module")
+def built(cache_dir: Path):
+    return build_workspace(WS, cache_dir=cache_dir)
+
+
+@pytest.mark.slow
+def test_builds_python_and_interface_packages(built) -> None:
+    assert built.ok, {n: p.log_excerpt for n, p in built.packages.items()}
+    assert built.packages["demo_interfaces"].build_type == "ament_cmake"
+    assert built.packages["demo_nodes"].executables == {
+        "make_goal": "demo_nodes.make_goal:main", "hello": "demo_nodes.hello:run"}
+    assert not (WS / "build").exists() and not (WS / "install").exists(), "built inside the source tree"
+
+
+@pytest.mark.slow
+def test_runs_executable_that_uses_custom_action_type(built, tmp_path: Path) -> None:
+    with RosGraph(tmp_path, prefixes=built.prefixes()) as graph:
+        proc = graph.start(ProcessSpec("make_goal", built.argv("demo_nodes", "make_goal",
+                                                               args=["--ros-args", "-p", "k:=1"])))
+        assert proc.wait(30) == 0, proc.errors()
+    assert "made goal 2.0,7.0 tol=0.1 argv0=make_goal" in proc.output()
+    assert "goal x=2.0 start.x=5.5" in proc.errors()  # rclpy logs to stderr
+
+
+@pytest.mark.slow
+def test_entry_point_found_by_module_whatever_its_script_name(built, tmp_path: Path) -> None:
+    argv = built.argv("demo_nodes", module="demo_nodes.hello:run")
+    with RosGraph(tmp_path, prefixes=built.prefixes()) as graph:
+        proc = graph.start(ProcessSpec("hello", argv))
+        assert proc.wait(20) == 0
+    assert proc.output().strip() == "hello"
+
+
+@pytest.mark.slow
+def test_rebuild_of_unchanged_sources_is_a_cache_hit(built, cache_dir: Path, tmp_path: Path) -> None:
+    # same content from an archive in another place → same digest, no colcon run
+    archive = tmp_path / "ws.tar.gz"
+    with tarfile.open(archive, "w:gz") as tf:
+        tf.add(WS, arcname="my_ws")
+    again = build_workspace(archive, cache_dir=cache_dir)
+    assert again.cached and again.digest == built.digest
+
+
+@pytest.mark.slow
+def test_missing_executable_lists_the_ones_that_exist(built) -> None:
+    with pytest.raises(GraderError) as err:
+        built.argv("demo_nodes", "goal_publisher")
+    msg = str(err.value)
+    assert "no executable 'goal_publisher'" in msg and "make_goal" in msg and "hello" in msg
+    with pytest.raises(GraderError, match="package 'turtle_control' is not in the submission"):
+        built.argv("turtle_control", "turtle_control_node")
+
+
+@pytest.mark.slow
+def test_broken_setup_py_fails_only_that_package(cache_dir: Path, tmp_path: Path) -> None:
+    ws = tmp_path / "ws"
+    shutil.copytree(WS, ws)
+    setup = ws / "src" / "demo_nodes" / "setup.py"
+    setup.write_text(setup.read_text().replace('version="0.0.1",', 'version="0.0.1"'))  # syntax error
+    result = build_workspace(ws, cache_dir=cache_dir)
+    assert result.packages["demo_interfaces"].status == "built"
+    assert result.packages["demo_nodes"].status == "failed"
+    assert "SyntaxError" in result.packages["demo_nodes"].log_excerpt
+    with pytest.raises(GraderError, match="package 'demo_nodes' did not build"):
+        result.argv("demo_nodes", "hello")
+    # the CLI shows the failing package and its log lines, no traceback, exit 1
+    assert grader_main(["build", str(ws), "--cache-dir", str(cache_dir)]) == 1
+
+
+def test_not_a_workspace_is_a_clear_error(tmp_path: Path, capsys) -> None:
+    (tmp_path / "empty").mkdir()
+    assert grader_main(["build", str(tmp_path / "empty"), "--cache-dir", str(tmp_path / "c")]) == 2
+    assert "no ROS package (package.xml) found" in capsys.readouterr().err
+    bad = tmp_path / "bad.zip"
+    bad.write_bytes(b"not a zip")
+    with pytest.raises(GraderError, match="not a readable archive"):
+        build_workspace(bad, cache_dir=tmp_path / "c")
+
+
+def test_archive_with_path_traversal_is_refused(tmp_path: Path) -> None:
+    import zipfile
+    evil = tmp_path / "evil.zip"
+    with zipfile.ZipFile(evil, "w") as zf:
+        zf.writestr("../../etc/x/package.xml", "<package><name>x</name></package>")
+    with pytest.raises(GraderError, match="points outside the archive"):
+        build_workspace(evil, cache_dir=tmp_path / "c")
