@@ -1,0 +1,242 @@
+"""The scenario driver: an in-process rclpy node that feeds a student's nodes and watches them.
+
+Everything it sends and everything it learns (goals, stdin lines, action responses and results,
+process exits) is also published on ``/grader/events``, and student stdout/stderr lines on
+``/grader/stdout``, so the bag alone is enough to recompute a grade.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+from grader.runner import ManagedProcess
+
+EVENTS_TOPIC = "/grader/events"
+STDOUT_TOPIC = "/grader/stdout"
+GRADER_NODE_PREFIX = "grader_"
+
+
+def import_type(name: str):
+    """``pkg/msg/Name`` (or ``pkg/srv/...``, ``pkg/action/...``) → the Python class."""
+    parts = name.split("/")
+    if len(parts) == 2:
+        parts = [parts[0], "msg", parts[1]]
+    pkg, kind, cls = parts
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), cls)
+
+
+def fill(msg: Any, values: dict[str, Any]) -> Any:
+    """Set (nested) fields of a ROS message from a plain dict; numbers are coerced to the field."""
+    types = msg.get_fields_and_field_types()
+    for key, value in values.items():
+        if key not in types:
+            raise ValueError(f"{type(msg).__name__} has no field {key!r} (fields: {', '.join(types)})")
+        current = getattr(msg, key)
+        if isinstance(value, dict):
+            fill(current, value)
+        elif isinstance(value, (list, tuple)):
+            setattr(msg, key, [float(v) if "float" in types[key] or "double" in types[key] else v
+                               for v in value])
+        elif isinstance(current, float):
+            setattr(msg, key, float(value))
+        elif isinstance(current, bool):
+            setattr(msg, key, bool(value))
+        elif isinstance(current, int):
+            setattr(msg, key, int(value))
+        else:
+            setattr(msg, key, value)
+    return msg
+
+
+def to_plain(msg: Any) -> Any:
+    """ROS message → JSON-able dict (for events)."""
+    if hasattr(msg, "get_fields_and_field_types"):
+        return {k: to_plain(getattr(msg, k)) for k in msg.get_fields_and_field_types()}
+    if isinstance(msg, (list, tuple)) or type(msg).__name__ == "array" or hasattr(msg, "tolist"):
+        return [to_plain(v) for v in (msg.tolist() if hasattr(msg, "tolist") else msg)]
+    if isinstance(msg, float) and not math.isfinite(msg):
+        return str(msg)
+    return msg
+
+
+class Driver:
+    """Owns an rclpy context on the scenario's domain and a background executor thread."""
+
+    def __init__(self, domain_id: int, processes: dict[str, ManagedProcess]) -> None:
+        import rclpy
+        from rclpy.executors import MultiThreadedExecutor
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import String
+
+        self.rclpy = rclpy
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id)
+        self.node = rclpy.create_node("grader_driver", context=self.ctx)
+        self.String = String
+        latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.events_pub = self.node.create_publisher(String, EVENTS_TOPIC, latched)
+        self.stdout_pub = self.node.create_publisher(String, STDOUT_TOPIC, latched)
+        self.processes = processes
+        self.events: list[dict[str, Any]] = []
+        self.lock = threading.Lock()
+        self.pose: Any = None
+        self.pose_history: list[tuple[float, float, float, float]] = []   # t, x, y, v
+        self.last_output = time.monotonic()
+        self.counts: dict[str, int] = {}
+        self._subs: dict[str, Any] = {}
+        self._pubs: dict[str, Any] = {}
+        self._tail_pos: dict[Path, int] = {}
+        self._tail_rest: dict[Path, bytes] = {}
+        self._exited: set[str] = set()
+        self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
+                                      self._on_rosout, QoSProfile(depth=1000))
+        self.node.create_timer(0.05, self._tail_outputs)
+        self.executor = MultiThreadedExecutor(num_threads=2, context=self.ctx)
+        self.executor.add_node(self.node)
+        self._spin = threading.Thread(target=self._spin_forever, name="driver-spin", daemon=True)
+        self._spin.start()
+
+    # -- plumbing ------------------------------------------------------------------------
+    def _import(self, name: str):
+        return import_type(name)
+
+    def _spin_forever(self) -> None:
+        while self.rclpy.ok(context=self.ctx):
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:  # noqa: BLE001 - shutdown races end the loop
+                if not self.rclpy.ok(context=self.ctx):
+                    break
+
+    def event(self, event: str, **fields: Any) -> None:
+        record = {"event": event, "wall": time.time(), **fields}
+        with self.lock:
+            self.events.append(record)
+        self.events_pub.publish(self.String(data=json.dumps(record, default=str)))
+
+    def _on_rosout(self, msg: Any) -> None:
+        if not msg.name.startswith(GRADER_NODE_PREFIX) and msg.name not in ("turtlesim", "grader_recorder"):
+            self.last_output = time.monotonic()
+            self.counts["/rosout:student"] = self.counts.get("/rosout:student", 0) + 1
+
+    def _tail_outputs(self) -> None:
+        """Publish new student output lines; notice process exits."""
+        for name, proc in list(self.processes.items()):
+            for stream, path in (("stdout", proc.stdout_path), ("stderr", proc.stderr_path)):
+                try:
+                    with open(path, "rb") as f:
+                        f.seek(self._tail_pos.get(path, 0))
+                        chunk = f.read()
+                except FileNotFoundError:
+                    continue
+                if not chunk:
+                    continue
+                self._tail_pos[path] = self._tail_pos.get(path, 0) + len(chunk)
+                data = self._tail_rest.pop(path, b"") + chunk
+                *lines, rest = data.split(b"\n")
+                if rest:
+                    self._tail_rest[path] = rest
+                for raw in lines:
+                    line = raw.decode(errors="replace").rstrip("\r")
+                    self.stdout_pub.publish(self.String(data=json.dumps(
+                        {"process": name, "stream": stream, "line": line})))
+                    if stream == "stdout" or not line.startswith("["):
+                        self.last_output = time.monotonic()
+            if name not in self._exited and proc.returncode is not None:
+                self._exited.add(name)
+                self.event("process_exit", process=name, returncode=proc.returncode,
+                           stopped_by_grader=proc.stopped_by_grader, timed_out=proc.timed_out)
+
+    def flush_outputs(self) -> None:
+        self._tail_outputs()
+        for path, rest in list(self._tail_rest.items()):
+            name = next((n for n, p in self.processes.items() if path in (p.stdout_path, p.stderr_path)), "?")
+            stream = "stdout" if path.name.endswith("stdout.log") else "stderr"
+            self.stdout_pub.publish(self.String(data=json.dumps(
+                {"process": name, "stream": stream, "line": rest.decode(errors="replace")})))
+            del self._tail_rest[path]
+
+    def watch_pose(self, topic: str = "/turtle1/pose") -> None:
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        def on_pose(msg: Any) -> None:
+            self.pose = msg
+            self.pose_history.append((time.monotonic(), msg.x, msg.y, msg.linear_velocity))
+            if len(self.pose_history) > 2000:
+                del self.pose_history[:1000]
+
+        self._subs[topic] = self.node.create_subscription(
+            self._import("turtlesim/msg/Pose"), topic, on_pose,
+            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+
+    def count_messages(self, topic: str, type_name: str | None) -> None:
+        """Count messages on ``topic`` (type from the step, else from the graph)."""
+        if topic in self._subs:
+            return
+        type_name = type_name or self.topic_type(topic, wait_s=3.0)
+        if not type_name:
+            return
+        self.counts.setdefault(topic, 0)
+
+        def on_msg(_msg: Any) -> None:
+            self.counts[topic] += 1
+
+        self._subs[topic] = self.node.create_subscription(self._import(type_name), topic, on_msg, 100)
+
+    def topic_type(self, topic: str, wait_s: float = 0.0) -> str | None:
+        deadline = time.monotonic() + wait_s
+        while True:
+            for name, types in self.node.get_topic_names_and_types():
+                if name == topic and types:
+                    return types[0]
+            if time.monotonic() >= deadline:
+                return None
+            time.sleep(0.1)
+
+    def publisher(self, topic: str, type_name: str):
+        if topic not in self._pubs:
+            self._pubs[topic] = self.node.create_publisher(self._import(type_name), topic, 10)
+        return self._pubs[topic]
+
+    def wait_until(self, predicate: Callable[[], bool], timeout_s: float, poll: float = 0.02) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            time.sleep(poll)
+        return predicate()
+
+    # -- readiness -------------------------------------------------------------------------
+    def is_ready(self, ready: dict[str, str]) -> bool:
+        """``{subscriber: topic}``, ``{publisher: topic}``, ``{action_server: name}``, ``{service: name}``."""
+        node = self.node
+        if "subscriber" in ready and node.count_subscribers(ready["subscriber"]) < 1:
+            return False
+        if "publisher" in ready and node.count_publishers(ready["publisher"]) < 1:
+            return False
+        if "action_server" in ready:
+            name = ready["action_server"].rstrip("/")
+            services = {n for n, _ in node.get_service_names_and_types()}
+            if f"{name}/_action/send_goal" not in services:
+                return False
+        if "service" in ready:
+            if ready["service"] not in {n for n, _ in node.get_service_names_and_types()}:
+                return False
+        return True
+
+    def shutdown(self) -> None:
+        try:
+            self.flush_outputs()
+            time.sleep(0.2)
+        finally:
+            self.executor.shutdown(timeout_sec=1.0)
+            self.node.destroy_node()
+            self.rclpy.try_shutdown(context=self.ctx)
+            self._spin.join(timeout=2.0)

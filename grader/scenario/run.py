@@ -1,0 +1,135 @@
+"""Scenario child process: ``python -m grader.scenario.run SPEC.json OUT_DIR``.
+
+Runs one scenario in its own isolated ROS graph: recorder first (so it sees everything), then the
+reference simulator, the driver, the student's nodes, the steps; then stops the student's nodes,
+the recorder (SIGINT finalizes the bag) and the simulator (which saves its canvas). Writes
+``OUT_DIR/scenario.json``. Runs in a child process started with the build's environment, so the
+student's interface types import here and rclpy state never leaks between scenarios.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+from grader.runner import Limits, ManagedProcess, ProcessSpec, RosGraph, python_argv
+from grader.scenario.spec import Scenario
+
+RECORDER_READY_S = 10.0
+SIM_READY_S = 15.0
+
+
+def _wait_for_text(proc: ManagedProcess, text: str, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if text in proc.output():
+            return True
+        if not proc.alive():
+            return False
+        time.sleep(0.05)
+    return False
+
+
+def _recorder_argv(bag_dir: Path, topics: list[str]) -> list[str]:
+    args = ["-o", str(bag_dir)] + (list(topics) if topics else ["--all"])
+    return python_argv("grader.bag.recorder", *args)
+
+
+def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
+    """Execute ``spec``; returns (and writes) the scenario record."""
+    from grader.scenario.driver import Driver
+    from grader.scenario.steps import prepare, run_step
+
+    out.mkdir(parents=True, exist_ok=True)
+    record: dict[str, Any] = {"scenario": spec.id, "steps": [], "processes": {}, "errors": [],
+                              "bag": str(out / "bag"), "canvas": None}
+    t_start = time.monotonic()
+    students: dict[str, ManagedProcess] = {}
+    driver = None
+    with RosGraph(out) as graph:
+        record["domain_id"] = graph.domain_id
+        try:
+            recorder = graph.start(ProcessSpec("recorder", _recorder_argv(out / "bag", spec.record),
+                                               stop_grace_s=10.0))
+            if not _wait_for_text(recorder, "READY", RECORDER_READY_S):
+                record["errors"].append("recorder did not report READY: " + recorder.errors()[-500:])
+            sim = None
+            if spec.sim:
+                from grader.sim import sim_argv
+                canvas = out / "canvas.png"
+                sim = graph.start(ProcessSpec("turtlesim", sim_argv(canvas_out=canvas, extra=spec.sim_args)))
+                record["canvas"] = str(canvas)
+            driver = Driver(graph.domain_id, students)
+            if sim is not None:
+                driver.watch_pose()
+                if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
+                    raise RuntimeError("the reference simulator published no pose within "
+                                       f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
+            prepare(driver, spec.steps)
+            # give the recorder a moment to discover the driver's topics before anything is sent
+            driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
+            driver.event("scenario_start", scenario=spec.id, domain_id=graph.domain_id)
+            for node in spec.nodes:
+                if node.start_delay_s:
+                    time.sleep(node.start_delay_s)
+                if not node.argv:
+                    driver.event("node_unavailable", process=node.name, package=node.package,
+                                 executable=node.executable, module=node.module, error=node.error)
+                    continue
+                proc = graph.start(ProcessSpec(node.name, node.argv + node.ros_args(),
+                                               stdin=[] if node.stdin else None,
+                                               limits=Limits.untrusted(wall_s=spec.time_limit_s)))
+                students[node.name] = proc
+                driver.event("node_started", process=node.name, package=node.package,
+                             executable=node.executable, module=node.module, argv=node.argv[3:])
+                if node.ready:
+                    ok = driver.wait_until(lambda: driver.is_ready(node.ready) or not proc.alive(),
+                                           node.ready_timeout_s, poll=0.05) and proc.alive()
+                    driver.event("node_ready" if ok else "node_not_ready", process=node.name,
+                                 condition=node.ready)
+            ctx: dict[str, Any] = {}
+            for step in spec.steps:
+                record["steps"].append(run_step(driver, step, ctx))
+            time.sleep(spec.settle_s)
+            driver.event("scenario_end", scenario=spec.id)
+        except Exception as exc:  # noqa: BLE001 - recorded; the bag so far is still finalized
+            record["errors"].append(f"{type(exc).__name__}: {exc}")
+            record["traceback"] = traceback.format_exc()
+            if driver is not None:
+                driver.event("scenario_error", error=f"{type(exc).__name__}: {exc}")
+        finally:
+            for name, proc in students.items():
+                crashed = proc.returncode is not None and not proc.stopped_by_grader
+                rc = proc.stop()
+                record["processes"][name] = {"returncode": rc, "crashed": crashed and rc != 0,
+                                             "exited_early": crashed, "timed_out": proc.timed_out,
+                                             "killed": proc.killed}
+            if driver is not None:
+                driver.shutdown()
+            graph.stop_all()
+    active = sum(s["duration_s"] for s in record["steps"])
+    record["active_s"] = round(active, 3)
+    record["wall_s"] = round(time.monotonic() - t_start, 3)
+    (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
+    return record
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 2:
+        print("usage: python -m grader.scenario.run SPEC.json OUT_DIR", file=sys.stderr)
+        return 2
+    spec = Scenario.from_dict(json.loads(Path(argv[0]).read_text()))
+    # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    record = run_scenario_here(spec, Path(argv[1]))
+    return 0 if not record["errors"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
