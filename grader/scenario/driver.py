@@ -95,6 +95,7 @@ class Driver:
         self._tail_pos: dict[Path, int] = {}
         self._tail_rest: dict[Path, bytes] = {}
         self._exited: set[str] = set()
+        self.lines: dict[str, list[str]] = {}      # process -> output lines seen so far
         self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
                                       self._on_rosout, QoSProfile(depth=1000))
         self.node.create_timer(0.05, self._tail_outputs)
@@ -145,6 +146,7 @@ class Driver:
                     self._tail_rest[path] = rest
                 for raw in lines:
                     line = raw.decode(errors="replace").rstrip("\r")
+                    self.lines.setdefault(name, []).append(line)
                     self.stdout_pub.publish(self.String(data=json.dumps(
                         {"process": name, "stream": stream, "line": line})))
                     if stream == "stdout" or not line.startswith("["):

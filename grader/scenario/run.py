@@ -17,11 +17,21 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from grader.runner import Limits, ManagedProcess, ProcessSpec, RosGraph, python_argv
+from grader.runner import Limits, ManagedProcess, ProcessSpec, RosGraph, StdinLine, python_argv
 from grader.scenario.spec import Scenario
 
 RECORDER_READY_S = 10.0
 SIM_READY_S = 15.0
+
+
+class _EventedProcess(ManagedProcess):
+    """A student process whose scripted stdin lines are announced on /grader/events."""
+
+    driver = None
+
+    def on_stdin_line(self, text: str) -> None:
+        if self.driver is not None:
+            self.driver.event("stdin_line", process=self.name, line=text, delivered=True)
 
 
 def _wait_for_text(proc: ManagedProcess, text: str, timeout_s: float) -> bool:
@@ -74,16 +84,27 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
             # give the recorder a moment to discover the driver's topics before anything is sent
             driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
             driver.event("scenario_start", scenario=spec.id, domain_id=graph.domain_id)
-            for node in spec.nodes:
+            by_name = {n.name: n for n in spec.nodes}
+
+            def start_node(name: str) -> bool:
+                node = by_name[name]
                 if node.start_delay_s:
                     time.sleep(node.start_delay_s)
                 if not node.argv:
                     driver.event("node_unavailable", process=node.name, package=node.package,
                                  executable=node.executable, module=node.module, error=node.error)
-                    continue
-                proc = graph.start(ProcessSpec(node.name, node.argv + node.ros_args(),
-                                               stdin=[] if node.stdin else None,
-                                               limits=Limits.untrusted(wall_s=spec.time_limit_s)))
+                    return False
+                script = [StdinLine(str(t), float(d)) for t, d in node.stdin_script]
+                limits = Limits.untrusted(wall_s=node.wall_s or spec.time_limit_s)
+                if node.cpu_s or node.memory_mb:
+                    limits = Limits(wall_s=limits.wall_s, cpu_s=node.cpu_s or limits.cpu_s,
+                                    address_space_mb=node.memory_mb or limits.address_space_mb,
+                                    nproc=limits.nproc, nofile=limits.nofile)
+                proc = graph.start(ProcessSpec(
+                    node.name, node.argv + node.ros_args(), env=node.env or None,
+                    stdin=script if (script or node.stdin) else None, close_stdin=node.stdin_close,
+                    limits=limits), process_class=_EventedProcess)
+                proc.driver = driver
                 students[node.name] = proc
                 driver.event("node_started", process=node.name, package=node.package,
                              executable=node.executable, module=node.module, argv=node.argv[3:])
@@ -92,9 +113,18 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
                                            node.ready_timeout_s, poll=0.05) and proc.alive()
                     driver.event("node_ready" if ok else "node_not_ready", process=node.name,
                                  condition=node.ready)
-            ctx: dict[str, Any] = {}
+                return True
+
+            for node in spec.nodes:
+                if node.autostart:
+                    start_node(node.name)
+            ctx: dict[str, Any] = {"start_node": start_node}
             for step in spec.steps:
-                record["steps"].append(run_step(driver, step, ctx))
+                outcome = run_step(driver, step, ctx)
+                record["steps"].append(outcome)
+                if outcome["ended_by"] == "timeout" and step.abort_on_timeout:
+                    driver.event("scenario_aborted", step=step.id)
+                    break
             time.sleep(spec.settle_s)
             driver.event("scenario_end", scenario=spec.id)
         except Exception as exc:  # noqa: BLE001 - recorded; the bag so far is still finalized

@@ -25,6 +25,13 @@ class NodeSpec:
     remap: dict[str, str] = field(default_factory=dict)
     args: list[str] = field(default_factory=list)
     stdin: bool = False                         # give it a stdin pipe (steps type into it)
+    stdin_script: list[list] = field(default_factory=list)   # [[text, delay_s], ...] typed from start
+    stdin_close: bool = False                   # EOF after the script (a terminal would not)
+    env: dict[str, str] = field(default_factory=dict)
+    autostart: bool = True                      # False: a ``start`` step starts it
+    wall_s: float | None = None
+    cpu_s: int | None = None
+    memory_mb: int | None = None
     ready: dict[str, str] = field(default_factory=dict)   # e.g. {"subscriber": "/turtle1/goal"}
     ready_timeout_s: float = 10.0
     start_delay_s: float = 0.0
@@ -48,10 +55,12 @@ class Step:
     Exactly one action key is set: ``wait`` (seconds), ``publish`` ({topic, type, msg}),
     ``stdin`` ({process, line}), ``replay`` ({bag, topic, rate_hz, count, type}),
     ``action_goal`` ({action, type, goal, id}), ``service`` ({service, type, request}),
-    ``stop`` ({process}).
+    ``stop`` / ``start`` ({processes: [...]}).
     ``until`` ends the step early: ``{goal_reached: {x, y, tol}, settle_s}``,
     ``{messages: {topic, count}}``, ``{idle_s}`` (no student output for that long),
-    ``{action_done: true}``, ``{process_exit: name}``. ``timeout_s`` bounds the step.
+    ``{action_done: true}``, ``{process_exit: name}``, ``{output: {process, pattern}}``,
+    ``{advertised: {topic|service|action: name}}``, ``{subscribed: topic}``.
+    ``timeout_s`` bounds the step; ``wait`` with an ``until`` waits for the condition.
     """
 
     id: str = ""
@@ -62,10 +71,12 @@ class Step:
     action_goal: dict[str, Any] | None = None
     service: dict[str, Any] | None = None
     stop: dict[str, Any] | None = None
+    start: dict[str, Any] | None = None
     until: dict[str, Any] = field(default_factory=dict)
     timeout_s: float = 10.0
+    abort_on_timeout: bool = False
 
-    ACTIONS = ("wait", "publish", "stdin", "replay", "action_goal", "service", "stop")
+    ACTIONS = ("wait", "publish", "stdin", "replay", "action_goal", "service", "stop", "start")
 
     def action(self) -> str:
         set_keys = [k for k in self.ACTIONS if getattr(self, k) is not None]

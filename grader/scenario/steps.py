@@ -54,8 +54,24 @@ def _condition(driver: Driver, step: Step, ctx: dict[str, Any]) -> Callable[[], 
     if "action_done" in until:
         return lambda: ctx.get("action_done", False)
     if "process_exit" in until:
-        proc = driver.processes.get(until["process_exit"])
-        return (lambda: proc.returncode is not None) if proc else (lambda: True)
+        name = until["process_exit"]
+        return lambda: (driver.processes.get(name) is None
+                        or driver.processes[name].returncode is not None)
+    if "output" in until:
+        import re
+        pattern = re.compile(until["output"]["pattern"])
+        name = until["output"].get("process")
+        start = {n: len(lines) for n, lines in driver.lines.items()}
+        return lambda: any(pattern.search(line)
+                           for n, lines in list(driver.lines.items()) if name in (None, n)
+                           for line in lines[start.get(n, 0):])
+    if "advertised" in until:
+        what = until["advertised"]
+        ready = {"publisher": what["topic"]} if "topic" in what else \
+            {"service": what["service"]} if "service" in what else {"action_server": what["action"]}
+        return lambda: driver.is_ready(ready)
+    if "subscribed" in until:
+        return lambda: driver.is_ready({"subscriber": until["subscribed"]})
     raise ValueError(f"unknown until condition in step {step.id}: {sorted(until)}")
 
 
@@ -74,7 +90,12 @@ def prepare(driver: Driver, steps: list[Step]) -> None:
 def _do_publish(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
     pub = driver.publisher(spec["topic"], spec["type"])
     msg = fill(import_type(spec["type"])(), spec.get("msg", {}))
-    pub.publish(msg)
+    count = int(spec.get("count", 1))
+    period = 1.0 / float(spec["rate_hz"]) if spec.get("rate_hz") else 0.0
+    for i in range(count):
+        pub.publish(msg)
+        if i + 1 < count and period:
+            time.sleep(period)
     plain = to_plain(msg)
     fields: dict[str, Any] = {"topic": spec["topic"], "type": spec["type"], "msg": plain}
     if spec["type"].endswith("Float32MultiArray") and len(plain.get("data", [])) >= 2:
@@ -189,13 +210,22 @@ def _do_service(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> di
 
 
 def _do_stop(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
-    proc = driver.processes.get(spec["process"])
-    rc = proc.stop() if proc else None
-    return {"process": spec["process"], "returncode": rc}
+    codes = {}
+    for name in spec.get("processes", [spec.get("process")]):
+        proc = driver.processes.get(name)
+        codes[name] = proc.stop() if proc else None
+        driver.event("node_stopped", process=name, returncode=codes[name])
+    return {"returncodes": codes}
+
+
+def _do_start(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
+    started = [name for name in spec.get("processes", []) if ctx["start_node"](name)]
+    return {"started": started}
 
 
 ACTIONS = {"publish": _do_publish, "stdin": _do_stdin, "replay": _do_replay,
-           "action_goal": _do_action_goal, "service": _do_service, "stop": _do_stop}
+           "action_goal": _do_action_goal, "service": _do_service, "stop": _do_stop,
+           "start": _do_start}
 
 
 def run_step(driver: Driver, step: Step, ctx: dict[str, Any]) -> StepOutcome:
@@ -211,6 +241,10 @@ def run_step(driver: Driver, step: Step, ctx: dict[str, Any]) -> StepOutcome:
     ended_by = "done"
     if action == "wait":
         time.sleep(float(step.wait or 0.0))
+        cond = _condition(driver, step, ctx)
+        if cond is not None:
+            remaining = max(0.0, step.timeout_s - (time.monotonic() - t0))
+            ended_by = "condition" if driver.wait_until(cond, remaining) else "timeout"
     else:
         try:
             detail = ACTIONS[action](driver, getattr(step, action), ctx)
