@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -19,7 +20,24 @@ from typing import Any
 from grader.errors import GraderError
 from grader.scenario.spec import NodeSpec, Scenario, Step
 
-__all__ = ["NodeSpec", "Scenario", "Step", "resolve", "run_scenario"]
+__all__ = ["NodeSpec", "Scenario", "Step", "resolve", "run_scenario", "cancel_all", "CANCELLED"]
+
+#: set by a batch on Ctrl-C: running scenarios are told to stop (their bags get finalized) and
+#: no new scenario starts
+CANCELLED = threading.Event()
+_RUNNING: set[subprocess.Popen] = set()
+_RUNNING_LOCK = threading.Lock()
+
+
+def cancel_all() -> None:
+    """Stop every running scenario child (SIGTERM: it unwinds and finalizes its bag)."""
+    CANCELLED.set()
+    with _RUNNING_LOCK:
+        for proc in list(_RUNNING):
+            try:
+                os.killpg(proc.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
 
 
 def resolve(scenario: Scenario, build) -> Scenario:
@@ -53,10 +71,14 @@ def run_scenario(scenario: Scenario, build, out: Path, *, env: dict[str, str] | 
         from grader.rosenv import child_env as make_env
         child_env = make_env()
     limit = spec.time_limit_s + 60.0
+    if CANCELLED.is_set():
+        raise KeyboardInterrupt
     t0 = time.monotonic()
     with open(out / "scenario.log", "wb") as log:
         proc = subprocess.Popen([sys.executable, "-m", "grader.scenario.run", str(out / "spec.json"), str(out)],
                                 env=child_env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        with _RUNNING_LOCK:
+            _RUNNING.add(proc)
         try:
             proc.wait(timeout=limit)
         except subprocess.TimeoutExpired:
@@ -75,10 +97,14 @@ def run_scenario(scenario: Scenario, build, out: Path, *, env: dict[str, str] | 
                 os.killpg(proc.pid, signal.SIGKILL)
             raise
         finally:
+            with _RUNNING_LOCK:
+                _RUNNING.discard(proc)
             try:
                 os.killpg(proc.pid, signal.SIGKILL)   # anything left in the group
             except ProcessLookupError:
                 pass
+    if CANCELLED.is_set():
+        raise KeyboardInterrupt
     record_path = out / "scenario.json"
     if record_path.exists():
         record = json.loads(record_path.read_text())

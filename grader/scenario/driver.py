@@ -215,6 +215,18 @@ class Driver:
             time.sleep(poll)
         return predicate()
 
+    def graph_snapshot(self) -> None:
+        """Publish who publishes and subscribes what (node names): integrity checks need it."""
+        pubs: dict[str, list[str]] = {}
+        subs: dict[str, list[str]] = {}
+        for topic, _types in self.node.get_topic_names_and_types():
+            try:
+                pubs[topic] = sorted({i.node_name for i in self.node.get_publishers_info_by_topic(topic)})
+                subs[topic] = sorted({i.node_name for i in self.node.get_subscriptions_info_by_topic(topic)})
+            except Exception:  # noqa: BLE001 - a topic vanishing mid-query is fine
+                continue
+        self.event("graph", publishers=pubs, subscribers=subs)
+
     # -- readiness -------------------------------------------------------------------------
     def is_ready(self, ready: dict[str, str]) -> bool:
         """``{subscriber: topic}``, ``{publisher: topic}``, ``{action_server: name}``, ``{service: name}``."""

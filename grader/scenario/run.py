@@ -126,6 +126,7 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
                     driver.event("scenario_aborted", step=step.id)
                     break
             time.sleep(spec.settle_s)
+            driver.graph_snapshot()
             driver.event("scenario_end", scenario=spec.id)
         except Exception as exc:  # noqa: BLE001 - recorded; the bag so far is still finalized
             record["errors"].append(f"{type(exc).__name__}: {exc}")

@@ -261,6 +261,7 @@ def run_step(driver: Driver, step: Step, ctx: dict[str, Any]) -> StepOutcome:
         ctx["goal_handle"].cancel_goal_async()
         driver.event("action_cancel_sent", id=detail.get("id"))
     duration = time.monotonic() - t0
+    driver.graph_snapshot()
     driver.event("step_end", step=step.id, action=action, ended_by=ended_by, duration_s=round(duration, 3))
     return StepOutcome(id=step.id, action=action, start=start_wall, duration_s=round(duration, 3),
                        ended_by=ended_by, detail=detail)

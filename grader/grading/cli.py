@@ -1,0 +1,192 @@
+"""`grader grade` (instructor batch), `grader check` (student self-check), `grader regrade` (offline)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+from grader.errors import GraderError
+
+REPO_RUBRICS = Path(__file__).resolve().parents[2] / "rubrics"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    g = sub.add_parser("grade", help="grade a folder of submissions against a rubric",
+                       description="Build each submission, run the rubric's scenarios against the reference "
+                                   "turtlesim while recording bags, analyze, score; writes OUT/<id>/result.json, "
+                                   "report.html, bags and logs, plus OUT/grades.csv and OUT/index.html.")
+    g.add_argument("submissions", type=Path, help="folder with one folder or archive per student (or one submission)")
+    g.add_argument("--rubric", type=Path, required=True, help="rubric YAML (e.g. rubrics/enee467_lab3.yaml)")
+    g.add_argument("-o", "--out", type=Path, required=True, help="output folder")
+    g.add_argument("--jobs", type=int, default=1, help="submissions graded in parallel (default 1)")
+    g.add_argument("--only", nargs="+", metavar="ID", help="grade only these submission ids")
+    g.add_argument("--resume", action="store_true", help="skip submissions that already have a result.json in OUT")
+    g.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
+    g.set_defaults(func=run_grade)
+
+    c = sub.add_parser("check", help="self-check your own workspace (public items only)",
+                       description="Runs the lab's public auto-graded items on your workspace, prints a table "
+                                   "with a hint per item and writes a report. Exit 0 only when all pass.")
+    c.add_argument("workspace", type=Path, nargs="?", default=Path("."), help="your workspace (default: .)")
+    c.add_argument("--lab", default=None, help="lab id, e.g. enee467-lab3 (see rubrics/)")
+    c.add_argument("--rubric", type=Path, default=None, help="rubric YAML instead of --lab")
+    c.add_argument("-o", "--out", type=Path, default=None, help="report folder (default: WORKSPACE/.grader-check)")
+    c.add_argument("--cache-dir", type=Path, default=None)
+    c.set_defaults(func=run_check)
+
+    r = sub.add_parser("regrade", help="recompute grades from recorded bags (no ROS needed)",
+                       description="Re-run analyzers and scoring on the bags of an earlier `grader grade` output "
+                                   "(OUT or OUT/<id>), e.g. after fixing a rubric threshold.")
+    r.add_argument("path", type=Path, help="OUT folder of a batch, or OUT/<id> of one submission")
+    r.add_argument("--rubric", type=Path, required=True)
+    r.set_defaults(func=run_regrade)
+
+
+def rubric_for_lab(lab: str) -> Path:
+    from grader.rubric.load import load_rubric
+
+    known = []
+    for path in sorted(REPO_RUBRICS.glob("*.yaml")):
+        try:
+            rub = load_rubric(path)
+        except GraderError:
+            continue
+        known.append(rub.lab)
+        if rub.lab == lab:
+            return path
+    raise GraderError(f"no rubric for lab {lab!r}; known labs: {', '.join(known) or 'none'} "
+                      f"(rubrics live in {REPO_RUBRICS}).")
+
+
+class Progress:
+    """A one-line progress bar on stderr (plain lines when stderr is not a terminal)."""
+
+    def __init__(self, total: int) -> None:
+        self.total, self.done, self.t0 = total, 0, time.monotonic()
+        self.tty = sys.stderr.isatty()
+        self.current = ""
+
+    def _draw(self) -> None:
+        width = 24
+        filled = int(width * self.done / max(1, self.total))
+        elapsed = time.monotonic() - self.t0
+        line = (f"[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} "
+                f"{elapsed:5.0f}s  {self.current}")
+        if self.tty:
+            sys.stderr.write("\r\033[K" + line[:150])
+        else:
+            sys.stderr.write(line + "\n")
+        sys.stderr.flush()
+
+    def status(self, text: str) -> None:
+        self.current = text
+        self._draw()
+
+    def advance(self, text: str) -> None:
+        self.done += 1
+        self.current = text
+        self._draw()
+
+    def close(self) -> None:
+        if self.tty:
+            sys.stderr.write("\n")
+
+
+def run_grade(args: argparse.Namespace) -> int:
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    from grader.grading.outputs import write_batch_outputs
+    from grader.grading.pipeline import discover_submissions, grade_submission, submission_id
+    from grader.rubric.load import load_rubric
+
+    rubric = load_rubric(args.rubric)
+    subs = discover_submissions(args.submissions)
+    if args.only:
+        subs = [s for s in subs if submission_id(s) in set(args.only)]
+        if not subs:
+            raise GraderError(f"none of {', '.join(args.only)} is among the submissions in {args.submissions}.")
+    args.out.mkdir(parents=True, exist_ok=True)
+    todo = [s for s in subs if not (args.resume and (args.out / submission_id(s) / "result.json").exists())]
+    progress = Progress(len(subs))
+    progress.done = len(subs) - len(todo)
+    failures: dict[str, str] = {}
+    interrupted = False
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+            futures = {pool.submit(grade_submission, s, rubric, args.out, cache_dir=args.cache_dir,
+                                   progress=progress.status if args.jobs == 1 else None): s for s in todo}
+            try:
+                for fut in as_completed(futures):
+                    sid = submission_id(futures[fut])
+                    try:
+                        graded = fut.result()
+                        progress.advance(f"{sid}: {graded.result.score:g}/{graded.result.auto_max:g}")
+                    except GraderError as exc:
+                        failures[sid] = str(exc)
+                        progress.advance(f"{sid}: ERROR {exc}")
+                    except KeyboardInterrupt:
+                        failures[sid] = "interrupted before it finished (no result written)"
+                    write_batch_outputs(args.out, rubric)     # grades.csv is current after each one
+            except KeyboardInterrupt:
+                from grader.scenario import cancel_all
+                interrupted = True
+                for f in futures:
+                    f.cancel()
+                cancel_all()          # running scenarios finalize their bags and stop
+                raise
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        progress.close()
+        write_batch_outputs(args.out, rubric)
+    for sid, msg in failures.items():
+        print(f"grader: {sid}: {msg}", file=sys.stderr)
+    print(f"wrote {args.out / 'grades.csv'} and {args.out / 'index.html'}")
+    if interrupted:
+        print("grader: interrupted; finished submissions are saved; rerun with --resume to continue",
+              file=sys.stderr)
+        return 130
+    return 1 if failures else 0
+
+
+def run_check(args: argparse.Namespace) -> int:
+    from grader.grading.outputs import print_check_table
+    from grader.grading.pipeline import grade_submission
+    from grader.rubric.load import load_rubric
+
+    if args.rubric is None and args.lab is None:
+        raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
+    rubric = load_rubric(args.rubric or rubric_for_lab(args.lab))
+    ws = args.workspace.resolve()
+    out = (args.out or ws / ".grader-check").resolve()
+    progress = Progress(1)
+    graded = grade_submission(ws, rubric, out, cache_dir=args.cache_dir, public_only=True,
+                              sid="check", progress=progress.status)
+    progress.close()
+    ok = print_check_table(graded, rubric)
+    print(f"report: {graded.out / 'report.html'}")
+    return 0 if ok else 1
+
+
+def run_regrade(args: argparse.Namespace) -> int:
+    from grader.grading.outputs import write_batch_outputs
+    from grader.grading.pipeline import SCENARIOS_DIR, regrade_submission
+    from grader.rubric.load import load_rubric
+
+    rubric = load_rubric(args.rubric)
+    path = args.path
+    if (path / SCENARIOS_DIR).is_dir():
+        graded = regrade_submission(path, rubric)
+        print(f"{graded.id}: {graded.result.score:g}/{graded.result.auto_max:g}")
+        return 0
+    subs = sorted(p for p in path.iterdir() if (p / SCENARIOS_DIR).is_dir()) if path.is_dir() else []
+    if not subs:
+        raise GraderError(f"{path} holds no graded submissions (no */{SCENARIOS_DIR}/ folders).")
+    for sub in subs:
+        graded = regrade_submission(sub, rubric)
+        print(f"{graded.id}: {graded.result.score:g}/{graded.result.auto_max:g}")
+    write_batch_outputs(path, rubric)
+    return 0

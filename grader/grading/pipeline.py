@@ -1,0 +1,231 @@
+"""One submission through every layer: build → scenarios (bags) → analyze → score → report.
+
+``analyze_bags`` is the offline half: it needs only the scenario folders (bags + records), so
+``grader regrade`` recomputes a grade on any machine without ROS.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from grader.errors import GraderError
+
+SCENARIOS_DIR = "scenarios"
+
+
+def submission_id(path: Path) -> str:
+    """Folder name or archive stem, made safe for a folder and a CSV cell."""
+    name = path.name
+    for suffix in (".tar.gz", ".tgz", ".tar.xz", ".tar.bz2", ".tar", ".zip"):
+        if name.lower().endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "submission"
+
+
+def discover_submissions(root: Path) -> list[Path]:
+    """A folder of submissions (one folder or archive each), or a single submission."""
+    from grader.workspace.source import is_archive
+
+    root = Path(root)
+    if not root.exists():
+        raise GraderError(f"{root} does not exist.")
+    if is_archive(root) or (root / "src").is_dir() or (root / "package.xml").exists():
+        return [root]
+    subs = sorted(p for p in root.iterdir()
+                  if (p.is_dir() and not p.name.startswith(".")) or is_archive(p))
+    if not subs:
+        raise GraderError(f"{root} holds no submissions (expected one folder or archive per student).")
+    return subs
+
+
+@dataclass
+class GradedSubmission:
+    id: str
+    out: Path
+    result: Any                       # grader.rubric.score.Result
+    build_ok: bool
+    build_failed: list[str] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def selected_items(rubric, public_only: bool) -> list:
+    return [i for i in rubric.items if i.automatic and (i.public or not public_only)]
+
+
+def needed_scenarios(items: Iterable) -> list[str]:
+    seen: list[str] = []
+    for item in items:
+        for sc in item.scenarios:
+            if sc not in seen:
+                seen.append(sc)
+    return seen
+
+
+def _events(frames: dict) -> list[dict]:
+    df = frames.get("/grader/events")
+    if df is None or "data" not in df:
+        return []
+    out = []
+    for raw in df["data"]:
+        try:
+            out.append(json.loads(raw))
+        except (TypeError, ValueError):
+            continue
+    return out
+
+
+def scenario_frames(scenario_dir: Path) -> dict:
+    """Frames of one scenario's bag plus ``__meta__`` (topic, type, count, publishers)."""
+    import pandas as pd
+
+    from grader.bag.frames import load_bag_meta, load_frames
+
+    bag = scenario_dir / "bag"
+    if not bag.exists():
+        return {"__meta__": pd.DataFrame(columns=["topic", "type", "count", "publishers"])}
+    frames = load_frames(bag)
+    meta = load_bag_meta(bag)
+    publishers: dict[str, set[str]] = {}
+    for ev in _events(frames):
+        if ev.get("event") == "graph":
+            for topic, nodes in (ev.get("publishers") or {}).items():
+                publishers.setdefault(topic, set()).update(nodes)
+    frames["__meta__"] = pd.DataFrame(
+        [{"topic": n, "type": t.type, "count": t.count, "publishers": sorted(publishers.get(n, set()))}
+         for n, t in meta.topics.items()], columns=["topic", "type", "count", "publishers"])
+    record_file = scenario_dir / "scenario.json"
+    if record_file.exists():
+        frames["__meta__"].attrs["scenario"] = json.loads(record_file.read_text())
+    return frames
+
+
+def _unavailable_nodes(frames: dict) -> list[str]:
+    return [f"{e.get('process')}: {str(e.get('error', '')).splitlines()[0] if e.get('error') else 'not available'}"
+            for e in _events(frames) if e.get("event") == "node_unavailable"]
+
+
+def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], list[str]]:
+    """Run every item's analyzer on its scenario bags (offline). Returns findings and problems."""
+    from grader import analyze
+    from grader.analyze import Finding
+    from grader.rubric.score import worst_finding
+
+    frames_cache: dict[str, dict | Exception] = {}
+    problems: list[str] = []
+
+    def frames_for(sc: str):
+        if sc not in frames_cache:
+            try:
+                frames_cache[sc] = scenario_frames(sub_out / SCENARIOS_DIR / sc)
+            except GraderError as exc:
+                frames_cache[sc] = exc
+                problems.append(f"scenario {sc}: {exc}")
+        return frames_cache[sc]
+
+    findings: dict[str, Any] = {}
+    for item in items:
+        per_scenario = []
+        for sc in item.scenarios or ():
+            frames = frames_for(sc)
+            if isinstance(frames, Exception):
+                per_scenario.append(Finding(value=None, fraction=0.0, status="error",
+                                            feedback=f"The recording of scenario {sc} could not be read: {frames}",
+                                            evidence={}))
+                continue
+            finding = analyze.run(item.analyzer, frames, dict(item.params))
+            missing = _unavailable_nodes(frames)
+            if missing and finding.status in ("fail", "error"):
+                finding.feedback = (finding.feedback + " Could not run " + "; ".join(missing)).strip()
+                finding.evidence = {**finding.evidence, "unavailable_nodes": missing}
+            per_scenario.append(finding)
+        findings[item.id] = worst_finding(per_scenario) if per_scenario else None
+    return findings, problems
+
+
+def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | None = None,
+                     public_only: bool = False, sid: str | None = None,
+                     progress: Callable[[str], None] | None = None) -> GradedSubmission:
+    """Build, run the needed scenarios, analyze and score one submission; writes its folder."""
+    from grader.rubric.score import score
+    from grader.scenario import run_scenario
+    from grader.scenario.from_rubric import scenario_from_rubric
+    from grader.workspace import build_workspace
+
+    sid = sid or submission_id(Path(path))
+    out = Path(out_root) / sid
+    if out.exists():
+        shutil.rmtree(out)
+    out.mkdir(parents=True)
+    timings: dict[str, float] = {}
+    errors: list[str] = []
+    say = progress or (lambda _msg: None)
+
+    say(f"{sid}: building")
+    t0 = time.monotonic()
+    build = None
+    try:
+        build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support))
+        shutil.copy(build.build_log, out / "build.log") if build.build_log.exists() else None
+        if not build.ok:
+            errors += [f"package {n} did not build ({build.packages[n].status}):\n{build.packages[n].log_excerpt}"
+                       for n in build.failed]
+    except GraderError as exc:
+        errors.append(f"build: {exc}")
+        (out / "build.log").write_text(str(exc) + "\n")
+    timings["build_s"] = round(time.monotonic() - t0, 2)
+
+    items = selected_items(rubric, public_only)
+    for sc_id in needed_scenarios(items):
+        say(f"{sid}: scenario {sc_id}")
+        t1 = time.monotonic()
+        spec = scenario_from_rubric(rubric.scenarios[sc_id])
+        record = run_scenario(spec, build, out / SCENARIOS_DIR / sc_id)
+        timings[f"scenario:{sc_id}:wall_s"] = round(time.monotonic() - t1, 2)
+        timings[f"scenario:{sc_id}:active_s"] = record.get("active_s", 0.0)
+        errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]
+
+    say(f"{sid}: analyzing")
+    findings, problems = analyze_bags(rubric, items, out)
+    errors += problems
+    result = score(rubric, findings)
+    if public_only:
+        result = result.for_student()
+    graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
+                              build_failed=list(build.failed) if build else ["(no build)"],
+                              errors=errors, timings=timings)
+    write_outputs(graded, rubric, public_only=public_only)
+    return graded
+
+
+def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:
+    """Recompute a submission's grade from its recorded bags only (no build, no ROS)."""
+    from grader.rubric.score import score
+
+    sub_out = Path(sub_out)
+    if not (sub_out / SCENARIOS_DIR).is_dir():
+        raise GraderError(f"{sub_out} has no {SCENARIOS_DIR}/ folder; point at OUT/<submission> "
+                          "written by `grader grade`.")
+    items = selected_items(rubric, public_only)
+    findings, problems = analyze_bags(rubric, items, sub_out)
+    result = score(rubric, findings)
+    old = {}
+    if (sub_out / "result.json").exists():
+        old = json.loads((sub_out / "result.json").read_text())
+    graded = GradedSubmission(sub_out.name, sub_out, result, build_ok=old.get("build", {}).get("ok", True),
+                              build_failed=old.get("build", {}).get("failed", []), errors=problems)
+    write_outputs(graded, rubric, public_only=public_only)
+    return graded
+
+
+def write_outputs(graded: GradedSubmission, rubric, *, public_only: bool) -> None:
+    from grader.report import write_submission_outputs
+
+    write_submission_outputs(graded, rubric, public_only=public_only)
