@@ -97,8 +97,14 @@ def _preexec(limits: Limits) -> None:
 class ManagedProcess:
     """A started process (the leader of its own process group)."""
 
-    def __init__(self, spec: ProcessSpec, env: Mapping[str, str], logdir: Path) -> None:
+    #: set before start to hold the stdin script until the event is set (or the timeout passes)
+    stdin_gate: threading.Event | None = None
+    stdin_gate_timeout_s: float = 20.0
+
+    def __init__(self, spec: ProcessSpec, env: Mapping[str, str], logdir: Path,
+                 stdin_gate: threading.Event | None = None) -> None:
         self.spec = spec
+        self.stdin_gate = stdin_gate
         self.name = spec.name
         self.stdout_path = logdir / f"{spec.name}.stdout.log"
         self.stderr_path = logdir / f"{spec.name}.stderr.log"
@@ -136,6 +142,9 @@ class ManagedProcess:
     def _feed_stdin(self) -> None:
         pipe = self.popen.stdin
         assert pipe is not None
+        if self.stdin_gate is not None:
+            # e.g. "the node is up and its topics are recorded": a person types after the prompt
+            self.stdin_gate.wait(timeout=self.stdin_gate_timeout_s)
         try:
             for line in self.spec.stdin or ():
                 if self._sleep_unless_exited(line.delay):
@@ -247,14 +256,14 @@ class RosGraph:
                              extra={"ROS_LOG_DIR": str(ros_log), **(extra_env or {})})
         self.processes: list[ManagedProcess] = []
 
-    def start(self, spec: ProcessSpec, process_class: type[ManagedProcess] = ManagedProcess
-              ) -> ManagedProcess:
+    def start(self, spec: ProcessSpec, process_class: type[ManagedProcess] = ManagedProcess,
+              **kwargs) -> ManagedProcess:
         if any(p.name == spec.name for p in self.processes):
             raise ValueError(f"process name {spec.name!r} already used in this graph")
         env = dict(self.env)
         if spec.env:
             env.update(spec.env)
-        proc = process_class(spec, env, self.logdir)
+        proc = process_class(spec, env, self.logdir, **kwargs)
         self.processes.append(proc)
         return proc
 

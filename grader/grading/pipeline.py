@@ -226,6 +226,6 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
 
 
 def write_outputs(graded: GradedSubmission, rubric, *, public_only: bool) -> None:
-    from grader.report import write_submission_outputs
+    from grader.grading.outputs import write_submission_outputs
 
     write_submission_outputs(graded, rubric, public_only=public_only)

@@ -96,6 +96,7 @@ class Driver:
         self._tail_rest: dict[Path, bytes] = {}
         self._exited: set[str] = set()
         self.lines: dict[str, list[str]] = {}      # process -> output lines seen so far
+        self._watch: set[str] = set()              # topics to count once they appear
         self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
                                       self._on_rosout, QoSProfile(depth=1000))
         self.node.create_timer(0.05, self._tail_outputs)
@@ -128,7 +129,9 @@ class Driver:
             self.counts["/rosout:student"] = self.counts.get("/rosout:student", 0) + 1
 
     def _tail_outputs(self) -> None:
-        """Publish new student output lines; notice process exits."""
+        """Publish new student output lines; notice process exits; subscribe watched topics."""
+        for topic in list(self._watch):
+            self.count_messages(topic, None, wait_s=0.0)
         for name, proc in list(self.processes.items()):
             for stream, path in (("stdout", proc.stdout_path), ("stderr", proc.stderr_path)):
                 try:
@@ -178,13 +181,19 @@ class Driver:
             self._import("turtlesim/msg/Pose"), topic, on_pose,
             QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
 
-    def count_messages(self, topic: str, type_name: str | None) -> None:
-        """Count messages on ``topic`` (type from the step, else from the graph)."""
+    def count_messages(self, topic: str, type_name: str | None, wait_s: float = 3.0) -> None:
+        """Count messages on ``topic`` (type from the step, else from the graph).
+
+        Without a type and before the topic exists, the topic is remembered and the subscription
+        is made by the tail timer as soon as a publisher appears.
+        """
         if topic in self._subs:
             return
-        type_name = type_name or self.topic_type(topic, wait_s=3.0)
+        type_name = type_name or self.topic_type(topic, wait_s=wait_s)
         if not type_name:
+            self._watch.add(topic)
             return
+        self._watch.discard(topic)
         self.counts.setdefault(topic, 0)
 
         def on_msg(_msg: Any) -> None:
@@ -228,12 +237,35 @@ class Driver:
         self.event("graph", publishers=pubs, subscribers=subs)
 
     # -- readiness -------------------------------------------------------------------------
+    @staticmethod
+    def _others(infos) -> list[str]:
+        """Endpoint owners that are not the grader itself (recorder, driver)."""
+        return [i.node_name for i in infos if not i.node_name.startswith(GRADER_NODE_PREFIX)]
+
+    def student_nodes(self) -> set[tuple[str, str]]:
+        return {(n, ns) for n, ns in self.node.get_node_names_and_namespaces()
+                if not n.startswith(GRADER_NODE_PREFIX) and n != "turtlesim"}
+
+    def recorder_matched(self, name_ns: tuple[str, str]) -> bool:
+        """Every topic the node publishes has a grader subscriber (the recorder) matched."""
+        try:
+            topics = self.node.get_publisher_names_and_types_by_node(*name_ns)
+        except Exception:  # noqa: BLE001 - node vanished
+            return True
+        for topic, _types in topics:
+            if topic in ("/rosout", "/parameter_events"):
+                continue
+            subs = self.node.get_subscriptions_info_by_topic(topic)
+            if not any(i.node_name.startswith(GRADER_NODE_PREFIX) for i in subs):
+                return False
+        return True
+
     def is_ready(self, ready: dict[str, str]) -> bool:
         """``{subscriber: topic}``, ``{publisher: topic}``, ``{action_server: name}``, ``{service: name}``."""
         node = self.node
-        if "subscriber" in ready and node.count_subscribers(ready["subscriber"]) < 1:
+        if "subscriber" in ready and not self._others(node.get_subscriptions_info_by_topic(ready["subscriber"])):
             return False
-        if "publisher" in ready and node.count_publishers(ready["publisher"]) < 1:
+        if "publisher" in ready and not self._others(node.get_publishers_info_by_topic(ready["publisher"])):
             return False
         if "action_server" in ready:
             name = ready["action_server"].rstrip("/")

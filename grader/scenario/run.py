@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import signal
 import sys
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -32,6 +33,20 @@ class _EventedProcess(ManagedProcess):
     def on_stdin_line(self, text: str) -> None:
         if self.driver is not None:
             self.driver.event("stdin_line", process=self.name, line=text, delivered=True)
+
+
+def _open_gate(driver, proc: ManagedProcess, before: set, gate: threading.Event) -> None:
+    """Let the stdin script start once the process's node is up and its topics are recorded."""
+    deadline = time.monotonic() + 15.0
+    new: set = set()
+    while time.monotonic() < deadline and proc.alive():
+        new = driver.student_nodes() - before
+        if new and all(driver.recorder_matched(n) for n in new):
+            time.sleep(0.3)
+            break
+        time.sleep(0.05)
+    driver.event("stdin_ready", process=proc.name, nodes=sorted("/".join(n[::-1]).replace("//", "/") for n in new))
+    gate.set()
 
 
 def _wait_for_text(proc: ManagedProcess, text: str, timeout_s: float) -> bool:
@@ -100,11 +115,16 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
                     limits = Limits(wall_s=limits.wall_s, cpu_s=node.cpu_s or limits.cpu_s,
                                     address_space_mb=node.memory_mb or limits.address_space_mb,
                                     nproc=limits.nproc, nofile=limits.nofile)
+                gate = threading.Event() if script else None
+                before = driver.student_nodes()
                 proc = graph.start(ProcessSpec(
                     node.name, node.argv + node.ros_args(), env=node.env or None,
                     stdin=script if (script or node.stdin) else None, close_stdin=node.stdin_close,
-                    limits=limits), process_class=_EventedProcess)
+                    limits=limits), process_class=_EventedProcess, stdin_gate=gate)
                 proc.driver = driver
+                if gate is not None:
+                    threading.Thread(target=_open_gate, args=(driver, proc, before, gate),
+                                     daemon=True).start()
                 students[node.name] = proc
                 driver.event("node_started", process=node.name, package=node.package,
                              executable=node.executable, module=node.module, argv=node.argv[3:])

@@ -83,8 +83,8 @@ def prepare(driver: Driver, steps: list[Step]) -> None:
         if step.replay:
             driver.publisher(step.replay["topic"], step.replay.get("type", "std_msgs/msg/Float32MultiArray"))
         msgs = (step.until or {}).get("messages")
-        if msgs and msgs.get("type"):
-            driver.count_messages(msgs["topic"], msgs.get("type"))
+        if msgs:
+            driver.count_messages(msgs["topic"], msgs.get("type"), wait_s=0.0)
 
 
 def _do_publish(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
@@ -233,7 +233,7 @@ def run_step(driver: Driver, step: Step, ctx: dict[str, Any]) -> StepOutcome:
     until = step.until or {}
     msgs = until.get("messages")
     if msgs:
-        driver.count_messages(msgs["topic"], msgs.get("type"))
+        driver.count_messages(msgs["topic"], msgs.get("type"), wait_s=0.0)
         ctx.setdefault("message_base", {})[msgs["topic"]] = driver.counts.get(msgs["topic"], 0)
     start_wall, t0 = time.time(), time.monotonic()
     driver.event("step_start", step=step.id, action=action)

@@ -1,0 +1,206 @@
+"""Analyzers: pure functions ``(frames, params) -> Finding`` that turn a recorded bag into evidence.
+
+Why pure: every grade must be recomputable from its bag alone, offline, in milliseconds, and
+testable on synthetic DataFrames. So analyzers only read the ``frames`` dict produced by
+``grader.bag.frames.load_frames`` (plus its ``"__meta__"`` frame) and never import rclpy.
+
+Registry
+--------
+``@register("name", defaults={...})`` records an analyzer and the parameters it accepts. The
+registered callable merges the caller's ``params`` over those defaults and rejects unknown keys
+(a misspelt rubric parameter must not silently fall back to a default). ``get(name)`` returns the
+registered callable, ``names()`` lists them, ``defaults(name)`` shows the accepted parameters (the
+rubric loader can validate YAML against it), and ``run(name, frames, params)`` never raises: an
+analyzer crash becomes a ``Finding`` with status ``"error"``.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import importlib
+import math
+import traceback
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable, Mapping
+
+import numpy as np
+import pandas as pd
+
+from grader.errors import GraderError
+
+__all__ = ["Finding", "register", "get", "names", "defaults", "run", "jsonable", "STATUSES"]
+
+STATUSES = ("pass", "partial", "fail", "error")
+
+# Modules whose import registers analyzers. Imported lazily by get()/names() so that importing
+# grader.analyze itself stays cheap and free of import cycles.
+_MODULES = (
+    "rate",
+    "random_numbers",
+    "boxmuller",
+    "controller",
+    "goal_publisher",
+    "action_server",
+    "integrity",
+)
+
+Frames = Mapping[str, pd.DataFrame]
+AnalyzerFn = Callable[[Frames, dict], "Finding"]
+
+_REGISTRY: dict[str, AnalyzerFn] = {}
+_DEFAULTS: dict[str, dict[str, Any]] = {}
+_loaded = False
+
+
+def jsonable(obj: Any) -> Any:
+    """Convert numpy/pandas values to plain JSON types; NaN and infinities become None.
+
+    Evidence goes straight into result.json and the HTML report, so it must serialise with the
+    standard ``json`` module and never contain NaN (which is not valid JSON).
+    """
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, set)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return [jsonable(v) for v in obj.tolist()]
+    if isinstance(obj, pd.DataFrame):
+        return [jsonable(r) for r in obj.to_dict(orient="records")]
+    if isinstance(obj, pd.Series):
+        return jsonable(obj.to_dict())
+    if obj is pd.NA or obj is pd.NaT:
+        return None
+    return str(obj)
+
+
+@dataclass
+class Finding:
+    """What one analyzer concluded about one rubric item.
+
+    value: headline measurement (e.g. 0.998 Hz, "58/60 matched").
+    fraction: 0.0..1.0 of the item's points earned (partial credit).
+    status: "pass" | "partial" | "fail" | "error" (error = analysis impossible, not the student's
+        fault as far as we can tell, e.g. the scenario produced no events).
+    feedback: one or two sentences for the student.
+    evidence: numbers/tables that justify it (JSON-serialisable; normalised on construction).
+    """
+
+    value: Any
+    fraction: float
+    status: str
+    feedback: str
+    evidence: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ValueError(f"Finding.status must be one of {STATUSES}, got {self.status!r}")
+        f = float(self.fraction)
+        if not math.isfinite(f):
+            f = 0.0
+        self.fraction = min(1.0, max(0.0, f))
+        self.value = jsonable(self.value)
+        self.evidence = jsonable(dict(self.evidence or {}))
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def error(cls, feedback: str, evidence: dict | None = None, value: Any = None) -> "Finding":
+        """Analysis impossible (scenario failed, input missing for reasons outside the student's code)."""
+        return cls(value=value, fraction=0.0, status="error", feedback=feedback, evidence=evidence or {})
+
+    @classmethod
+    def fail(cls, feedback: str, evidence: dict | None = None, value: Any = None) -> "Finding":
+        return cls(value=value, fraction=0.0, status="fail", feedback=feedback, evidence=evidence or {})
+
+
+def graded(fraction: float, *, pass_at: float = 1.0 - 1e-9) -> str:
+    """Status that matches a fraction: pass (full), partial (some), fail (none)."""
+    if fraction >= pass_at:
+        return "pass"
+    if fraction > 0.0:
+        return "partial"
+    return "fail"
+
+
+def register(name: str, defaults: Mapping[str, Any] | None = None) -> Callable[[AnalyzerFn], AnalyzerFn]:
+    """Register an analyzer under ``name`` with the parameters it accepts and their defaults."""
+    dflt = dict(defaults or {})
+
+    def deco(fn: AnalyzerFn) -> AnalyzerFn:
+        if name in _REGISTRY:
+            raise ValueError(f"analyzer {name!r} registered twice")
+
+        @functools.wraps(fn)
+        def wrapper(frames: Frames, params: Mapping[str, Any] | None = None) -> Finding:
+            given = dict(params or {})
+            unknown = sorted(set(given) - set(dflt))
+            if unknown:
+                raise GraderError(
+                    f"analyzer {name!r}: unknown parameter(s) {', '.join(unknown)}; "
+                    f"accepted: {', '.join(sorted(dflt)) or '(none)'}"
+                )
+            merged = {**copy.deepcopy(dflt), **given}   # analyzers may not mutate shared defaults
+            return fn(frames, merged)
+
+        wrapper.analyzer_name = name  # type: ignore[attr-defined]
+        wrapper.defaults = dict(dflt)  # type: ignore[attr-defined]
+        _REGISTRY[name] = wrapper
+        _DEFAULTS[name] = dict(dflt)
+        return wrapper
+
+    return deco
+
+
+def _load_all() -> None:
+    global _loaded
+    if _loaded:
+        return
+    for mod in _MODULES:
+        importlib.import_module(f"{__name__}.{mod}")
+    _loaded = True
+
+
+def get(name: str) -> AnalyzerFn:
+    """The registered analyzer ``name``; GraderError naming the known ones if there is none."""
+    _load_all()
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise GraderError(f"unknown analyzer {name!r}; known: {', '.join(sorted(_REGISTRY))}") from None
+
+
+def names() -> list[str]:
+    _load_all()
+    return sorted(_REGISTRY)
+
+
+def defaults(name: str) -> dict[str, Any]:
+    """Accepted parameters of analyzer ``name`` with their default values."""
+    get(name)
+    return copy.deepcopy(_DEFAULTS[name])
+
+
+def run(name: str, frames: Frames, params: Mapping[str, Any] | None = None) -> Finding:
+    """Run an analyzer; any exception becomes an "error" Finding (a grade never dies on one item)."""
+    try:
+        fn = get(name)
+        return fn(frames, dict(params or {}))
+    except GraderError as exc:
+        return Finding.error(f"Analyzer configuration problem: {exc}", {"analyzer": name})
+    except Exception as exc:  # noqa: BLE001 - deliberately total
+        tb = traceback.format_exception(type(exc), exc, exc.__traceback__)
+        return Finding.error(
+            f"Internal analyzer error in {name!r}: {type(exc).__name__}: {exc}",
+            {"analyzer": name, "traceback": "".join(tb[-6:])},
+        )

@@ -1,0 +1,344 @@
+"""Exercise 3: the turtle_goal action server (turtle_control_interfaces/action/SendGoal).
+
+The driver's own action client emits ``action_goal_sent`` (goal, goal_tol, time_out),
+``action_goal_response`` (accepted) and ``action_result`` (status, result.success) events; the
+turtle's poses show whether a reported success is real. Events are paired by ``goal_id``/``id``
+when the driver provides one, else in order (responses answer goals in the order they were sent,
+results answer accepted goals in order), which does not depend on the driver waiting between goals.
+
+Bounds: the world is [0, 11.088889]^2. The lab's template rejects goals outside [0, 11], so goals
+inside [0, ``inner_bound``] must be accepted and reached, goals outside [0, ``outer_bound``] must be
+rejected, and the thin band in between is not judged.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from grader.analyze import Finding, graded, register
+from grader.analyze._common import (WORLD_MAX, Frames, events, goal_xy, meta, parse_xy_line,
+                                    rosout_lines, stdout_lines, times, topic)
+
+_STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
+_ID_KEYS = ("goal_id", "id", "request_id")
+
+INNER = 11.0          # goals inside [0, inner_bound]^2 must be accepted and reached
+OUTER = WORLD_MAX     # goals outside [0, outer_bound]^2 must be rejected
+SHORT_TIMEOUT = 5.0   # a goal with 0 < time_out <= short_timeout_s is the "timeout" probe
+
+
+def _field(e: dict, *keys: str) -> Any:
+    for k in keys:
+        if k in e:
+            return e[k]
+        g = e.get("goal")
+        if isinstance(g, dict) and k in g:
+            return g[k]
+        r = e.get("request")
+        if isinstance(r, dict) and k in r:
+            return r[k]
+    return None
+
+
+def _status_name(s: Any) -> str | None:
+    if s is None:
+        return None
+    if isinstance(s, (int, float)) and not isinstance(s, bool):
+        return _STATUS.get(int(s), str(s))
+    return str(s).upper().replace("STATUS_", "")
+
+
+def action_goals(frames: Frames) -> list[dict]:
+    """Goals sent to the action server with their response and result, in send order."""
+    ev = events(frames, ("action_goal_sent", "action_goal_response", "action_result"))
+    goals_: list[dict] = []
+    wait_resp: list[dict] = []
+    wait_res: list[dict] = []
+    for e in ev:
+        kind = e["event"]
+        gid = next((str(e[k]) for k in _ID_KEYS if e.get(k) is not None), None)
+        if kind == "action_goal_sent":
+            xy = goal_xy(e.get("goal")) or goal_xy(e.get("request")) or goal_xy(e)
+            tol = _field(e, "goal_tol")
+            to = _field(e, "time_out", "timeout")
+            g = {"t_sent": e["t"], "x": xy[0] if xy else None, "y": xy[1] if xy else None,
+                 "goal_tol": float(tol) if tol is not None else None,
+                 "time_out": float(to) if to is not None else None,
+                 "label": str(e.get("label") or e.get("purpose") or e.get("name") or ""),
+                 "id": gid, "accepted": None, "t_response": None, "status": None, "success": None,
+                 "t_result": None}
+            goals_.append(g)
+            wait_resp.append(g)
+        elif kind == "action_goal_response":
+            # the oldest goal still waiting with the same id (ids may repeat), else the oldest one
+            g = next((c for c in wait_resp if gid is not None and c["id"] == gid), None) or \
+                next(iter(wait_resp), None)
+            if g is None:
+                continue
+            if g in wait_resp:
+                wait_resp.remove(g)
+            g["accepted"] = bool(e.get("accepted"))
+            g["t_response"] = e["t"]
+            if g["accepted"]:
+                wait_res.append(g)
+        else:
+            g = next((c for c in wait_res if gid is not None and c["id"] == gid), None) or \
+                next(iter(wait_res), None)
+            if g is None:
+                continue
+            if g in wait_res:
+                wait_res.remove(g)
+            res = e.get("result")
+            succ = res.get("success") if isinstance(res, dict) else e.get("success")
+            g["success"] = None if succ is None else bool(succ)
+            g["status"] = _status_name(e.get("status"))
+            g["t_result"] = e["t"]
+    return goals_
+
+
+def _in_box(g: dict, hi: float) -> bool:
+    return g["x"] is not None and 0.0 <= g["x"] <= hi and 0.0 <= g["y"] <= hi
+
+
+def _is_timeout_probe(g: dict, p: dict) -> bool:
+    if "timeout" in g["label"].lower():
+        return True
+    return g["time_out"] is not None and 0 < g["time_out"] <= p["short_timeout_s"]
+
+
+def _pose_at(frames: Frames, pose_topic: str, t: float) -> tuple[float, float] | None:
+    df = topic(frames, pose_topic)
+    if df is None:
+        return None
+    i = int(np.searchsorted(times(df), t, side="right")) - 1
+    if i < 0:
+        return None
+    return float(df["x"].iloc[i]), float(df["y"].iloc[i])
+
+
+def _no_action_events(frames: Frames) -> Finding:
+    if topic(frames, "/grader/events") is None:
+        return Finding.error("/grader/events was not recorded: the action scenario did not run (scenario problem).")
+    missing = events(frames, "action_server_missing")
+    if missing and not events(frames, "action_goal_sent"):
+        name = missing[0].get("action") or "turtle_goal"
+        return Finding.fail(f"No goal could be sent because the action server {name} was never found: "
+                            "start the ActionServer in your node and keep spinning it.",
+                            {"action_server_missing": len(missing)})
+    return Finding.error("The scenario sent no action goals of this kind, so this item could not be tested.")
+
+
+@register("action_advertised", defaults={"action_name": "/turtle_goal"})
+def action_advertised(frames: Frames, p: dict) -> Finding:
+    """The action server is advertised under the expected name (``ros2 action list`` shows it)."""
+    name = "/" + str(p["action_name"]).lstrip("/")
+    found_ev = events(frames, ("action_server_found", "action_server_not_found", "action_server_missing"))
+    ev: dict = {"action": name, "events": [{k: v for k, v in e.items()} for e in found_ev[:5]]}
+    for e in found_ev:
+        ok = e["event"] == "action_server_found" and bool(e.get("found", e.get("available", True)))
+        act = e.get("action") or e.get("name")
+        if ok and (act is None or "/" + str(act).lstrip("/") == name):
+            return Finding(name, 1.0, "pass", f"The action server {name} was found on the ROS graph.", ev)
+    m = meta(frames)
+    action_topics = []
+    if m is not None:
+        action_topics = [str(t) for t in m["topic"] if "/_action/" in str(t)]
+        ours = [t for t in action_topics if t.startswith(name + "/_action/")]
+        ev["action_topics"] = action_topics
+        if ours:
+            return Finding(name, 1.0, "pass", f"The action server {name} is advertised ({ours[0]} seen).", ev)
+    if any(e["event"] != "action_server_found" for e in found_ev) and not any(
+            e["event"] == "action_server_found" for e in found_ev):
+        return Finding.fail(f"The grader waited for the action server {name} but it never appeared: create "
+                            f"ActionServer(..., action_name=\"{name.lstrip('/')}\", ...) and spin the node "
+                            "(MultiThreadedExecutor as in the template).", ev)
+    if any(g["accepted"] is not None for g in action_goals(frames)):
+        return Finding(name, 1.0, "pass", f"The action server {name} answered goal requests.", ev)
+    if topic(frames, "/grader/events") is None and m is None:
+        return Finding.error("Neither events nor topic metadata were recorded (scenario problem).", ev)
+    other = sorted({t.split("/_action/")[0] for t in action_topics} - {name})
+    hint = f" Other actions seen: {', '.join(other)}." if other else ""
+    return Finding.fail(f"No action server {name} was found: create ActionServer(..., action_name="
+                        f"\"{name.lstrip('/')}\", ...) and keep the node spinning.{hint}", ev)
+
+
+@register("action_goals_succeed", defaults={
+    "inner_bound": INNER,
+    "short_timeout_s": SHORT_TIMEOUT,
+    "pose_topic": "/turtle1/pose",
+    "default_goal_tol": 0.1,   # when the event does not say which goal_tol was sent
+    "pos_slack": 0.05,         # m added to goal_tol when checking the pose at result time
+})
+def action_goals_succeed(frames: Frames, p: dict) -> Finding:
+    """Reachable goals are accepted and end with success=True with the turtle really within goal_tol."""
+    gs = [g for g in action_goals(frames) if _in_box(g, p["inner_bound"]) and not _is_timeout_probe(g, p)]
+    if not gs:
+        return _no_action_events(frames)
+    rows, ok_n = [], 0
+    for k, g in enumerate(gs, 1):
+        tol = g["goal_tol"] if g["goal_tol"] else p["default_goal_tol"]
+        row = {"goal": [g["x"], g["y"]], "goal_tol": tol, "accepted": g["accepted"], "success": g["success"],
+               "status": g["status"],
+               "duration_s": (g["t_result"] - g["t_sent"]) if g["t_result"] is not None else None}
+        problem = None
+        if g["accepted"] is None:
+            problem = "no response from the server"
+        elif not g["accepted"]:
+            problem = "rejected although it is inside the world"
+        elif g["t_result"] is None:
+            problem = "accepted but no result ever came back"
+        else:
+            pos = _pose_at(frames, p["pose_topic"], g["t_result"])
+            dist = math.hypot(pos[0] - g["x"], pos[1] - g["y"]) if pos else None
+            row["distance_at_result"] = dist
+            if not g["success"]:
+                problem = f"result success=False (status {g['status']})"
+            elif dist is not None and dist > tol + p["pos_slack"]:
+                problem = f"reported success but the turtle was {dist:.2f} m away (goal_tol {tol:g})"
+        row["ok"] = problem is None
+        row["problem"] = problem
+        ok_n += problem is None
+        rows.append(row)
+    frac = ok_n / len(gs)
+    ev = {"goals": rows}
+    value = f"{ok_n}/{len(gs)} succeeded"
+    if ok_n == len(gs):
+        return Finding(value, 1.0, "pass", f"All {len(gs)} reachable goals were accepted and reached.", ev)
+    bad = next(r for r in rows if not r["ok"])
+    hint = ""
+    if "away" in (bad["problem"] or ""):
+        hint = " Compute d_e as the distance to the goal and break only when d_e <= goal_tol."
+    elif bad["success"] is False:
+        hint = " Fill in theta_e (eq. 3) and d_e (eq. 2) in execute_callback so the loop reaches the goal."
+    return Finding(value, frac, graded(frac),
+                   f"Goal ({bad['goal'][0]:g}, {bad['goal'][1]:g}): {bad['problem']}.{hint}", ev)
+
+
+@register("action_rejects_out_of_bounds", defaults={"outer_bound": OUTER})
+def action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
+    """Goals outside the world are rejected in goal_callback (GoalResponse.REJECT)."""
+    gs = [g for g in action_goals(frames) if g["x"] is not None and not _in_box(g, p["outer_bound"])]
+    if not gs:
+        return _no_action_events(frames)
+    rows = [{"goal": [g["x"], g["y"]], "accepted": g["accepted"], "success": g["success"]} for g in gs]
+    ok_n = sum(1 for g in gs if g["accepted"] is False)
+    ev = {"goals": rows, "outer_bound": p["outer_bound"]}
+    frac = ok_n / len(gs)
+    value = f"{ok_n}/{len(gs)} rejected"
+    if ok_n == len(gs):
+        return Finding(value, 1.0, "pass", f"All {len(gs)} out-of-bounds goals were rejected.", ev)
+    bad = next(g for g in gs if g["accepted"] is not False)
+    what = "got no response" if bad["accepted"] is None else "was accepted"
+    return Finding(value, frac, graded(frac),
+                   f"Goal ({bad['x']:g}, {bad['y']:g}) is outside the world [0, {p['outer_bound']:.2f}] but {what}: "
+                   "in goal_callback return GoalResponse.REJECT when x or y is outside the world.", ev)
+
+
+@register("action_timeout", defaults={
+    "outer_bound": OUTER,
+    "short_timeout_s": SHORT_TIMEOUT,
+    "pose_topic": "/turtle1/pose",
+    "grace_s": 3.0,            # s after time_out within which success=False must arrive
+    "late_credit": 0.5,        # success=False, but later than time_out + grace_s
+    "default_goal_tol": 0.1,
+})
+def action_timeout(frames: Frames, p: dict) -> Finding:
+    """A goal with a short time_out ends with success=False soon after its time_out (advisory).
+
+    Note the template's loop condition ``T1 - now <= timeout`` is always true (T1 - now is
+    negative); a server that never times out is the typical finding here.
+    """
+    gs = [g for g in action_goals(frames) if _in_box(g, p["outer_bound"]) and _is_timeout_probe(g, p)]
+    if not gs:
+        return _no_action_events(frames)
+    g = gs[0]
+    to = g["time_out"] or p["short_timeout_s"]
+    ev = {"goal": [g["x"], g["y"]], "time_out": g["time_out"], "accepted": g["accepted"], "success": g["success"],
+          "status": g["status"], "duration_s": (g["t_result"] - g["t_sent"]) if g["t_result"] else None}
+    if g["accepted"] is not True:
+        return Finding("not accepted", 0.0, "fail",
+                       f"The short-timeout goal ({g['x']:g}, {g['y']:g}) was {'rejected' if g['accepted'] is False else 'not answered'}; "
+                       "it is inside the world and must be accepted.", ev)
+    if g["t_result"] is None:
+        return Finding("no result", 0.0, "fail",
+                       f"The goal with time_out={to:g} s never returned a result: end the loop when the elapsed time "
+                       "(now - T1) exceeds the timeout and return success=False.", ev)
+    dur = g["t_result"] - g["t_sent"]
+    late = dur > to + p["grace_s"]
+    if g["success"]:
+        pos = _pose_at(frames, p["pose_topic"], g["t_result"])
+        tol = g["goal_tol"] or p["default_goal_tol"]
+        if not late and pos and math.hypot(pos[0] - g["x"], pos[1] - g["y"]) <= tol + 0.05:
+            return Finding("reached in time", 1.0, "pass",
+                           f"The goal was genuinely reached within its time_out ({dur:.1f} s of {to:g} s).", ev)
+        return Finding(f"success after {dur:.1f} s", 0.0, "fail",
+                       f"The goal with time_out={to:g} s ran {dur:.1f} s and reported success: the timeout is not "
+                       "enforced. In the template, 'T1 - self.get_clock().now() <= timeout' is always true; "
+                       "compare self.get_clock().now() - T1 with the timeout.", ev)
+    if late:
+        return Finding(f"success=False after {dur:.1f} s", p["late_credit"], graded(p["late_credit"]),
+                       f"The goal returned success=False but only after {dur:.1f} s (time_out {to:g} s).", ev)
+    return Finding(f"success=False after {dur:.1f} s", 1.0, "pass",
+                   f"The goal timed out after {dur:.1f} s (time_out {to:g} s) with success=False.", ev)
+
+
+@register("action_client_rejected", defaults={
+    "outer_bound": OUTER,
+    "process": None,                              # runner process name of the given client
+    "client_logger": "turtle_controller_client_node",
+    "reject_pattern": "reject",
+})
+def action_client_rejected(frames: Frames, p: dict) -> Finding:
+    """The given client reports a rejected goal and keeps accepting input afterwards (advisory).
+
+    Why advisory: the client is given code; this item shows whether the student's server answers
+    a rejection in a way the client can handle (a server that never responds makes it hang).
+    """
+    stdin = events(frames, "stdin_line")
+    procs = [e.get("process") for e in stdin]
+    proc = p["process"] or next((q for q in procs if q and "client" in str(q).lower()), procs[0] if procs else None)
+    lines = [e for e in stdin if e.get("process") == proc]
+    if not lines:
+        return Finding.error("No lines were typed into the action client, so its behaviour on a rejected goal "
+                             "could not be tested.")
+    oob = [e for e in lines if (xy := parse_xy_line(e.get("line", ""))) is not None and
+           not (0 <= xy[0] <= p["outer_bound"] and 0 <= xy[1] <= p["outer_bound"])]
+    if not oob:
+        return Finding.error("No out-of-bounds goal was typed into the client.", {"process": proc})
+    b = oob[0]
+    later = [e for e in lines if e["t"] > b["t"]]
+    ro = rosout_lines(frames)
+    so = stdout_lines(frames)
+    texts: list[tuple[float, str]] = []
+    if len(ro):
+        r = ro[ro["logger"].str.lstrip("/") == str(p["client_logger"]).lstrip("/")]
+        texts += list(zip(r["time"].tolist(), r["text"].tolist()))
+    if len(so):
+        s = so[so["process"] == str(proc)]
+        texts += list(zip(s["time"].tolist(), s["text"].tolist()))
+    texts.sort()
+    t_end_window = later[0]["t"] if later else np.inf
+    rej = [tx for t, tx in texts if b["t"] - 0.05 <= t <= t_end_window + 0.5 and p["reject_pattern"] in tx.lower()]
+    exits = [e for e in events(frames, "process_exit") if e.get("process") == proc and e["t"] > b["t"]]
+    ev: dict = {"process": proc, "oob_line": b.get("line"), "reject_lines": rej[:3],
+                "exit_events": [{"t": e["t"], "returncode": e.get("returncode")} for e in exits]}
+    responsive = None
+    if later:
+        t2 = later[0]["t"]
+        after = [tx for t, tx in texts if t > t2 and tx.strip() and "goal position" not in tx.lower()]
+        responsive = bool(after)
+        ev["output_after_next_line"] = after[:3]
+    ev["responsive_after"] = responsive
+    if not rej:
+        return Finding("no rejection message", 0.0, "fail",
+                       f"After the out-of-bounds goal '{b.get('line')}' the client never reported 'Goal Rejected': "
+                       "your server must answer with GoalResponse.REJECT from goal_callback.", ev)
+    if responsive is False:
+        return Finding("hangs", 0.5, "partial",
+                       "The client reported the rejection but did not react to the next goal afterwards.", ev)
+    return Finding("rejected, responsive", 1.0, "pass",
+                   f"The client reported the rejection of '{b.get('line')}'"
+                   + (" and kept working." if responsive else "."), ev)

@@ -1,0 +1,319 @@
+"""Exercise 2: the turtle_control_node P-controller (v = K1 d_e, w = K2 theta_e at ~33 Hz).
+
+Goals come from ``goal_sent`` events on /grader/events (the driver publishes them) or, when the
+scenario has none, from the Float32MultiArray messages on /turtle1/goal. A goal is active from
+its send time until the next goal (or the end of the recording).
+
+* ``goals_reached``: the lab's controller has no stopping tolerance; the turtle approaches the goal
+  asymptotically, so "reached" means the distance fell below ``tol_reached`` within the time
+  limit. It should then hold there and stop (commanded speed ~0, position steady).
+* ``turn_direction``: with the wrapped theta_e of eq. (3) the turtle always turns the short way;
+  a missing wrap (atan2(dy, dx) - theta) makes it turn the long way when the difference crosses
+  +-pi, and a wrong sign makes it turn away.
+* ``control_law``: the gains and form of the law, estimated from the bag: each cmd_vel is paired
+  with the latest pose recorded before it and the active goal; linear.x ~ K1 d_e and
+  angular.z ~ K2 theta_e are fitted by least squares without intercept.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from grader.analyze import Finding, graded, register
+from grader.analyze._common import (Frames, Goal, events, fmt, goals, heading_error, sentence,
+                                    missing_topic_feedback, fit_gain, times, topic)
+
+_GOAL_DEFAULTS = {
+    "pose_topic": "/turtle1/pose",
+    "goal_source": "auto",          # "auto" (events, else topic) | "events" | "topic"
+    "goal_topic": "/turtle1/goal",
+}
+
+
+def _pose(frames: Frames, p: dict) -> pd.DataFrame | None:
+    df = topic(frames, p["pose_topic"])
+    if df is None or not {"x", "y", "theta"} <= set(df.columns):
+        return None
+    return df
+
+
+def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[Goal]:
+    gl = goals(frames, p["goal_source"], p["goal_topic"])
+    t_last = float(pose.index.max())
+    ends = {e.get("step"): e["t"] for e in events(frames, "step_end") if e.get("step") is not None}
+    scen_end = [e["t"] for e in events(frames, "scenario_end")]
+    for g in gl:
+        cands = [t_last]
+        if math.isfinite(g.t_end):
+            cands.append(g.t_end)
+        step = g.extra.get("step")
+        if step is not None and step in ends and ends[step] > g.t:
+            cands.append(ends[step])
+        if scen_end:
+            cands.append(scen_end[-1])
+        g.t_end = min(cands)
+    return gl
+
+
+def _no_goals(frames: Frames, p: dict) -> Finding:
+    if topic(frames, "/grader/events") is None and topic(frames, p["goal_topic"]) is None:
+        return Finding.error("The scenario recorded neither /grader/events nor "
+                             f"{p['goal_topic']}: no goals to evaluate (scenario problem).")
+    return Finding.error(f"No goals were sent in this scenario (no goal_sent events, nothing on "
+                         f"{p['goal_topic']}).")
+
+
+def _no_pose(frames: Frames, p: dict) -> Finding:
+    return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator")
+                         + " Without poses the controller cannot be evaluated (scenario problem).")
+
+
+@register("goals_reached", defaults={
+    **_GOAL_DEFAULTS,
+    "tol_reached": 0.1,      # m: distance below which a goal counts as reached
+    "tol_final": 0.15,       # m: distance at the end of the goal's time window (held, not left)
+    "time_limit_s": None,    # s after the goal was sent; None = until the next goal / the end
+    "settle_s": 1.0,         # s at the end of the window examined for "stopped"
+    "v_stop": 0.1,           # m/s: commanded speed (pose.linear_velocity) counted as stopped
+    "steady_tol": 0.05,      # m: max displacement during settle_s counted as steady
+    "stop_weight": 0.25,     # share of each goal's credit for holding/stopping after reaching it
+})
+def goals_reached(frames: Frames, p: dict) -> Finding:
+    """Per goal: reached within tolerance and time, time to reach, final error, stopped afterwards."""
+    pose = _pose(frames, p)
+    if pose is None:
+        return _no_pose(frames, p)
+    gl = _goals_with_end(frames, p, pose)
+    if not gl:
+        return _no_goals(frames, p)
+    t = times(pose)
+    x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
+    v = pose["linear_velocity"].to_numpy(float) if "linear_velocity" in pose.columns else None
+    rows = []
+    score = 0.0
+    for k, g in enumerate(gl, 1):
+        m = (t >= g.t) & (t <= g.t_end)
+        row = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
+        if m.sum() < 2:
+            row.update(reached=False, note="no poses recorded while this goal was active")
+            rows.append(row)
+            continue
+        tt, d = t[m], np.hypot(x[m] - g.x, y[m] - g.y)
+        limit = g.t + p["time_limit_s"] if p["time_limit_s"] else g.t_end
+        hit = np.nonzero((d < p["tol_reached"]) & (tt <= limit))[0]
+        reached = len(hit) > 0
+        row.update(start_distance=float(d[0]), min_distance=float(d.min()), final_error=float(d[-1]),
+                   reached=reached, time_to_reach=float(tt[hit[0]] - g.t) if reached else None)
+        settle = tt >= tt[-1] - p["settle_s"]
+        disp = float(np.max(np.hypot(x[m][settle] - x[m][-1], y[m][settle] - y[m][-1])))
+        vmax = float(np.max(np.abs(v[m][settle]))) if v is not None else None
+        stopped = disp <= p["steady_tol"] and (vmax is None or vmax <= p["v_stop"])
+        held = d[-1] <= p["tol_final"]
+        row.update(settle_displacement=disp, settle_max_speed=vmax, stopped=bool(stopped), held=bool(held))
+        score += (1 - p["stop_weight"]) * reached + p["stop_weight"] * (reached and held and stopped)
+        rows.append(row)
+    frac = score / len(gl)
+    n_reached = sum(1 for r in rows if r.get("reached"))
+    ev = {"goals": rows, "tol_reached": p["tol_reached"], "goal_source": gl[0].source}
+    value = f"{n_reached}/{len(gl)} reached"
+    problems = []
+    for r in rows:
+        label = f"goal {r['goal']} ({r['x']:g}, {r['y']:g})"
+        if not r.get("reached"):
+            if "min_distance" in r:
+                problems.append(f"{label}: closest approach {r['min_distance']:.2f} m "
+                                f"(needs < {p['tol_reached']:g} m), final error {r['final_error']:.2f} m")
+            else:
+                problems.append(f"{label}: {r.get('note')}")
+        elif not (r["held"] and r["stopped"]):
+            problems.append(f"{label}: reached after {r['time_to_reach']:.1f} s but did not stay stopped "
+                            f"(final error {r['final_error']:.2f} m, speed {fmt(r['settle_max_speed'])} m/s)")
+    if not problems:
+        times_txt = ", ".join(f"{r['time_to_reach']:.1f} s" for r in rows)
+        return Finding(value, 1.0, "pass", f"All {len(gl)} goals reached and held (time to reach: {times_txt}).", ev)
+    hint = ""
+    if n_reached == 0:
+        hint = (" Check the signs of d_e and theta_e (eq. 2-3), that K1, K2 > 0, and that cmd_vel is "
+                "published on /turtle1/cmd_vel from the timer callback.")
+    return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
+
+
+@register("turn_direction", defaults={
+    **_GOAL_DEFAULTS,
+    "min_turn_deg": 90.0,     # goals whose required turn is at least this are evaluated
+    "wrap_turn_deg": 10.0,    # ... and goals where wrapping changes the turn, if at least this
+    "ambiguous_deg": 10.0,    # within this of 180 deg both directions are accepted
+    "detect_deg": 5.0,        # heading change that marks the initial rotation
+    "cmd_topic": "/turtle1/cmd_vel",
+})
+def turn_direction(frames: Frames, p: dict) -> Finding:
+    """For goals needing a large turn (or where the naive angle difference crosses +-pi), did the
+    turtle start rotating the short way? Judged from the heading in /turtle1/pose (what the turtle
+    did), with the first angular.z on cmd_vel as supporting evidence.
+    """
+    pose = _pose(frames, p)
+    if pose is None:
+        return _no_pose(frames, p)
+    gl = _goals_with_end(frames, p, pose)
+    if not gl:
+        return _no_goals(frames, p)
+    t = times(pose)
+    x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
+    cmd = topic(frames, p["cmd_topic"])
+    rows, judged, good = [], 0, 0
+    for k, g in enumerate(gl, 1):
+        i0 = int(np.searchsorted(t, g.t, side="right")) - 1
+        if i0 < 0:
+            i0 = 0
+        m = (t >= t[i0]) & (t <= g.t_end)
+        if m.sum() < 3:
+            continue
+        req = float(heading_error(x[i0], y[i0], th[i0], g.x, g.y))
+        naive = float(math.atan2(g.y - y[i0], g.x - x[i0]) - th[i0])
+        wrap_matters = abs(naive - req) > 1.0
+        row = {"goal": k, "x": g.x, "y": g.y, "start": [float(x[i0]), float(y[i0]), float(th[i0])],
+               "required_turn_deg": math.degrees(req), "naive_turn_deg": math.degrees(naive),
+               "wrap_matters": bool(wrap_matters)}
+        if not (abs(req) >= math.radians(p["min_turn_deg"]) or
+                (wrap_matters and abs(req) >= math.radians(p["wrap_turn_deg"]))):
+            row["evaluated"] = False
+            rows.append(row)
+            continue
+        row["evaluated"] = True
+        dth = np.unwrap(th[m]) - th[i0]
+        over = np.nonzero(np.abs(dth) >= math.radians(p["detect_deg"]))[0]
+        turn = int(np.sign(dth[over[0]])) if len(over) else 0
+        row["initial_turn"] = {1: "left (CCW)", -1: "right (CW)", 0: "none"}[turn]
+        if cmd is not None and "angular.z" in cmd.columns:
+            ct = times(cmd)
+            w = cmd["angular.z"].to_numpy(float)
+            sel = (ct >= g.t) & (ct <= g.t_end) & (np.abs(w) > 1e-3)
+            row["first_cmd_angular_z"] = float(w[sel][0]) if sel.any() else None
+        ambiguous = abs(req) >= math.pi - math.radians(p["ambiguous_deg"])
+        ok = turn != 0 and (ambiguous or turn == int(np.sign(req)))
+        row.update(ambiguous=bool(ambiguous), short_way=bool(ok))
+        judged += 1
+        good += ok
+        rows.append(row)
+    ev = {"goals": rows}
+    if judged == 0:
+        return Finding.error("No goal in this scenario required a large turn from where the turtle was, "
+                             "so the turn direction could not be judged.", ev)
+    frac = good / judged
+    value = f"{good}/{judged} short way"
+    if good == judged:
+        return Finding(value, 1.0, "pass", f"The turtle turned the short way for all {judged} large-turn goal(s).", ev)
+    bad = [r for r in rows if r.get("evaluated") and not r.get("short_way")]
+    r = bad[0]
+    if r["initial_turn"] == "none":
+        msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle did not turn at all (needed "
+               f"{r['required_turn_deg']:+.0f}°): compute angular.z = K2·theta_e.")
+    else:
+        msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle needed to turn {r['required_turn_deg']:+.0f}° "
+               f"but started turning {r['initial_turn']}, the long way.")
+        if r["wrap_matters"]:
+            msg += (" theta_e must be wrapped to [-π, π]: use eq. (3) with atan2 of the rotated error, "
+                    "not atan2(dy, dx) - theta.")
+        else:
+            msg += " Check the sign of theta_e (eq. 3) and that K2 > 0."
+    return Finding(value, frac, graded(frac), msg, ev)
+
+
+@register("control_law", defaults={
+    **_GOAL_DEFAULTS,
+    "cmd_topic": "/turtle1/cmd_vel",
+    "r2_min": 0.9,            # both fits need at least this R^2 for full credit
+    "min_d": 0.05,            # m: rows closer to the goal are left out of the angular fit (theta_e ill-defined)
+    "skip_after_goal_s": 0.15,  # s after a goal change during which the controller may not know it yet
+    "wrap_margin": 0.05,      # R^2 gain of the unwrapped fit that counts as "better"
+    "min_wrap_rows": 5,       # rows where wrapping changes theta_e, needed to judge the wrap
+    "use_pub_time": True,     # pair cmd_vel by its send time (pub_t) when recorded
+    "min_rows": 20,
+})
+def control_law(frames: Frames, p: dict) -> Finding:
+    """Estimated K1, K2 and R^2 of v = K1 d_e, w = K2 theta_e; flags wrong signs and a missing wrap.
+
+    Credit: half for the linear law (K1 > 0, R^2 >= r2_min), half for the angular law (K2 > 0,
+    R^2 >= r2_min, theta_e wrapped). A right sign with a poor fit earns a quarter.
+    """
+    pose = _pose(frames, p)
+    if pose is None:
+        return _no_pose(frames, p)
+    cmd = topic(frames, p["cmd_topic"])
+    if cmd is None or "linear.x" not in cmd.columns or "angular.z" not in cmd.columns:
+        return Finding.fail(missing_topic_feedback(frames, p["cmd_topic"], "your controller's output"))
+    gl = _goals_with_end(frames, p, pose)
+    if not gl:
+        return _no_goals(frames, p)
+    ct = times(cmd)
+    if p["use_pub_time"] and "pub_t" in cmd.columns:
+        pt = cmd["pub_t"].to_numpy(float)
+        ct = np.where(np.isfinite(pt), pt, ct)
+    c = pd.DataFrame({"t": ct, "v": cmd["linear.x"].to_numpy(float), "w": cmd["angular.z"].to_numpy(float)})
+    c = c.sort_values("t", kind="stable")
+    ps = pd.DataFrame({"t": times(pose), "x": pose["x"].to_numpy(float), "y": pose["y"].to_numpy(float),
+                       "th": pose["theta"].to_numpy(float)}).sort_values("t", kind="stable")
+    gd = pd.DataFrame({"t": [g.t for g in gl], "gx": [g.x for g in gl], "gy": [g.y for g in gl],
+                       "g_end": [g.t_end for g in gl]})
+    j = pd.merge_asof(c, ps, on="t", direction="backward")
+    j = pd.merge_asof(j, gd, on="t", direction="backward")
+    j = j.dropna(subset=["x", "gx"])
+    j = j[(j["t"] <= j["g_end"])]
+    goal_t = gd["t"].to_numpy()
+    since = j["t"].to_numpy() - goal_t[np.searchsorted(goal_t, j["t"].to_numpy(), side="right") - 1]
+    j = j[since >= p["skip_after_goal_s"]]
+    ev: dict = {"rows": int(len(j))}
+    if len(j) < p["min_rows"]:
+        return Finding(len(j), 0.0, "fail",
+                       f"Only {len(j)} cmd_vel message(s) while a goal was active: the controller must publish "
+                       "from its timer callback (every 0.03 s) once it has a pose and a goal.", ev)
+    dx, dy = j["gx"].to_numpy() - j["x"].to_numpy(), j["gy"].to_numpy() - j["y"].to_numpy()
+    th = j["th"].to_numpy()
+    d_e = np.hypot(dx, dy)
+    th_e = heading_error(j["x"].to_numpy(), j["y"].to_numpy(), th, j["gx"].to_numpy(), j["gy"].to_numpy())
+    th_naive = np.arctan2(dy, dx) - th
+    v, w = j["v"].to_numpy(), j["w"].to_numpy()
+    k1, r2v = fit_gain(d_e, v)
+    far = d_e >= p["min_d"]
+    k2, r2w = fit_gain(th_e[far], w[far])
+    k2n, r2n = fit_gain(th_naive[far], w[far])
+    wrap_rows = int((np.abs(th_naive - th_e)[far] > 1.0).sum())
+    ev.update({"K1": k1, "R2_linear": r2v, "K2": k2, "R2_angular": r2w,
+               "K2_unwrapped": k2n, "R2_angular_unwrapped": r2n, "rows_where_wrap_matters": wrap_rows,
+               "sample": [{"d_e": float(a), "theta_e": float(b), "linear_x": float(cv), "angular_z": float(cw)}
+                          for a, b, cv, cw in list(zip(d_e, th_e, v, w))[:: max(1, len(v) // 8)][:8]]})
+    missing_wrap = wrap_rows >= p["min_wrap_rows"] and np.isfinite(r2n) and r2n > r2w + p["wrap_margin"]
+    ev["wrap"] = ("missing" if missing_wrap else "ok") if wrap_rows >= p["min_wrap_rows"] else "not testable"
+    notes = []
+    lin = 0.0
+    if not np.isfinite(k1) or k1 <= 0:
+        notes.append(f"linear.x does not grow with the distance to the goal (K1 ≈ {fmt(k1, 3)}): "
+                     "use linear.x = K1·d_e with K1 > 0")
+    elif r2v >= p["r2_min"]:
+        lin = 0.5
+    else:
+        lin = 0.25
+        notes.append(f"linear.x is only loosely proportional to d_e (R² = {r2v:.2f}): use linear.x = K1·d_e")
+    ang = 0.0
+    if missing_wrap:
+        ang = 0.25 if k2n > 0 else 0.0
+        notes.append(f"angular.z follows atan2(dy, dx) − theta without wrapping (R² {r2n:.2f} vs {r2w:.2f} "
+                     "wrapped), so the turtle turns the long way: compute theta_e with eq. (3)")
+    elif not np.isfinite(k2) or k2 <= 0:
+        notes.append(f"angular.z has the wrong sign (K2 ≈ {fmt(k2, 3)}): a positive theta_e (goal to the left) "
+                     "needs a positive (counter-clockwise) angular.z; check the atan2 argument order and K2 > 0")
+    elif r2w >= p["r2_min"]:
+        ang = 0.5
+    else:
+        ang = 0.25
+        notes.append(f"angular.z is only loosely proportional to theta_e (R² = {r2w:.2f}): use angular.z = K2·theta_e")
+    frac = lin + ang
+    value = f"K1={fmt(k1, 3)} (R² {fmt(r2v)}), K2={fmt(k2, 3)} (R² {fmt(r2w)})"
+    if not notes:
+        return Finding(value, 1.0, "pass",
+                       f"Your controller follows v = {k1:.3g}·d_e and ω = {k2:.3g}·theta_e "
+                       f"(R² {r2v:.3f} / {r2w:.3f}).", ev)
+    return Finding(value, frac, graded(frac), sentence("; ".join(notes)), ev)

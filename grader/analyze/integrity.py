@@ -1,0 +1,156 @@
+"""Integrity flags: the pose the grade is based on really comes from the simulator's physics.
+
+* ``integrity_pose_publisher``: only the simulator publishes /turtle1/pose. From the bag meta's
+  publisher list when recorded; otherwise (and additionally) the pose stream is checked for
+  jumps the unicycle cannot make in one 16 ms tick and for a rate above the simulator's 62.5 Hz
+  (a second publisher interleaves its own poses).
+* ``integrity_no_teleport``: the simulator's services run with introspection, so any teleport
+  (or reset) request appears on ``<service>/_service_event``. Calls the scenario driver made
+  itself (``service_call`` events) are not held against the student. set_pen calls are listed.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from grader.analyze import Finding, register
+from grader.analyze._common import (Frames, end_time, events, meta, publishers_of, rosout_lines, times, topic)
+from grader.analyze.rate import rate_stats
+
+DT = 0.016
+
+
+@register("integrity_pose_publisher", defaults={
+    "pose_topic": "/turtle1/pose",
+    "allowed": ["turtlesim"],     # node names allowed to publish the pose
+    "jump_tol": 0.05,             # m beyond v*dt*ticks counted as a jump
+    "max_rate_hz": 62.5 * 1.3,
+})
+def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
+    """Flag (fraction 0 / status fail) when something other than the simulator publishes the pose."""
+    name = p["pose_topic"]
+    allowed = {str(a).strip("/").rsplit("/", 1)[-1] for a in p["allowed"]}
+    pubs = publishers_of(frames, name)
+    for e in events(frames, "graph"):        # the driver's snapshots of the ROS graph
+        g = (e.get("publishers") or {}).get(name) if isinstance(e.get("publishers"), dict) else None
+        for node in g or []:
+            if node not in pubs:
+                pubs.append(str(node))
+    ev: dict = {"topic": name, "publishers": pubs,
+                "rosout_loggers": sorted(set(rosout_lines(frames)["logger"].tolist()))[:20]}
+    problems = []
+    foreign = [q for q in pubs if str(q).strip("/").rsplit("/", 1)[-1] not in allowed]
+    if foreign:
+        problems.append(f"{name} was also published by {', '.join(foreign)}")
+    df = topic(frames, name)
+    if df is not None and len(df) >= 3 and {"x", "y"} <= set(df.columns):
+        t = times(df)
+        st = rate_stats(t)
+        ev["rate_hz"] = st["rate_hz"]
+        if np.isfinite(st["rate_hz"]) and st["rate_hz"] > p["max_rate_hz"]:
+            problems.append(f"{name} arrives at {st['rate_hz']:.1f} Hz, above the simulator's 62.5 Hz")
+        x, y = df["x"].to_numpy(float), df["y"].to_numpy(float)
+        v = np.abs(df["linear_velocity"].to_numpy(float)) if "linear_velocity" in df.columns else np.zeros(len(df))
+        step = np.hypot(np.diff(x), np.diff(y))
+        ticks = np.maximum(1, np.round(np.diff(t) / DT))
+        allowed_step = np.maximum(v[1:], v[:-1]) * DT * ticks + p["jump_tol"]
+        jumps = np.nonzero(step > allowed_step)[0]
+        all_jumps = [{"t": float(t[i + 1]), "from": [float(x[i]), float(y[i])],
+                      "to": [float(x[i + 1]), float(y[i + 1])], "distance": float(step[i])} for i in jumps]
+        ev["jumps"] = all_jumps[:10]
+        ev["n_jumps"] = len(all_jumps)
+        # jumps right after a teleport/reset request are that request (flagged by integrity_no_teleport)
+        teleports = _service_rows(frames, ("teleport_absolute", "teleport_relative", "reset"))
+        unexplained = [j for j in all_jumps if not any(abs(j["t"] - tt) < 0.5 for tt in teleports)]
+        if unexplained:
+            problems.append(f"the pose jumped {len(unexplained)} time(s) without a teleport call "
+                            f"(first at t={unexplained[0]['t']:.2f}, {unexplained[0]['distance']:.2f} m)")
+    elif df is None:
+        return Finding.error(f"No {name} messages were recorded; the check could not run.", ev)
+    ev["basis"] = "publisher list" if pubs else "pose stream consistency (publisher list not recorded)"
+    if problems:
+        return Finding("flagged", 0.0, "fail",
+                       "Integrity: " + "; ".join(problems) + ". Only the simulator may publish the turtle's pose.", ev)
+    return Finding("ok", 1.0, "pass", f"{name} comes from the simulator only ({ev['basis']}).", ev)
+
+
+def _service_rows(frames: Frames, names: tuple[str, ...]) -> list[float]:
+    out: list[float] = []
+    for key, df in frames.items():
+        if not key.endswith("/_service_event") or df is None or len(df) == 0:
+            continue
+        svc = key[: -len("/_service_event")].rsplit("/", 1)[-1]
+        if svc in names:
+            out += times(df).tolist()
+    return out
+
+
+def _request(df, i: int) -> dict:
+    out = {}
+    for c in df.columns:
+        if str(c).startswith("request[0]."):
+            v = df[c].iloc[i]
+            if v is not None and not (isinstance(v, float) and math.isnan(v)):
+                out[str(c).split(".", 1)[1]] = v
+    return out
+
+
+def _calls(df) -> list[dict]:
+    """One entry per request: the several introspection events of one call (request received,
+    response sent, ...) share the client gid and sequence number."""
+    t = times(df)
+    seq = df["info.sequence_number"].to_numpy() if "info.sequence_number" in df.columns else np.arange(len(df))
+    gid_cols = [c for c in df.columns if str(c).startswith("info.client_gid")]
+    calls: dict = {}
+    for i in range(len(df)):
+        key = (tuple(df[c].iloc[i] for c in gid_cols), seq[i])
+        if key not in calls:
+            calls[key] = {"t": float(t[i]), "request": _request(df, i)}
+        elif not calls[key]["request"]:
+            calls[key]["request"] = _request(df, i)
+    return sorted(calls.values(), key=lambda c: c["t"])
+
+
+@register("integrity_no_teleport", defaults={
+    "flag_services": ["/turtle1/teleport_absolute", "/turtle1/teleport_relative", "/reset"],
+    "list_services": ["/turtle1/set_pen"],
+    "driver_match_s": 2.0,   # a call within this of a driver service_call event is the driver's
+})
+def integrity_no_teleport(frames: Frames, p: dict) -> Finding:
+    """Flag teleport/reset calls that the scenario driver did not make; list set_pen calls."""
+    if not math.isfinite(end_time(frames)):
+        return Finding.error("The bag holds no messages; teleport calls could not be checked.")
+    driver = [e for e in events(frames, "service_call")]
+    used = [False] * len(driver)
+    flagged, listed, explained = [], [], []
+    for svc in p["flag_services"]:
+        df = topic(frames, f"{svc}/_service_event")
+        if df is None:
+            continue
+        for c in _calls(df):
+            c = {"service": svc, **c}
+            k = next((i for i, e in enumerate(driver) if not used[i]
+                      and str(e.get("service", "")).rstrip("/").endswith(svc.rsplit("/", 1)[-1])
+                      and abs(e["t"] - c["t"]) <= p["driver_match_s"]), None)
+            if k is not None:
+                used[k] = True
+                explained.append(c)
+            else:
+                flagged.append(c)
+    for svc in p["list_services"]:
+        df = topic(frames, f"{svc}/_service_event")
+        if df is not None:
+            listed += [{"service": svc, **c} for c in _calls(df)]
+    m = meta(frames)
+    ev = {"flagged_calls": flagged[:20], "driver_calls": explained[:20], "set_pen_calls": listed[:20],
+          "service_event_topics_recorded": bool(m is not None and any("_service_event" in str(t) for t in m["topic"]))}
+    if flagged:
+        first = flagged[0]
+        return Finding(f"{len(flagged)} call(s)", 0.0, "fail",
+                       f"Integrity: {first['service']} was called {len(flagged)} time(s) during grading "
+                       f"(first at t={first['t']:.2f}); the turtle must reach goals by driving, not teleporting.", ev)
+    return Finding("none", 1.0, "pass",
+                   "No teleport or reset calls by student code"
+                   + (f"; {len(listed)} set_pen call(s) listed." if listed else "."), ev)

@@ -1,0 +1,1 @@
+"""Grading: the pipeline that ties build, scenarios, analyzers, scoring and reports together."""

@@ -1,0 +1,81 @@
+"""Writing a graded submission (result.json, report.html) and a batch (grades.csv, index.html),
+and the self-check table printed by `grader check`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Mapping
+
+from grader import __version__
+
+
+def versions() -> dict[str, str]:
+    from grader.rosenv import ros_info
+
+    info = ros_info()
+    return {"grader": __version__, "ros": f"{info['distro']} ({info['mode']})", "rclpy": info["rclpy"],
+            "rmw": info["rmw"], "python": info["python"]}
+
+
+def _canvases(sub_out: Path) -> dict[str, str]:
+    return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
+
+
+def write_submission_outputs(graded, rubric, *, public_only: bool) -> None:
+    """result.json (+ build, errors, timings) and report.html for one submission."""
+    from grader.report.html import write_html
+    from grader.report.result import write_result
+
+    ver = versions()
+    extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
+             "errors": graded.errors, "timings": graded.timings,
+             "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir())}
+    out_dir, sid = graded.out.parent, graded.out.name
+    write_result(out_dir, sid, graded.result, versions=ver, extra=extra)
+    write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
+               problems=graded.errors)
+
+
+def write_batch_outputs(out: Path, rubric) -> None:
+    """grades.csv and index.html rebuilt from every OUT/*/result.json on disk (so parallel,
+    resumed and regraded submissions all count)."""
+    from grader.report.batch import load_results, write_batch
+
+    if load_results(out, rubric):
+        write_batch(out, rubric)
+
+
+def print_check_table(graded, rubric) -> bool:
+    """The self-check table; True when every public auto item passed."""
+    result = graded.result
+    rows = [i for i in result.items if i.kind != "manual"]
+    width = max((len(i.id) for i in rows), default=10)
+    print(f"\n{rubric.title}: self-check ({result.auto_score:g}/{result.auto_max:g} points on public items)\n")
+    ok = True
+    marks = {"pass": "PASS", "partial": "PART", "fail": "FAIL", "error": "ERR "}
+    for item in rows:
+        mark = marks.get(item.status, item.status.upper()[:4])
+        pts = "" if item.kind in ("advisory", "integrity") else f"{(item.points or 0):g}/{item.max_points:g}"
+        label = "warn" if item.kind == "advisory" and item.status != "pass" else mark
+        print(f"  {label:4}  {item.id:<{width}}  {pts:>7}  {item.title}")
+        if item.status != "pass":
+            text = item.feedback or ""
+            if item.hint:
+                text = (text + " Hint: " + item.hint).strip()
+            for line in _wrap(text, 92):
+                print(f"        {line}")
+        if item.kind == "auto" and item.status != "pass":
+            ok = False
+    for err in graded.errors:
+        print(f"\n  problem: {err.splitlines()[0]}")
+    print("\nAll public checks pass." if ok else "\nSome checks do not pass yet (see above).")
+    return ok
+
+
+def _wrap(text: str, width: int) -> list[str]:
+    import textwrap
+
+    return textwrap.wrap(text, width) or []
+
+

@@ -1,0 +1,33 @@
+"""Batch outputs rebuilt from disk: ``grades.csv`` and ``index.html`` from ``OUT/*/result.json``.
+
+Reading the archived results (instead of keeping Results in memory) keeps the batch files right
+however the submissions were graded: in parallel, resumed in a later run, or regraded one by one.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from grader.report.html import write_index
+from grader.report.result import read_result, write_grades_csv
+from grader.rubric.schema import Rubric
+from grader.rubric.score import Result
+
+
+def load_results(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> dict[str, Result]:
+    """Instructor-view results under ``out_dir`` (self-check/student views are not grades),
+    restricted to ``rubric``'s lab when given."""
+    results: dict[str, Result] = {}
+    for path in sorted(Path(out_dir).glob("*/result.json")):
+        sid, result = read_result(path)
+        if result.student_view or (rubric is not None and result.lab != rubric.lab):
+            continue
+        results[sid] = result
+    return results
+
+
+def write_batch(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> tuple[Path, Path]:
+    """(Re)write ``out_dir/grades.csv`` and ``out_dir/index.html``; returns both paths."""
+    results = load_results(out_dir, rubric)
+    return write_grades_csv(out_dir, results, rubric=rubric), write_index(out_dir, results)

@@ -1,0 +1,227 @@
+"""Machine-readable outputs: ``OUT/<id>/result.json`` per submission and ``OUT/grades.csv``.
+
+result.json is the archival record of one grade (with the versions that produced it, so a
+regrade can be compared); grades.csv is what an instructor pastes into a gradebook: one row per
+submission, one column per rubric item, manual items left empty for a person to fill in.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any, Mapping
+
+from grader.errors import GraderError
+from grader.rubric.schema import Rubric, Section, SectionSpec
+from grader.rubric.score import ItemResult, Notice, Result
+
+RESULT_SCHEMA = 1
+SUBMISSION_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@+-]{0,127}$")
+
+
+def check_submission_id(submission: str) -> str:
+    """Submission ids become directory names and CSV cells: keep them plain and safe."""
+    if not SUBMISSION_ID.match(submission or "") or ".." in submission:
+        raise GraderError(f"submission id {submission!r} must start with a letter or digit and "
+                          f"contain only letters, digits and . _ @ + - (no '..')")
+    return submission
+
+
+def jsonable(obj: Any) -> Any:
+    """Evidence comes from pandas/numpy code: make it strict JSON (NaN/inf -> null)."""
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, int):
+        return obj
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, (set, frozenset)):
+        return [jsonable(v) for v in sorted(obj, key=str)]
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    if hasattr(obj, "tolist"):           # numpy arrays and scalars, pandas Series
+        return jsonable(obj.tolist())
+    if hasattr(obj, "item"):
+        return jsonable(obj.item())
+    if hasattr(obj, "isoformat"):
+        return obj.isoformat()
+    return str(obj)
+
+
+def item_to_dict(item: ItemResult) -> dict[str, Any]:
+    return {
+        "id": item.id,
+        "title": item.title,
+        "section": item.section.as_dict(),
+        "kind": item.kind,
+        "public": item.public,
+        "points": item.points,
+        "max_points": item.max_points,
+        "status": item.status,
+        "feedback": item.feedback,
+        "hint": item.hint,
+        "value": jsonable(item.value),
+        "fraction": item.fraction,
+        "evidence": jsonable(item.evidence),
+    }
+
+
+def _notice_to_dict(notice: Notice) -> dict[str, Any]:
+    return {"id": notice.item_id, "title": notice.title, "status": notice.status,
+            "feedback": notice.feedback}
+
+
+def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
+                   extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The result.json document (see tests/report for its shape). ``extra``: further top-level
+    keys from the caller (build status, scenario errors, timings); they cannot replace ours."""
+    doc = jsonable({
+        "schema": RESULT_SCHEMA,
+        "submission": submission,
+        "lab": result.lab,
+        "title": result.title,
+        "view": "student" if result.student_view else "instructor",
+        "score": result.score,
+        "auto_score": result.auto_score,
+        "auto_max": result.auto_max,
+        "max_score": result.max_score,
+        "manual_max": result.manual_max,
+        "pending_max": result.pending_max,
+        "total": result.total,
+        "complete": result.complete,
+        "hidden": {"items": result.hidden_items, "points": result.hidden_points},
+        "sections": [
+            {"section": s.section.as_dict(), "title": s.title, "name": s.name, "points": s.points,
+             "max_points": s.max_points, "auto_points": s.auto_points, "auto_max": s.auto_max,
+             "pending_max": s.pending_max, "items": list(s.item_ids)}
+            for s in result.sections],
+        "items": [item_to_dict(i) for i in result.items],
+        "integrity_flags": [_notice_to_dict(n) for n in result.integrity_flags],
+        "warnings": [_notice_to_dict(n) for n in result.warnings],
+        "versions": dict(versions or {}),
+    })
+    for key, value in (extra or {}).items():
+        if key in doc:
+            raise ValueError(f"extra key {key!r} would replace a result.json field")
+        doc[key] = jsonable(value)
+    return doc
+
+
+def result_from_dict(doc: Mapping[str, Any]) -> Result:
+    """Rebuild a Result from result.json, so batch outputs (grades.csv, index.html) can be
+    regenerated from disk after submissions were graded in separate runs."""
+    if not isinstance(doc, Mapping) or doc.get("schema") != RESULT_SCHEMA:
+        got = doc.get("schema") if isinstance(doc, Mapping) else None
+        raise GraderError(f"result.json schema {got!r} is not {RESULT_SCHEMA}")
+
+    def section(d: Mapping[str, Any]) -> Section:
+        (kind, number), = d.items()
+        return Section(kind, number)
+
+    items = tuple(ItemResult(
+        id=i["id"], title=i["title"], section=section(i["section"]), kind=i["kind"],
+        public=i["public"], points=i["points"], max_points=i["max_points"], status=i["status"],
+        feedback=i["feedback"], hint=i.get("hint"), value=i.get("value"),
+        fraction=i.get("fraction"), evidence=i.get("evidence") or {}) for i in doc["items"])
+    specs = tuple(SectionSpec(section(s["section"]), s.get("name")) for s in doc.get("sections", []))
+    hidden = doc.get("hidden") or {}
+    return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
+                  student_view=doc.get("view") == "student",
+                  hidden_items=int(hidden.get("items", 0)), hidden_points=float(hidden.get("points", 0)))
+
+
+def read_result(path: str | os.PathLike[str]) -> tuple[str, Result]:
+    """``(submission id, Result)`` from a result.json file."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise GraderError(f"cannot read {path}: {exc}") from None
+    try:
+        result = result_from_dict(doc)
+        return str(doc["submission"]), result
+    except GraderError as exc:
+        raise GraderError(f"{path}: {exc}") from None
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise GraderError(f"{path} is not a grader result.json (bad or missing {exc})") from None
+
+
+def atomic_write(path: Path, text: str) -> None:
+    """Write via a temporary file + rename so a crash never leaves half a report."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def write_result(out_dir: str | os.PathLike[str], submission: str, result: Result, *,
+                 versions: Mapping[str, str] | None = None, extra: Mapping[str, Any] | None = None,
+                 filename: str = "result.json") -> Path:
+    """Write ``out_dir/<submission>/result.json``; ``versions`` come from the caller (grader
+    version, ROS distro, rmw, python...) because only it knows what actually ran.
+    ``filename`` lets a student view sit next to it (e.g. ``student.json``)."""
+    check_submission_id(submission)
+    path = Path(out_dir) / submission / plain_file_name(filename)
+    doc = result_to_dict(result, submission, versions=versions, extra=extra)
+    atomic_write(path, json.dumps(doc, indent=2, allow_nan=False, ensure_ascii=False) + "\n")
+    return path
+
+
+def plain_file_name(filename: str) -> str:
+    if not SUBMISSION_ID.match(filename) or ".." in filename:
+        raise ValueError(f"not a plain file name: {filename!r}")
+    return filename
+
+
+def _cell(item: ItemResult) -> str:
+    if item.kind in ("advisory", "integrity"):
+        return item.status             # 0-point checks: the verdict is the information
+    return "" if item.points is None else f"{item.points:g}"
+
+
+def grades_csv_text(results: Mapping[str, Result], rubric: Rubric | None = None) -> str:
+    """CSV text: ``submission, <item ids...>, auto_total, manual_total, total, max,
+    integrity_flags``; empty cells for ungraded manual items and for totals not final yet."""
+    first = next(iter(results.values()), None)
+    if rubric is not None:
+        item_ids = rubric.item_ids
+        lab = rubric.lab
+    else:
+        item_ids = [i.id for i in first.items] if first else []
+        lab = first.lab if first else ""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["submission", *item_ids, "auto_total", "manual_total", "total", "max",
+                     "integrity_flags"])
+    for submission in sorted(results):
+        check_submission_id(submission)
+        result = results[submission]
+        if result.lab != lab:
+            raise ValueError(f"{submission}: result is for {result.lab!r}, not {lab!r}")
+        if result.student_view:
+            raise ValueError(f"{submission}: grades.csv needs the instructor view, not for_student()")
+        by_id = {i.id: i for i in result.items}
+        cells = [_cell(by_id[i]) if i in by_id else "" for i in item_ids]
+        manual = result.manual_score
+        writer.writerow([submission, *cells, f"{result.auto_score:g}",
+                         "" if manual is None else f"{manual:g}",
+                         "" if result.total is None else f"{result.total:g}",
+                         f"{result.max_score:g}",
+                         ";".join(n.item_id for n in result.integrity_flags)])
+    return buf.getvalue()
+
+
+def write_grades_csv(out_dir: str | os.PathLike[str], results: Mapping[str, Result], *,
+                     rubric: Rubric | None = None) -> Path:
+    """Write ``out_dir/grades.csv`` for a batch (columns in rubric order when given)."""
+    path = Path(out_dir) / "grades.csv"
+    atomic_write(path, grades_csv_text(results, rubric))
+    return path

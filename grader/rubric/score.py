@@ -1,0 +1,337 @@
+"""Scoring: apply a rubric to analyzer findings. Pure, no I/O, so a grade is recomputable.
+
+``score(rubric, findings)`` turns each item's Finding (duck-typed: ``value``, ``fraction``,
+``status``, ``feedback``, ``evidence``; see grader.analyze) into points with the item's
+partial-credit rule, fills the rubric's feedback templates, and collects what needs a human:
+ungraded manual items (kept as empty points), advisory warnings (0 points) and integrity flags.
+"""
+
+from __future__ import annotations
+
+import math
+import string
+from dataclasses import dataclass, field, replace
+from typing import Any, Iterable, Mapping, Protocol
+
+from grader.errors import GraderError
+from grader.rubric.schema import STATUSES, Item, Rubric, Section, SectionSpec
+
+PENDING = "pending"          # status of a manual item nobody graded yet
+_RANK = {"fail": 0, "partial": 1, "error": 2, "pass": 3}
+
+
+class FindingLike(Protocol):
+    value: Any
+    fraction: float
+    status: str
+    feedback: str
+    evidence: dict
+
+
+@dataclass(frozen=True)
+class ItemResult:
+    """One scored item. ``points`` is None for a manual item nobody graded yet."""
+
+    id: str
+    title: str
+    section: Section
+    kind: str
+    public: bool
+    points: float | None
+    max_points: float
+    status: str                  # pass | partial | fail | error | pending
+    feedback: str
+    hint: str | None = None
+    value: Any = None
+    fraction: float | None = None
+    evidence: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Notice:
+    """An advisory warning or an integrity flag: something a person should read."""
+
+    item_id: str
+    title: str
+    status: str
+    feedback: str
+    evidence: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SectionResult:
+    section: Section
+    title: str                 # display title: "Exercise 1: Random numbers"
+    name: str | None           # the sections table's own title ("Random numbers"), if any
+    points: float              # earned so far (auto + graded manual)
+    max_points: float
+    auto_points: float
+    auto_max: float
+    pending_max: float         # points of manual items not graded yet
+    item_ids: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Result:
+    """Everything the report layer needs; totals are derived from ``items`` so they can't drift."""
+
+    lab: str
+    title: str
+    items: tuple[ItemResult, ...]
+    section_specs: tuple[SectionSpec, ...] = ()
+    student_view: bool = False
+    hidden_items: int = 0          # removed by for_student()
+    hidden_points: float = 0.0
+
+    def item(self, item_id: str) -> ItemResult:
+        for item in self.items:
+            if item.id == item_id:
+                return item
+        raise KeyError(item_id)
+
+    @property
+    def auto_score(self) -> float:
+        return _sum(i.points for i in self.items if i.kind == "auto")
+
+    @property
+    def auto_max(self) -> float:
+        return _sum(i.max_points for i in self.items if i.kind == "auto")
+
+    @property
+    def manual_max(self) -> float:
+        return _sum(i.max_points for i in self.items if i.kind == "manual")
+
+    @property
+    def pending_max(self) -> float:
+        return _sum(i.max_points for i in self.items if i.status == PENDING)
+
+    @property
+    def manual_score(self) -> float | None:
+        """Points of manual items, or None while any of them is ungraded."""
+        manual = [i for i in self.items if i.kind == "manual"]
+        if any(i.points is None for i in manual):
+            return None
+        return _sum(i.points for i in manual)
+
+    @property
+    def score(self) -> float:
+        """Points earned so far (automatic + manual items already graded)."""
+        return _sum(i.points for i in self.items if i.points is not None)
+
+    @property
+    def max_score(self) -> float:
+        return _sum(i.max_points for i in self.items)
+
+    @property
+    def complete(self) -> bool:
+        return not any(i.status == PENDING for i in self.items)
+
+    @property
+    def total(self) -> float | None:
+        """The final grade, once every manual item is graded; None before."""
+        return self.score if self.complete else None
+
+    @property
+    def integrity_flags(self) -> tuple[Notice, ...]:
+        """Integrity checks that did not pass cleanly (fail or partial): review by a person.
+        An integrity check that could not run (error) is visible in its item row instead."""
+        return tuple(_notice(i) for i in self.items
+                     if i.kind == "integrity" and i.status in ("fail", "partial"))
+
+    @property
+    def warnings(self) -> tuple[Notice, ...]:
+        """Advisory items that did not pass: shown to the student, worth no points."""
+        return tuple(_notice(i) for i in self.items if i.kind == "advisory" and i.status != "pass")
+
+    @property
+    def sections(self) -> tuple[SectionResult, ...]:
+        specs = list(self.section_specs)
+        known = {s.section for s in specs}
+        for item in self.items:
+            if item.section not in known:
+                known.add(item.section)
+                specs.append(SectionSpec(item.section))
+        out = []
+        for spec in specs:
+            items = [i for i in self.items if i.section == spec.section]
+            if not items:
+                continue
+            auto = [i for i in items if i.kind == "auto"]
+            out.append(SectionResult(
+                section=spec.section, title=spec.display_title, name=spec.title,
+                points=_sum(i.points for i in items if i.points is not None),
+                max_points=_sum(i.max_points for i in items),
+                auto_points=_sum(i.points for i in auto), auto_max=_sum(i.max_points for i in auto),
+                pending_max=_sum(i.max_points for i in items if i.status == PENDING),
+                item_ids=tuple(i.id for i in items)))
+        return tuple(out)
+
+    def for_student(self) -> "Result":
+        """The self-check view: hidden (``public: false``) items and their points removed."""
+        visible = tuple(i for i in self.items if i.public)
+        hidden = [i for i in self.items if not i.public]
+        return replace(self, items=visible, student_view=True,
+                       hidden_items=self.hidden_items + len(hidden),
+                       hidden_points=_sum([self.hidden_points, *(i.max_points for i in hidden)]))
+
+
+def _sum(values: Iterable[float | None]) -> float:
+    return round(sum(v for v in values if v is not None), 2)
+
+
+def _notice(item: ItemResult) -> Notice:
+    return Notice(item.id, item.title, item.status, item.feedback, item.evidence)
+
+
+# ----------------------------------------------------------------------------------------------
+
+def score(rubric: Rubric, findings: Mapping[str, FindingLike | None], *,
+          manual: Mapping[str, float] | None = None) -> Result:
+    """Score every rubric item.
+
+    ``findings``: item id -> Finding, or None when the analysis could not run (scenario crashed,
+    bag missing); absent ids count as None. ``manual``: points a person gave to manual items.
+    Unknown ids in ``findings`` are a programming error (ValueError); bad manual points are a
+    user error (GraderError).
+    """
+    ids = set(rubric.item_ids)
+    stray = sorted(set(findings) - ids)
+    if stray:
+        raise ValueError(f"findings for items not in rubric {rubric.lab}: {', '.join(stray)}")
+    manual = dict(manual or {})
+    _check_manual(rubric, manual)
+    items = []
+    for item in rubric.items:
+        if item.kind == "manual":
+            items.append(_score_manual(item, manual.get(item.id)))
+        else:
+            items.append(_score_auto(item, findings.get(item.id)))
+    return Result(lab=rubric.lab, title=rubric.title, items=tuple(items),
+                  section_specs=tuple(rubric.sections))
+
+
+def worst_finding(findings: Iterable[FindingLike | None]) -> FindingLike | None:
+    """For an item run on several scenarios: the worst finding counts (fail < partial < error
+    < pass, then lowest fraction). Missing findings are ignored; all missing gives None."""
+    present = [f for f in findings if f is not None]
+    if not present:
+        return None
+    return min(present, key=lambda f: (_RANK.get(str(f.status), 2), _fraction(f.fraction)))
+
+
+def _check_manual(rubric: Rubric, manual: Mapping[str, float]) -> None:
+    problems = []
+    for item_id, points in manual.items():
+        try:
+            item = rubric.item(item_id)
+        except KeyError:
+            problems.append(f"{item_id}: not an item of rubric {rubric.lab}")
+            continue
+        if item.kind != "manual":
+            problems.append(f"{item_id}: is graded automatically ({item.kind}), not by hand")
+        elif (isinstance(points, bool) or not isinstance(points, (int, float))
+              or not math.isfinite(points) or not 0 <= points <= item.points):
+            problems.append(f"{item_id}: expected points between 0 and {item.points:g}, got {points!r}")
+    if problems:
+        raise GraderError("manual grades: " + "; ".join(problems))
+
+
+def _score_manual(item: Item, points: float | None) -> ItemResult:
+    if points is None:
+        return _result(item, None, PENDING, "Graded by the instructor.", None)
+    status = "pass" if points >= item.points else ("fail" if points == 0 else "partial")
+    return _result(item, round(float(points), 2), status, "", points / item.points)
+
+
+def _score_auto(item: Item, finding: FindingLike | None) -> ItemResult:
+    if finding is None:
+        text = item.feedback.get("error") or (
+            "Not checked: the automatic analysis did not run (see the run log).")
+        return _result(item, 0.0, "error", text, None)
+    fraction = _fraction(getattr(finding, "fraction", 0.0))
+    status = str(getattr(finding, "status", "error"))
+    if status not in STATUSES:
+        status = "error"
+    if item.kind == "auto":
+        points = 0.0 if status == "error" else round(item.partial.credit(fraction) * item.points, 2)
+        if status != "error":
+            status = ("pass" if points >= item.points - 1e-9
+                      else "fail" if points <= 1e-9 else "partial")
+    else:                        # advisory / integrity: 0 points, the analyzer's verdict stands
+        points = 0.0
+    evidence = getattr(finding, "evidence", None) or {}
+    text = _feedback(item, status, finding, fraction, points, evidence)
+    return _result(item, points, status, text, fraction,
+                   value=getattr(finding, "value", None), evidence=evidence)
+
+
+def _fraction(value: Any) -> float:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return 0.0
+    return min(1.0, max(0.0, value)) if math.isfinite(value) else 0.0
+
+
+def _result(item: Item, points: float | None, status: str, feedback: str, fraction: float | None,
+            value: Any = None, evidence: Mapping[str, Any] | None = None) -> ItemResult:
+    return ItemResult(id=item.id, title=item.title, section=item.section, kind=item.kind,
+                      public=item.public, points=points, max_points=item.points, status=status,
+                      feedback=feedback, hint=item.hint, value=value, fraction=fraction,
+                      evidence=dict(evidence or {}))
+
+
+def _feedback(item: Item, status: str, finding: FindingLike, fraction: float,
+              points: float, evidence: Mapping[str, Any]) -> str:
+    """The rubric's text for this status (partial falls back to fail), else the analyzer's."""
+    own = str(getattr(finding, "feedback", "") or "")
+    template = item.feedback.get(status)
+    if template is None and status == "partial":
+        template = item.feedback.get("fail")
+    if template is None:
+        return own
+    context: dict[str, Any] = dict(item.params)
+    context.update({k: v for k, v in evidence.items() if isinstance(k, str)})
+    context.update(value=getattr(finding, "value", None), fraction=fraction,
+                   points=points, max_points=item.points,
+                   status=status, feedback=own, id=item.id, title=item.title)
+    return render_template(template, context)
+
+
+class _Missing:
+    """Stands in for an unknown placeholder: the text stays as written, e.g. ``{rate}``."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def __format__(self, spec: str) -> str:
+        return "{" + self.text + (":" + spec if spec else "") + "}"
+
+
+class _Formatter(string.Formatter):
+    def get_field(self, field_name: str, args: Any, kwargs: Any) -> tuple[Any, str]:
+        try:
+            return super().get_field(field_name, args, kwargs)
+        except (KeyError, AttributeError, IndexError, TypeError, ValueError):
+            return _Missing(field_name), field_name
+
+    def format_field(self, value: Any, format_spec: str) -> str:
+        if value is None:
+            return "n/a"
+        try:
+            return super().format_field(value, format_spec)
+        except (ValueError, TypeError):
+            return str(value)
+
+    def convert_field(self, value: Any, conversion: str | None) -> Any:
+        if isinstance(value, _Missing):
+            return value
+        return super().convert_field(value, conversion)
+
+
+def render_template(template: str, context: Mapping[str, Any]) -> str:
+    """``str.format`` that never fails: unknown names stay visible, bad specs fall back to str."""
+    try:
+        return _Formatter().vformat(template, (), dict(context))
+    except (ValueError, IndexError):   # malformed template slipped past validation
+        return template

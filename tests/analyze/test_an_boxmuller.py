@@ -1,0 +1,201 @@
+"""Exercise 1 subscriber: Box-Muller values, bug identification, logging and normality."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analyze_synth import T0, check, frame, rosout_frame, stdout_frame, with_meta
+from grader.analyze import get
+from grader.analyze.boxmuller import FORMULAS, parse_numbers
+
+BUGS = [n for n in FORMULAS if n != "correct"]
+
+
+def _inputs(n=60, rate=1.0, seed=1):
+    rng = np.random.default_rng(seed)
+    u = rng.random((n, 2)).astype(np.float32).astype(float)     # what a float32 message carries
+    t = T0 + 1.0 + np.arange(n) / rate + rng.normal(0, 0.003 / rate, n)
+    return t, u
+
+
+def _frames(formula="correct", fmt="{:.4f}", prefix="Normal random number: ", kind="rosout", n=60,
+            rate=1.0, drop=(), skip_first=0, extra=(), lag=0.004, seed=1, fn=None, jitter=0.0) -> dict:
+    t, u = _inputs(n, rate, seed)
+    z = (fn or FORMULAS[formula][1])(u[:, 0], u[:, 1])
+    lags = lag + np.random.default_rng(seed + 7).uniform(0, jitter, n)
+    lines = [(ti + lg, prefix + fmt.format(v, u1=a, u2=b))
+             for k, (ti, lg, v, a, b) in enumerate(zip(t, lags, z, u[:, 0], u[:, 1]))
+             if k >= skip_first and k not in drop]
+    lines += list(extra)
+    lines.sort(key=lambda r: r[0])
+    fr = {"/random_numbers": frame(t + 0.001, **{"data[0]": u[:, 0], "data[1]": u[:, 1], "data.len": 2})}
+    sim = [(T0 + 0.2, "turtlesim", "Spawning turtle [turtle1] at x=[5.544445], y=[5.544445], theta=[0.000000]")]
+    if kind == "rosout":
+        fr["/rosout"] = rosout_frame(sim + [(ts, "simple_subscriber", m) for ts, m in lines])
+        # rclpy also echoes log lines on stderr in console format
+        fr["/grader/stdout"] = stdout_frame([(ts + 0.05, "sub", "stderr", f"[INFO] [{ts:.6f}] [simple_subscriber]: {m}")
+                                             for ts, m in lines])
+    else:
+        # the driver tails the log files every 50 ms: print() lines arrive in batches, in order
+        fr["/rosout"] = rosout_frame(sim)
+        fr["/grader/stdout"] = stdout_frame([(np.ceil(ts / 0.05) * 0.05 + 0.003, "sub", "stdout", m)
+                                             for ts, m in lines])
+    return with_meta(fr)
+
+
+def test_parse_numbers_precision() -> None:
+    assert parse_numbers("z = 0.123") == [(0.123, pytest.approx(0.0005))]
+    assert parse_numbers("u1=0.5, u2=.25 -> -1.2e-05.") == [
+        (0.5, pytest.approx(0.05)), (0.25, pytest.approx(0.005)), (-1.2e-05, pytest.approx(5e-7))]
+    assert parse_numbers("turtle1 at x2 [3]") == [(3.0, 0.5)]
+    v = parse_numbers("z: nan")
+    assert len(v) == 1 and np.isnan(v[0][0])
+
+
+@pytest.mark.parametrize("fmt", ["{:.4f}", "{}", "{:.2f}", "{:.3e}"])
+def test_correct_values_pass_at_any_printed_precision(fmt: str) -> None:
+    f = check(get("boxmuller")(_frames(fmt=fmt), {}))
+    assert f.status == "pass", f.feedback
+    assert f.evidence["matched"] >= 58 and f.evidence["source"] == {"kind": "rosout", "name": "simple_subscriber"}
+
+
+def test_too_coarse_does_not_match_a_wrong_formula_by_chance() -> None:
+    # 1 decimal is 0.05 tolerance: the correct formula still wins; a bug is still named
+    f = check(get("boxmuller")(_frames("log10", fmt="{:.3f}"), {}))
+    assert f.evidence["bug"] == "log10"
+
+
+def test_tolerates_startup_gap_dropped_and_extra_lines() -> None:
+    extra = [(T0 + 0.9, "Subscriber started, waiting for 2 numbers"), (T0 + 20.5, "hello 42")]
+    f = check(get("boxmuller")(_frames(skip_first=5, drop=(20, 33), extra=extra), {}))
+    assert f.status == "pass", f.feedback
+    assert f.evidence["matched"] == 53 and f.evidence["expected"] == 55
+
+
+def test_many_missing_lines_is_partial() -> None:
+    f = check(get("boxmuller")(_frames(drop=tuple(range(10, 60, 2))), {}))
+    assert f.status == "partial" and 0.5 < f.fraction < 0.9, f.evidence
+
+
+def test_number_position_is_found_when_inputs_are_printed_too() -> None:
+    f = check(get("boxmuller")(_frames(fmt="{0:.5f} from u1={u1:.3f} u2={u2:.3f}", prefix="z="), {}))
+    assert f.status == "pass" and f.evidence["number_position"] == 0
+    f = check(get("boxmuller")(_frames(fmt="u1={u1:.3f} u2={u2:.3f} z={0:.5f}", prefix=""), {}))
+    assert f.status == "pass" and f.evidence["number_position"] == -1
+
+
+def test_fast_replay_with_coarse_printing() -> None:
+    f = check(get("boxmuller")(_frames(fmt="{:.3f}", rate=10.0, n=300), {}))
+    assert f.status == "pass", f.evidence
+    f = check(get("boxmuller")(_frames("swapped", fmt="{:.3f}", rate=10.0, n=300), {}))
+    assert f.evidence.get("bug") == "swapped" and f.status == "fail"
+
+
+@pytest.mark.parametrize("bug", BUGS)
+def test_each_bug_is_identified(bug: str) -> None:
+    f = check(get("boxmuller")(_frames(bug), {}))
+    assert f.evidence.get("bug") == bug, (f.feedback, f.evidence["matches_per_formula"])
+    assert f.feedback == FORMULAS[bug][2]
+    if bug == "sin_for_cos":
+        assert f.status == "partial" and f.fraction == 0.5
+    else:
+        assert f.status == "fail" and f.fraction == 0.0
+
+
+def test_bug_credit_is_a_parameter() -> None:
+    f = check(get("boxmuller")(_frames("sin_for_cos"), {"bug_credit": {}}))
+    assert f.status == "fail"
+
+
+def test_unknown_wrong_values_show_an_example() -> None:
+    fr = _frames()
+    ro = fr["/rosout"].copy()
+    mask = ro["name"] == "simple_subscriber"
+    ro.loc[mask, "msg"] = [f"Normal random number: {v:.4f}" for v in np.linspace(-2, 2, int(mask.sum()))]
+    fr["/rosout"] = ro
+    fr.pop("/grader/stdout")
+    f = check(get("boxmuller")(fr, {}))
+    assert f.status == "fail" and "For example, for u1=" in f.feedback
+
+
+def test_print_instead_of_logging() -> None:
+    fr = _frames(kind="stdout")
+    f = check(get("boxmuller")(fr, {}))
+    assert f.status == "pass" and f.evidence["source"]["kind"] == "stdout"
+    f = check(get("boxmuller_logging")(fr, {}))
+    assert f.status == "fail" and "print()" in f.feedback
+    f = check(get("boxmuller_logging")(_frames(), {}))
+    assert f.status == "pass" and f.value == "simple_subscriber"
+
+
+def test_no_output_and_no_inputs() -> None:
+    fr = _frames()
+    fr["/rosout"] = rosout_frame([(T0, "turtlesim", "Spawning turtle")])
+    fr.pop("/grader/stdout")
+    f = check(get("boxmuller")(fr, {}))
+    assert f.status == "fail" and "printed no numbers" in f.feedback
+    fr = _frames()
+    fr.pop("/random_numbers")
+    assert check(get("boxmuller")(fr, {})).status == "error"
+    fr.pop("/rosout")
+    fr.pop("/grader/stdout")
+    assert check(get("normality")(fr, {})).status == "error"
+    fr = _frames()
+    fr.pop("/rosout")
+    fr["__meta__"] = fr["__meta__"][fr["__meta__"]["topic"] != "/rosout"]
+    assert check(get("boxmuller_logging")(fr, {})).status == "error"
+
+
+@pytest.mark.parametrize("formula,status", [
+    ("correct", "pass"),
+    ("log10", "partial"),          # Normal shape, std 0.66
+    ("missing_sqrt", "fail"),      # heavy tails and std ~1.7
+    ("degrees_radians", "fail"),   # Rayleigh: positive, not Normal
+])
+def test_normality(formula: str, status: str) -> None:
+    f = check(get("normality")(_frames(formula, fmt="{}", n=200, seed=3), {}))
+    assert f.status == status, f.evidence
+    shape_ok = f.evidence["shapiro_p"] >= 0.01 and f.evidence["anderson_p"] >= 0.01
+    assert shape_ok == (formula in ("correct", "log10"))
+
+
+def test_normality_needs_enough_samples() -> None:
+    f = check(get("normality")(_frames(n=10), {}))
+    assert f.status == "fail" and "at least 20" in f.feedback
+
+
+def test_values_off_by_more_than_printed_precision_do_not_match() -> None:
+    # printed with 4 decimals (tolerance 5e-5) but off by 2e-3: e.g. a float16 or a rounding bug
+    fr = _frames(fmt="{:.4f}")
+    ro = fr["/rosout"].copy()
+    mask = ro["name"] == "simple_subscriber"
+    ro.loc[mask, "msg"] = [f"Normal random number: {float(m.split(': ')[1]) + 0.002:.4f}" for m in ro.loc[mask, "msg"]]
+    fr["/rosout"] = ro
+    fr.pop("/grader/stdout")
+    f = check(get("boxmuller")(fr, {}))
+    assert f.status == "fail" and f.evidence["matched"] == 0
+
+
+def _unknown(a, b):
+    return 1.3 * FORMULAS["correct"][1](a, b) + 0.1      # not a named variant
+
+
+@pytest.mark.parametrize("kind", ["rosout", "stdout"])
+def test_fast_replay_coarse_printing_gets_no_credit_by_chance(kind: str) -> None:
+    # 50 Hz replay (the driver's default), 1 decimal (tolerance 0.05); print() lines arrive in 50 ms batches
+    common = dict(fmt="{:.1f}", rate=50.0, n=400, kind=kind)
+    f = check(get("boxmuller")(_frames(**common), {}))
+    assert f.status == "pass", f.evidence
+    f = check(get("boxmuller")(_frames(fn=_unknown, **common), {}))
+    assert f.status == "fail" and f.fraction == 0.0, f.evidence
+    assert f.evidence["raw_ratio"] > 0.05           # coincidences were there, and were discounted
+    f = check(get("boxmuller")(_frames(drop=tuple(range(0, 400, 2)), **common), {}))
+    assert f.status == "partial" and 0.35 < f.fraction < 0.65, f.evidence
+    f = check(get("boxmuller")(_frames("log10", **common), {}))
+    assert f.evidence.get("bug") == "log10", f.evidence
+
+
+def test_integers_cannot_be_verified() -> None:
+    f = check(get("boxmuller")(_frames(fmt="{:.0f}", rate=50.0, n=300, fn=_unknown), {}))
+    assert f.status == "fail" and "too coarsely" in f.feedback

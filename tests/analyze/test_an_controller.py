@@ -1,0 +1,139 @@
+"""Exercise 2 controller analyzers on a simulated unicycle (dt = 0.016) driven by P-controllers."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from analyze_synth import T0, check, events_frame, law, simulate
+from grader.analyze import get
+
+TWO_GOALS = [(0.5, 2.0, 7.0), (25.5, 5.0, 1.0)]
+
+
+@pytest.fixture(scope="module")
+def runs() -> dict:
+    return {kind: simulate(TWO_GOALS, law(kind), 50.0) for kind in ("correct", "wrong_sign", "no_wrap")}
+
+
+def test_correct_controller_passes_everything(runs) -> None:
+    fr = runs["correct"]
+    f = check(get("goals_reached")(fr, {}))
+    assert f.status == "pass", f.feedback
+    for g in f.evidence["goals"]:
+        assert g["reached"] and g["held"] and g["stopped"] and 2 < g["time_to_reach"] < 20
+        assert g["final_error"] < 0.1
+    f = check(get("turn_direction")(fr, {}))
+    assert f.status == "pass" and f.evidence["goals"][0]["initial_turn"] == "left (CCW)"
+    f = check(get("control_law")(fr, {}))
+    assert f.status == "pass", f.feedback
+    assert f.evidence["K1"] == pytest.approx(0.5, rel=0.02)
+    assert f.evidence["K2"] == pytest.approx(1.0, rel=0.02)
+    assert f.evidence["R2_linear"] > 0.99 and f.evidence["R2_angular"] > 0.99
+    f = check(get("publish_rate")(fr, {"topic": "/turtle1/cmd_vel", "expected_hz": 1 / 0.03}))
+    assert f.status == "pass"
+
+
+def test_other_gains_are_recovered() -> None:
+    fr = simulate(TWO_GOALS, law("correct", k1=0.2, k2=0.7), 50.0)
+    f = check(get("control_law")(fr, {}))
+    assert f.status == "pass"
+    assert f.evidence["K1"] == pytest.approx(0.2, rel=0.02) and f.evidence["K2"] == pytest.approx(0.7, rel=0.02)
+
+
+def test_wrong_sign(runs) -> None:
+    fr = runs["wrong_sign"]
+    f = check(get("goals_reached")(fr, {}))
+    assert f.status == "fail" and f.fraction == 0.0 and "closest approach" in f.feedback
+    f = check(get("turn_direction")(fr, {}))
+    assert f.status == "fail" and "long way" in f.feedback
+    assert f.evidence["goals"][0]["initial_turn"] == "right (CW)"
+    f = check(get("control_law")(fr, {}))
+    assert f.status == "partial" and f.fraction == 0.5
+    assert f.evidence["K2"] < 0 and "wrong sign" in f.feedback
+    assert f.feedback[0].isupper() and "K2 ≈" in f.feedback
+
+
+def test_missing_wrap_is_detected_by_the_fit(runs) -> None:
+    f = check(get("control_law")(runs["no_wrap"], {}))
+    assert f.evidence["wrap"] == "missing" and f.status == "partial"
+    assert f.evidence["R2_angular_unwrapped"] > 0.99 > f.evidence["R2_angular"]
+    assert "without wrapping" in f.feedback
+    # and the correct controller's wrap was actually tested, not skipped
+    assert check(get("control_law")(runs["correct"], {})).evidence["wrap"] == "ok"
+
+
+def test_missing_wrap_turns_the_long_way() -> None:
+    # heading 2.8 rad, goal direction -2.82 rad: short way is +38 deg (left); naive difference is -322 deg
+    start = (5.5, 5.5, 2.8)
+    good = check(get("turn_direction")(simulate([(0.2, 1.0, 4.0)], law("correct"), 15.0, start=start), {}))
+    assert good.status == "pass"
+    row = good.evidence["goals"][0]
+    assert row["wrap_matters"] and row["required_turn_deg"] == pytest.approx(37.9, abs=1.0)
+    bad = check(get("turn_direction")(simulate([(0.2, 1.0, 4.0)], law("no_wrap"), 15.0, start=start), {}))
+    assert bad.status == "fail" and "wrapped" in bad.feedback
+    assert bad.evidence["goals"][0]["initial_turn"] == "right (CW)"
+
+
+def test_large_right_turn_and_goal_behind() -> None:
+    f = check(get("turn_direction")(simulate([(0.2, 3.0, 2.0)], law("correct"), 15.0), {}))
+    assert f.status == "pass" and f.evidence["goals"][0]["initial_turn"] == "right (CW)"
+    f = check(get("turn_direction")(simulate([(0.2, 3.0, 2.0)], law("wrong_sign"), 15.0), {}))
+    assert f.status == "fail"
+    # a goal right behind the turtle: both directions are the short way
+    for kind in ("correct", "wrong_sign"):
+        f = check(get("turn_direction")(simulate([(0.2, 1.0, 5.9)], law(kind), 10.0), {}))
+        assert f.evidence["goals"][0]["ambiguous"]
+        assert f.status == "pass"
+
+
+def test_small_turn_goals_are_not_judged() -> None:
+    f = check(get("turn_direction")(simulate([(0.2, 9.0, 6.0)], law("correct"), 10.0), {}))
+    assert f.status == "error" and not f.evidence["goals"][0]["evaluated"]
+
+
+def test_goals_from_topic_when_no_events() -> None:
+    fr = simulate(TWO_GOALS, law("correct"), 50.0, events=False)
+    assert "/grader/events" not in fr
+    f = check(get("goals_reached")(fr, {}))
+    assert f.status == "pass" and f.evidence["goal_source"] == "topic"
+    assert check(get("control_law")(fr, {})).status == "pass"
+
+
+def test_reached_but_not_stopped_is_partial() -> None:
+    def overshoot(x, y, th, gx, gy):
+        v, w = law("correct")(x, y, th, gx, gy)
+        return max(v, 0.6), w          # never slows below 0.6 m/s: passes the goal, circles around it
+    fr = simulate([(0.2, 8.0, 5.544445)], overshoot, 15.0)
+    f = check(get("goals_reached")(fr, {}))
+    g = f.evidence["goals"][0]
+    assert g["reached"] and not g["stopped"]
+    assert f.status == "partial" and f.fraction == pytest.approx(0.75)
+    assert "did not stay stopped" in f.feedback
+
+
+def test_time_limit() -> None:
+    fr = simulate([(0.2, 2.0, 7.0)], law("correct", k1=0.2), 20.0)
+    assert check(get("goals_reached")(fr, {})).status == "pass"
+    f = check(get("goals_reached")(fr, {"time_limit_s": 3.0}))
+    assert f.status == "fail"
+
+
+def test_missing_inputs() -> None:
+    fr = simulate(TWO_GOALS, law("correct"), 5.0)
+    no_pose = {k: v for k, v in fr.items() if k != "/turtle1/pose"}
+    for name in ("goals_reached", "turn_direction", "control_law"):
+        assert check(get(name)(no_pose, {})).status == "error"
+    no_goals = {k: v for k, v in fr.items() if k != "/grader/events"}
+    assert check(get("goals_reached")(no_goals, {})).status == "error"
+    no_cmd = {k: v for k, v in fr.items() if k != "/turtle1/cmd_vel"}
+    f = check(get("control_law")(no_cmd, {}))
+    assert f.status == "fail" and "/turtle1/cmd_vel" in f.feedback
+
+
+def test_goal_sent_on_another_topic_is_not_a_goal() -> None:
+    fr = simulate(TWO_GOALS, law("correct"), 50.0)
+    other = events_frame([(T0 + 30, "goal_sent", {"goal": [0.5, 0.5], "topic": "/random_numbers"})])
+    fr["/grader/events"] = pd.concat([fr["/grader/events"], other]).sort_index()
+    f = check(get("goals_reached")(fr, {}))
+    assert f.status == "pass" and len(f.evidence["goals"]) == 2

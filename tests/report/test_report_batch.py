@@ -1,0 +1,59 @@
+"""result.json round trip, caller-supplied extras, and batch outputs rebuilt from disk."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from grader.errors import GraderError
+from grader.report import read_result, result_from_dict, result_to_dict, write_batch, write_result
+from grader.rubric import score
+
+
+def test_round_trip_through_json(lab3_result):
+    doc = result_to_dict(lab3_result, "alice")
+    again = result_from_dict(json.loads(json.dumps(doc)))
+    assert result_to_dict(again, "alice") == doc
+    student = lab3_result.for_student()
+    assert result_to_dict(result_from_dict(result_to_dict(student, "a")), "a") == result_to_dict(student, "a")
+
+
+def test_extra_keys_cannot_replace_fields(lab3_result):
+    assert result_to_dict(lab3_result, "a", extra={"build": {"ok": True}})["build"] == {"ok": True}
+    with pytest.raises(ValueError, match="score"):
+        result_to_dict(lab3_result, "a", extra={"score": 100})
+
+
+def test_write_result_extra_and_problems_in_html(tmp_path, lab3_result):
+    from grader.report import write_html
+    path = write_result(tmp_path, "alice", lab3_result, extra={"build": {"ok": False, "failed": ["x"]}})
+    assert json.loads(path.read_text())["build"] == {"ok": False, "failed": ["x"]}
+    html = write_html(tmp_path, "alice", lab3_result,
+                      problems=["package x did not build:\nSyntaxError: <bad>", "y" * 5000]).read_text()
+    assert "Problems while grading" in html and "SyntaxError: &lt;bad&gt;" in html
+    assert "y" * 3000 + "…" in html and "y" * 3001 not in html
+
+
+def test_batch_from_disk(tmp_path, lab3, lab3_result):
+    write_result(tmp_path, "bob", score(lab3, {}))
+    write_result(tmp_path, "alice", lab3_result)
+    write_result(tmp_path, "check", lab3_result.for_student())     # a self-check: not a grade
+    (tmp_path / "stray").mkdir()                                     # folder without a result
+    csv_path, index = write_batch(tmp_path, lab3)
+    rows = list(csv.DictReader(csv_path.open()))
+    assert [r["submission"] for r in rows] == ["alice", "bob"]
+    assert rows[0]["auto_total"] == "47" and rows[1]["auto_total"] == "0"
+    assert 'href="alice/report.html"' in index.read_text() and "check/" not in index.read_text()
+
+
+def test_unreadable_result_is_a_clear_error(tmp_path):
+    bad = tmp_path / "x" / "result.json"
+    bad.parent.mkdir()
+    bad.write_text("{not json")
+    with pytest.raises(GraderError, match="cannot read"):
+        read_result(bad)
+    bad.write_text(json.dumps({"schema": 99}))
+    with pytest.raises(GraderError, match="schema 99"):
+        read_result(bad)

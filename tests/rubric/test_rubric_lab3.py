@@ -1,0 +1,141 @@
+"""rubrics/enee467_lab3.yaml mirrors the lab's points table and the ARCHITECTURE item ids."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from grader.rubric import Section, load_rubric
+from grader.rubric.scenarios import ActionGoal, PublishGoal, Replay, Start
+
+REPO = Path(__file__).resolve().parents[2]
+LAB3 = REPO / "rubrics" / "enee467_lab3.yaml"
+DATA = Path(__file__).parent / "data"
+
+# docs/ARCHITECTURE.md, "Rubric item ids for ENEE 467 Lab 3": id -> (points, kind, analyzer)
+EXPECTED = {
+    "ex1.pub_topic": (4, "auto", "topic_type"),
+    "ex1.pub_values": (3, "auto", "random_numbers_values"),
+    "ex1.pub_rate": (3, "auto", "publish_rate"),
+    "ex1.boxmuller": (6, "auto", "boxmuller"),
+    "ex1.sub_logging": (2, "auto", "boxmuller_logging"),
+    "ex1.normality": (2, "auto", "normality"),
+    "ex2.goals_reached": (8, "auto", "goals_reached"),
+    "ex2.turn_direction": (3, "auto", "turn_direction"),
+    "ex2.control_law": (3, "auto", "control_law"),
+    "ex2.control_rate": (2, "auto", "publish_rate"),
+    "ex2.goal_publisher": (4, "auto", "goal_publisher"),
+    "ex2.goal_publisher_robust": (0, "advisory", "goal_publisher_robust"),
+    "ex3.action_advertised": (2, "auto", "action_advertised"),
+    "ex3.goals_succeed": (4, "auto", "action_goals_succeed"),
+    "ex3.rejects_out_of_bounds": (4, "auto", "action_rejects_out_of_bounds"),
+    "ex3.timeout": (0, "advisory", "action_timeout"),
+    "ex3.client_rejected": (0, "advisory", "action_client_rejected"),
+    "integrity.pose_publisher": (0, "integrity", "integrity_pose_publisher"),
+    "integrity.no_teleport": (0, "integrity", "integrity_no_teleport"),
+    "report": (10, "manual", None),
+    "q1": (8, "manual", None), "q2": (8, "manual", None), "q3": (8, "manual", None),
+    "q4": (8, "manual", None), "q5": (8, "manual", None),
+}
+# the lab text's points table
+TABLE = {Section("report"): 10, **{Section("question", n): 8 for n in range(1, 6)},
+         Section("exercise", 1): 20, Section("exercise", 2): 20, Section("exercise", 3): 10}
+
+
+@pytest.fixture(scope="module")
+def lab3():
+    return load_rubric(LAB3, check_files=False)
+
+
+def test_items_match_architecture_contract(lab3):
+    got = {i.id: (i.points, i.kind, i.analyzer) for i in lab3.items}
+    assert got == EXPECTED
+
+
+def test_points_table_of_the_lab(lab3):
+    sums: dict[Section, float] = {}
+    for item in lab3.items:
+        sums[item.section] = sums.get(item.section, 0) + item.points
+    assert {s: p for s, p in sums.items() if p} == TABLE
+    assert (lab3.total_max, lab3.auto_max, lab3.manual_max) == (100, 50, 50)
+    assert lab3.lab == "enee467-lab3"
+
+
+def test_scenarios_and_their_inputs(lab3):
+    assert set(lab3.scenarios_used()) == {"ex1_publisher", "ex1_subscriber", "ex2_controller",
+                                          "ex2_goal_publisher", "ex3_action"} == set(lab3.scenarios)
+    assert not lab3.scenarios["ex1_publisher"].sim
+    pub = lab3.scenarios["ex1_publisher"].processes[0]
+    assert (pub.package, pub.executable) == ("random_numbers", "simple_publisher")
+
+    replay = next(s.action for s in lab3.scenarios["ex1_subscriber"].steps if isinstance(s.action, Replay))
+    assert (replay.count, replay.rate_hz, replay.topics) == (1000, 100, ("/random_numbers",))
+    assert replay.bag == (REPO / "fixtures" / "bags" / "random_numbers").resolve()
+
+    ex2 = lab3.scenarios["ex2_controller"]
+    goals = [(s.action.x, s.action.y) for s in ex2.steps if isinstance(s.action, PublishGoal)]
+    assert goals[0] == (2.0, 7.0) and len(goals) == 3
+    for step in ex2.steps[1:]:
+        assert step.until.name == "goal_reached" and step.until.params["tolerance"] == 0.1
+        assert step.until.params["settle"] > 0 and step.timeout <= 30
+
+    gp = lab3.scenarios["ex2_goal_publisher"].processes[0]
+    assert gp.module == "turtle_control.goal_publisher:main"
+    assert [line.text for line in gp.stdin] == ["2.0,7.0", "oops", "8.0,3.0"]
+
+    ex3 = lab3.scenarios["ex3_action"]
+    server = ex3.process("server")
+    assert server.parameters == {"controller_rate": 30.0, "K_1": 0.5, "K_2": 2.0}
+    assert isinstance(server.parameters["controller_rate"], float)   # template declares a double
+    actions = {s.id: s.action for s in ex3.steps if isinstance(s.action, ActionGoal)}
+    assert {a.name for a in actions.values()} == {"/turtle_goal"}
+    assert {a.type for a in actions.values()} == {"turtle_control_interfaces/action/SendGoal"}
+    assert actions["out_of_bounds"].goal["goal"] == {"x": 15.0, "y": 15.0}
+    assert actions["timeout"].goal["timeout"] == 0.5
+    assert any(isinstance(s.action, Start) and s.action.processes == ("client",) for s in ex3.steps)
+    assert ex3.process("client").executable == "turtle_controller_client_node"
+
+
+def test_geometry_of_ex2_goals():
+    """The 'behind' goal must need a short LEFT turn of > 150 deg from the heading of arrival at
+    (2, 7), the last goal a RIGHT turn > 90 deg; otherwise turn_direction tests nothing."""
+    import math
+    start = (5.544444561004639, 5.544444561004639)
+    a, b, c = (2.0, 7.0), (6.0, 4.0), (2.5, 2.5)
+
+    def bearing(p, q):
+        return math.atan2(q[1] - p[1], q[0] - p[0])
+
+    def wrap(angle):
+        return (angle + math.pi) % (2 * math.pi) - math.pi
+
+    turn_b = math.degrees(wrap(bearing(a, b) - bearing(start, a)))
+    turn_c = math.degrees(wrap(bearing(b, c) - bearing(a, b)))
+    assert 150 < turn_b < 180
+    assert -150 < turn_c < -90
+
+
+def test_params_fit_the_registered_analyzers():
+    """The default load checks names and parameters against grader.analyze's registry."""
+    from grader.rubric.load import registered_analyzers
+    registry = registered_analyzers()
+    rubric = load_rubric(LAB3, check_files=False)
+    for item in rubric.items:
+        if item.analyzer:
+            assert set(item.params) <= set(registry[item.analyzer]), item.id
+
+
+def test_fixtures_it_names_exist():
+    """The default load checks files: the supplied interface package and the replayed bag."""
+    rubric = load_rubric(LAB3)
+    assert (rubric.support_paths()["turtle_control_interfaces"] / "package.xml").is_file()
+    replay = next(s.action for s in rubric.scenarios["ex1_subscriber"].steps if isinstance(s.action, Replay))
+    assert replay.bag.exists()
+
+
+@pytest.mark.parametrize("name", ["future_goal_setter.yaml", "future_pen_colours.yaml",
+                                  "future_circle.yaml"])
+def test_format_describes_future_labs(name):
+    rubric = load_rubric(DATA / name, check_files=False, analyzers=None)   # analyzers to be written
+    assert rubric.items and rubric.scenarios_used() == list(rubric.scenarios)
