@@ -11,7 +11,7 @@ from grader.runner import RosGraph
 
 REPO = Path(__file__).resolve().parent.parent
 
-pytest_plugins: list[str] = []
+pytest_plugins = ["grader.testing.bags"]
 
 
 @pytest.fixture

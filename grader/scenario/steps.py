@@ -139,14 +139,27 @@ def _do_replay(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dic
     period = 1.0 / float(spec.get("rate_hz", 50.0))
     driver.event("replay_start", topic=spec["topic"], count=len(rows), rate_hz=1.0 / period,
                  bag=str(spec["bag"]))
-    t0 = time.monotonic()
+    window = int(spec.get("window", 4))
+    base = driver.output_count()
+    lockstep = True
+    t0 = t_start = time.monotonic()
     for i, row in enumerate(rows):
         pub.publish(cls(data=[float(v) for v in row if v == v]))
         delay = t0 + (i + 1) * period - time.monotonic()
         if delay > 0:
             time.sleep(delay)
+        if lockstep:
+            # never run more than `window` inputs ahead of the student's outputs, so a slow
+            # subscriber is paced instead of losing messages in its QoS history
+            if not driver.wait_until(lambda: driver.output_count() - base >= i + 1 - window, 0.25,
+                                     poll=0.002):
+                base = driver.output_count() - (i + 1)   # inputs were lost or ignored: re-sync
+            if i == 4 * window and driver.output_count() == base:
+                lockstep = False      # it prints nothing per message: plain fixed rate
+        t0 = max(t0, time.monotonic() - (i + 1) * period)   # no burst after a wait
     driver.last_output = time.monotonic()   # idle is measured from the last input
-    driver.event("replay_end", topic=spec["topic"], count=len(rows))
+    driver.event("replay_end", topic=spec["topic"], count=len(rows), outputs=driver.output_count() - base,
+                 lockstep=lockstep, duration_s=round(time.monotonic() - t_start, 3))
     return {"topic": spec["topic"], "count": len(rows)}
 
 

@@ -1,0 +1,188 @@
+"""rosbag2 ``metadata.yaml`` (version 9, as ROS 2 Jazzy writes it) and QoS profile dicts.
+
+Why a module of its own: the recorder writes it, ``bag repair`` rebuilds it from the MCAP file,
+``bag info``/``load_bag_meta`` read it, and replay turns the stored QoS back into publishers. One
+place keeps the field names and the Jazzy spellings (``keep_last``, ``reliable``, ...) consistent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from grader.errors import GraderError
+
+METADATA_FILE = "metadata.yaml"
+VERSION = 9
+ROS_DISTRO = "jazzy"
+#: RMW_DURATION_INFINITE as rosbag2 Jazzy writes it (sec, nsec)
+INFINITE = {"sec": 9223372036, "nsec": 854775807}
+
+
+def default_qos() -> dict[str, Any]:
+    """The profile rosbag2 assumes when nothing was offered: reliable, volatile, depth 10."""
+    return {
+        "history": "keep_last", "depth": 10, "reliability": "reliable", "durability": "volatile",
+        "deadline": dict(INFINITE), "lifespan": dict(INFINITE), "liveliness": "system_default",
+        "liveliness_lease_duration": dict(INFINITE), "avoid_ros_namespace_conventions": False,
+    }
+
+
+def qos_from_any(value: Any) -> list[dict[str, Any]]:
+    """Offered QoS profiles from a v9 list, a v8 YAML string, or nothing, normalised to v9 dicts."""
+    if value in (None, "", []):
+        return []
+    if isinstance(value, str):
+        try:
+            value = yaml.safe_load(value)
+        except yaml.YAMLError as exc:
+            raise GraderError(f"offered_qos_profiles is not valid YAML ({exc}); "
+                              "the bag metadata is damaged: run `grader bag repair BAG`.") from None
+        if not value:
+            return []
+    if not isinstance(value, list):
+        raise GraderError("offered_qos_profiles must be a list of QoS profiles; the bag metadata "
+                          "is damaged: run `grader bag repair BAG`.")
+    v8_enums = {
+        "history": {0: "system_default", 1: "keep_last", 2: "keep_all", 3: "unknown"},
+        "reliability": {0: "system_default", 1: "reliable", 2: "best_effort", 3: "unknown",
+                        4: "best_available"},
+        "durability": {0: "system_default", 1: "transient_local", 2: "volatile", 3: "unknown",
+                       4: "best_available"},
+        "liveliness": {0: "system_default", 1: "automatic", 3: "manual_by_topic", 4: "unknown",
+                       5: "best_available"},
+    }
+    out = []
+    for item in value:
+        q = default_qos()
+        q.update(item or {})
+        for key, table in v8_enums.items():
+            if isinstance(q[key], int):
+                q[key] = table.get(q[key], "unknown")
+        out.append(q)
+    return out
+
+
+@dataclass
+class TopicInfo:
+    """One topic of a bag, as metadata.yaml describes it."""
+
+    name: str
+    type: str
+    message_count: int = 0
+    serialization_format: str = "cdr"
+    offered_qos_profiles: list[dict[str, Any]] = field(default_factory=list)
+    type_description_hash: str = ""
+
+
+@dataclass
+class FileInfo:
+    path: str
+    starting_time_ns: int
+    duration_ns: int
+    message_count: int
+
+
+@dataclass
+class BagMetadata:
+    """The parsed content of metadata.yaml (or its reconstruction from the MCAP files)."""
+
+    topics: list[TopicInfo]
+    files: list[FileInfo]
+    starting_time_ns: int
+    duration_ns: int
+    message_count: int
+    storage_identifier: str = "mcap"
+    compression_format: str = ""
+    compression_mode: str = ""
+    custom_data: dict[str, str] = field(default_factory=dict)
+    ros_distro: str = ROS_DISTRO
+    version: int = VERSION
+
+    def to_yaml(self) -> str:
+        info = {
+            "version": self.version,
+            "storage_identifier": self.storage_identifier,
+            "duration": {"nanoseconds": int(self.duration_ns)},
+            "starting_time": {"nanoseconds_since_epoch": int(self.starting_time_ns)},
+            "message_count": int(self.message_count),
+            "topics_with_message_count": [
+                {"topic_metadata": {
+                    "name": t.name, "type": t.type,
+                    "serialization_format": t.serialization_format,
+                    "offered_qos_profiles": t.offered_qos_profiles,
+                    "type_description_hash": t.type_description_hash},
+                 "message_count": int(t.message_count)}
+                for t in self.topics],
+            "compression_format": self.compression_format,
+            "compression_mode": self.compression_mode,
+            "relative_file_paths": [f.path for f in self.files],
+            "files": [{"path": f.path,
+                       "starting_time": {"nanoseconds_since_epoch": int(f.starting_time_ns)},
+                       "duration": {"nanoseconds": int(f.duration_ns)},
+                       "message_count": int(f.message_count)} for f in self.files],
+            "custom_data": dict(self.custom_data) or None,
+            "ros_distro": self.ros_distro,
+        }
+        return yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False,
+                              default_flow_style=False)
+
+    def write(self, bag_dir: Path) -> None:
+        """Write atomically: a reader never sees half a metadata file."""
+        target = Path(bag_dir) / METADATA_FILE
+        tmp = target.with_suffix(".yaml.tmp")
+        tmp.write_text(self.to_yaml())
+        tmp.replace(target)
+
+
+def _require(d: dict, key: str, where: str) -> Any:
+    if key not in d:
+        raise GraderError(f"{where} lacks the field {key!r}; the bag metadata is damaged: "
+                          "run `grader bag repair BAG` to rebuild it from the MCAP file.")
+    return d[key]
+
+
+def parse_metadata(text: str, where: str = METADATA_FILE) -> BagMetadata:
+    """Parse metadata.yaml text of versions 4..9 into a BagMetadata."""
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1}" if mark is not None else ""
+        raise GraderError(f"{where} is not valid YAML ({getattr(exc, 'problem', None) or 'parse error'}"
+                          f"{at}); run `grader bag repair BAG` to rebuild it from the MCAP file.") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("rosbag2_bagfile_information"), dict):
+        raise GraderError(f"{where} has no 'rosbag2_bagfile_information' section; it is not "
+                          "rosbag2 metadata. Run `grader bag repair BAG` to rebuild it.")
+    info = doc["rosbag2_bagfile_information"]
+    topics = []
+    for entry in _require(info, "topics_with_message_count", where) or []:
+        tm = _require(entry, "topic_metadata", where)
+        topics.append(TopicInfo(
+            name=_require(tm, "name", where), type=_require(tm, "type", where),
+            message_count=int(entry.get("message_count", 0)),
+            serialization_format=tm.get("serialization_format", "cdr"),
+            offered_qos_profiles=qos_from_any(tm.get("offered_qos_profiles")),
+            type_description_hash=tm.get("type_description_hash", "") or ""))
+    try:
+        files = [FileInfo(f["path"], int(f["starting_time"]["nanoseconds_since_epoch"]),
+                          int(f["duration"]["nanoseconds"]), int(f["message_count"]))
+                 for f in info.get("files") or []]
+    except (KeyError, TypeError, ValueError):
+        raise GraderError(f"{where} has a malformed 'files' entry; run `grader bag repair BAG`.") from None
+    if not files:
+        files = [FileInfo(p, 0, 0, 0) for p in info.get("relative_file_paths") or []]
+    return BagMetadata(
+        topics=topics, files=files,
+        starting_time_ns=int(_require(info, "starting_time", where)["nanoseconds_since_epoch"]),
+        duration_ns=int(_require(info, "duration", where)["nanoseconds"]),
+        message_count=int(_require(info, "message_count", where)),
+        storage_identifier=_require(info, "storage_identifier", where),
+        compression_format=info.get("compression_format", "") or "",
+        compression_mode=info.get("compression_mode", "") or "",
+        custom_data=dict(info.get("custom_data") or {}),
+        ros_distro=info.get("ros_distro", "") or "",
+        version=int(_require(info, "version", where)))

@@ -1,0 +1,84 @@
+"""Reference headless turtlesim (node ``turtlesim``) for recording and grading.
+
+A faithful rclpy re-implementation of ROS 2 Jazzy's ``turtlesim_node`` (spec:
+``/work/shared/specs/turtlesim.md``) plus two grader additions: service introspection on every
+simulator service and a PNG of the canvas.  Start it as its own process (``sim_argv``); this
+module only holds names and the argv helper, so importing it never imports rclpy.
+
+Public API::
+
+    argv = sim_argv(canvas_out="run/canvas.png")       # -> [python, -m, grader.sim, ...]
+    SAVE_CANVAS_SERVICE                                 # "/turtlesim/save_canvas" (std_srvs/Empty)
+    service_event_topic("/turtle1/set_pen")             # "/turtle1/set_pen/_service_event"
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Iterable, Sequence
+
+NODE_NAME = "turtlesim"
+#: grader addition; only offered when the sim was started with a canvas path
+SAVE_CANVAS_SERVICE = "/turtlesim/save_canvas"
+#: global services of the simulator (all with CONTENTS introspection)
+GLOBAL_SERVICES = ("/clear", "/reset", "/spawn", "/kill")
+#: per-turtle services, relative to ``/<turtle name>/`` (all with CONTENTS introspection)
+TURTLE_SERVICES = ("set_pen", "teleport_absolute", "teleport_relative")
+#: per-turtle topics (relative to ``/<turtle name>/``) and the action
+TURTLE_TOPICS = {"cmd_vel": "geometry_msgs/msg/Twist", "pose": "turtlesim/msg/Pose",
+                 "color_sensor": "turtlesim/msg/Color"}
+TURTLE_ACTION = "rotate_absolute"
+#: log text of the wall warning (printf format, internal screen coordinates)
+WALL_WARNING_PREFIX = "Oh no! I hit the wall!"
+
+
+def service_event_topic(service: str) -> str:
+    """Topic on which a service with introspection publishes its ``_service_event`` messages."""
+    return service.rstrip("/") + "/_service_event"
+
+
+def turtle_service_events(turtle: str = "turtle1") -> list[str]:
+    """The ``_service_event`` topics of one turtle's services."""
+    return [service_event_topic(f"/{turtle}/{s}") for s in TURTLE_SERVICES]
+
+
+def all_service_event_topics(turtles: Iterable[str] = ("turtle1",)) -> list[str]:
+    """Global + per-turtle ``_service_event`` topics (what a recorder should subscribe to)."""
+    topics = [service_event_topic(s) for s in GLOBAL_SERVICES]
+    for turtle in turtles:
+        topics.extend(turtle_service_events(turtle))
+    return topics
+
+
+def sim_args(canvas_out: str | Path | None = None, *, holonomic: bool = False,
+             background: Sequence[int] | None = None,
+             ros_args: Sequence[str] = ()) -> list[str]:
+    """Command-line arguments of ``python -m grader.sim`` (without the interpreter part)."""
+    args: list[str] = []
+    if canvas_out is not None:
+        args += ["--canvas-out", str(canvas_out)]
+    if holonomic:
+        args.append("--holonomic")
+    if background is not None:
+        args += ["--background", *(str(int(c)) for c in background)]
+    if ros_args:
+        args += ["--ros-args", *ros_args]
+    return args
+
+
+def sim_argv(canvas_out: str | Path | None = None, extra: Sequence[str] = (), *,
+             holonomic: bool = False, background: Sequence[int] | None = None,
+             ros_args: Sequence[str] = ()) -> list[str]:
+    """argv that starts the simulator as a separate process with this interpreter.
+
+    ``extra`` is appended verbatim (e.g. ``["--ros-args", "-r", "__ns:=/sim1"]``).
+    """
+    return [sys.executable, "-m", "grader.sim",
+            *sim_args(canvas_out, holonomic=holonomic, background=background, ros_args=ros_args),
+            *extra]
+
+
+__all__ = ["NODE_NAME", "SAVE_CANVAS_SERVICE", "GLOBAL_SERVICES", "TURTLE_SERVICES",
+           "TURTLE_TOPICS", "TURTLE_ACTION", "WALL_WARNING_PREFIX", "service_event_topic",
+           "turtle_service_events", "all_service_event_topics", "sim_args", "sim_argv"]

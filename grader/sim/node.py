@@ -1,0 +1,453 @@
+"""The rclpy node ``turtlesim``: ROS endpoints around :mod:`grader.sim.physics`.
+
+Wiring only: callbacks mutate turtle state or queue requests; a 16 ms steady-clock timer runs
+:meth:`World.tick` (first tick skipped, dt fixed) and publishes pose + colour for every turtle in
+name order, feedback/results of rotate goals, and logs what the C++ node logs.  All callbacks run
+in one executor thread (EventsExecutor by default), like the Qt main loop of the original.
+
+Grader additions (not in the real turtlesim): every simulator service has service introspection
+(CONTENTS) so calls land in bags as ``<service>/_service_event``; with a canvas path the node
+offers ``~/save_canvas`` (std_srvs/Empty) and writes the PNG again on shutdown.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import rclpy
+from geometry_msgs.msg import Twist
+from rcl_interfaces.msg import IntegerRange, ParameterDescriptor, ParameterEvent, ParameterType
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.expand_topic_name import expand_topic_name
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.logging import LoggingSeverity
+from rclpy.node import Node
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
+                       qos_profile_sensor_data)
+from rclpy.service_introspection import ServiceIntrospectionState
+from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
+from rclpy.validate_full_topic_name import validate_full_topic_name
+from std_srvs.srv import Empty
+from turtlesim.action import RotateAbsolute
+from turtlesim.msg import Color, Pose
+from turtlesim.srv import Kill, SetPen, Spawn, TeleportAbsolute, TeleportRelative
+
+from grader.sim.canvas import Canvas
+from grader.sim.physics import DEFAULT_BACKGROUND, METER, TICK_MS, RotateGoal, Turtle, World
+
+#: cmd_vel / pose / color_sensor profile of turtlesim/qos.hpp: KEEP_LAST 7, RELIABLE, VOLATILE
+TOPIC_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=7,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE)
+#: turtlesim's own /parameter_events subscription: KEEP_LAST 100 with the sensor-data profile
+PARAM_EVENTS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                              reliability=qos_profile_sensor_data.reliability,
+                              durability=qos_profile_sensor_data.durability)
+#: service-event publishers: reliable and deep, so a recorder never loses a call
+INTROSPECTION_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                               reliability=ReliabilityPolicy.RELIABLE,
+                               durability=DurabilityPolicy.VOLATILE)
+
+_QOS_OVERRIDE_PARAMS = (
+    ("qos_overrides./parameter_events.publisher.depth", 1000),
+    ("qos_overrides./parameter_events.publisher.durability", "volatile"),
+    ("qos_overrides./parameter_events.publisher.history", "keep_last"),
+    ("qos_overrides./parameter_events.publisher.reliability", "reliable"),
+)
+_TICK_NS = TICK_MS * 1_000_000
+#: longest stall (in ticks) that is caught up by running the missed ticks late
+_MAX_CATCH_UP = 8
+#: ticks to keep a killed turtle's action server alive so a cancelled goal's result gets out
+_ACTION_SERVER_GRACE_TICKS = 10
+
+
+@dataclass
+class _Endpoints:
+    """ROS objects of one turtle (destroyed with it)."""
+
+    cmd_vel: Any
+    pose_pub: Any
+    color_pub: Any
+    services: list[Any]
+    action: ActionServer
+    pose_msg: Pose = field(default_factory=Pose)
+    color_msg: Color = field(default_factory=Color)
+
+
+class TurtlesimNode(Node):
+    """Headless turtlesim. ``canvas_out``: where ``save_canvas`` and shutdown write the PNG."""
+
+    def __init__(self, *, context: rclpy.context.Context | None = None,
+                 canvas_out: str | Path | None = None, node_name: str = "turtlesim") -> None:
+        super().__init__(node_name, context=context)
+        self.canvas_out = Path(canvas_out) if canvas_out else None
+        self._declare_parameters()
+        self._sim_goals: dict[bytes, RotateGoal] = {}      # active goals by goal id
+        self._sim_results: dict[bytes, Future] = {}        # result futures not yet awaited
+        self._sim_graveyard: list[tuple[int, ActionServer]] = []
+        self._sim_logger = self.get_logger()
+        self._debug = False
+        self.world = World(canvas=Canvas(), log=self._log, listener=self)
+
+        self._sim_services = [
+            self._service(Empty, "clear", self._on_clear),
+            self._service(Empty, "reset", self._on_reset),
+            self._service(Spawn, "spawn", self._on_spawn),
+            self._service(Kill, "kill", self._on_kill),
+        ]
+        self.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event,
+                                 PARAM_EVENTS_QOS)
+        if self.canvas_out is not None:
+            self.create_service(Empty, "~/save_canvas", self._on_save_canvas)
+
+        self._log("info", f"Starting turtlesim with node name {self.get_fully_qualified_name()}")
+        self.world.spawn_default(self._now_ns())
+        # Qt's 16 ms timer is wall-clock: a steady timer keeps ticking with use_sim_time too
+        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
+        self._grid0: int | None = None
+        self._grid_slot = -1
+        self.caught_up_ticks = 0   # ticks run late after the timer skipped periods
+        self.resynced_ticks = 0    # ticks dropped after long stalls
+        self._tick_timer = self.create_timer(TICK_MS / 1000.0, self._on_tick,
+                                             clock=self._steady_clock)
+
+    # -- setup helpers ----------------------------------------------------------------------
+    def _declare_parameters(self) -> None:
+        rng = IntegerRange(from_value=0, to_value=255, step=1)
+        for channel, colour, default in (("r", "Red", DEFAULT_BACKGROUND[0]),
+                                         ("g", "Green", DEFAULT_BACKGROUND[1]),
+                                         ("b", "Blue", DEFAULT_BACKGROUND[2])):
+            self.declare_parameter(f"background_{channel}", default, ParameterDescriptor(
+                description=f"{colour} channel of the background color", integer_range=[rng]))
+        self.declare_parameter("holonomic", False, ParameterDescriptor(
+            description="If true, then turtles will be holonomic"))
+        # rclcpp declares these on every node; rclpy does not, so `ros2 param list` would differ
+        for name, value in _QOS_OVERRIDE_PARAMS:
+            ptype = ParameterType.PARAMETER_INTEGER if isinstance(value, int) \
+                else ParameterType.PARAMETER_STRING
+            self.declare_parameter(name, value, ParameterDescriptor(type=ptype, read_only=True))
+
+    def _service(self, srv_type: Any, name: str, callback: Any) -> Any:
+        """A service with CONTENTS introspection: its calls become ``<name>/_service_event``."""
+        srv = self.create_service(srv_type, name, callback)
+        srv.configure_introspection(self.get_clock(), INTROSPECTION_QOS,
+                                    ServiceIntrospectionState.CONTENTS)
+        return srv
+
+    def _log(self, level: str, message: str) -> None:
+        logger = self._sim_logger
+        if level == "info":
+            logger.info(message)
+        elif level == "warn":
+            logger.warning(message)
+        elif level == "error":
+            logger.error(message)
+        else:
+            logger.debug(message)
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    # -- WorldListener: a turtle's endpoints live exactly as long as the turtle --------------
+    def turtle_added(self, turtle: Turtle) -> None:
+        name = turtle.name
+        for suffix in ("cmd_vel", "rotate_absolute/_action/send_goal"):  # fail before creating
+            validate_full_topic_name(expand_topic_name(
+                f"{name}/{suffix}", self.get_name(), self.get_namespace()))
+        action = ActionServer(
+            self, RotateAbsolute, f"{name}/rotate_absolute",
+            execute_callback=self._execute_goal,
+            goal_callback=lambda _request: GoalResponse.ACCEPT,
+            handle_accepted_callback=lambda handle: self._on_goal_accepted(turtle, handle),
+            cancel_callback=self._on_cancel_request)
+        turtle.endpoints = _Endpoints(
+            cmd_vel=self.create_subscription(
+                Twist, f"{name}/cmd_vel", lambda msg: self._on_cmd_vel(turtle, msg), TOPIC_QOS),
+            pose_pub=self.create_publisher(Pose, f"{name}/pose", TOPIC_QOS),
+            color_pub=self.create_publisher(Color, f"{name}/color_sensor", TOPIC_QOS),
+            services=[
+                self._service(SetPen, f"{name}/set_pen",
+                              lambda req, res: self._on_set_pen(turtle, req, res)),
+                self._service(TeleportRelative, f"{name}/teleport_relative",
+                              lambda req, res: self._on_teleport_relative(turtle, req, res)),
+                self._service(TeleportAbsolute, f"{name}/teleport_absolute",
+                              lambda req, res: self._on_teleport_absolute(turtle, req, res)),
+            ],
+            action=action)
+
+    def turtle_removed(self, turtle: Turtle) -> None:
+        ep: _Endpoints | None = turtle.endpoints
+        if ep is None:
+            return
+        turtle.endpoints = None
+        self.destroy_subscription(ep.cmd_vel)
+        self.destroy_publisher(ep.pose_pub)
+        self.destroy_publisher(ep.color_pub)
+        for srv in ep.services:
+            self.destroy_service(srv)
+        goal = turtle.goal
+        if goal is not None:
+            # rclcpp cancels a goal whose handle dies with the turtle, with an empty result
+            turtle.goal = None
+            goal.delta = 0.0
+            self._finish_goal(goal, "canceled")
+            self._sim_graveyard.append((self.world.ticks + _ACTION_SERVER_GRACE_TICKS, ep.action))
+        else:
+            ep.action.destroy()
+
+    # -- callbacks ----------------------------------------------------------------------------
+    def _on_cmd_vel(self, turtle: Turtle, msg: Twist) -> None:
+        holonomic = bool(self.get_parameter("holonomic").value)
+        aborted = turtle.command_velocity(msg.linear.x, msg.linear.y, msg.angular.z, holonomic)
+        if aborted is not None:
+            self._finish_goal(aborted, "aborted")
+
+    def _on_set_pen(self, turtle: Turtle, req: SetPen.Request, res: SetPen.Response) -> Any:
+        turtle.set_pen(req.r, req.g, req.b, req.width, req.off)
+        return res
+
+    def _on_teleport_relative(self, turtle: Turtle, req: TeleportRelative.Request,
+                              res: TeleportRelative.Response) -> Any:
+        turtle.teleport_relative(req.linear, req.angular)
+        return res
+
+    def _on_teleport_absolute(self, turtle: Turtle, req: TeleportAbsolute.Request,
+                              res: TeleportAbsolute.Response) -> Any:
+        turtle.teleport_absolute(req.x, req.y, req.theta)
+        return res
+
+    def _on_clear(self, _req: Empty.Request, res: Empty.Response) -> Any:
+        self.world.clear()
+        return res
+
+    def _on_reset(self, _req: Empty.Request, res: Empty.Response) -> Any:
+        self.world.reset(self._now_ns())
+        return res
+
+    def _on_spawn(self, req: Spawn.Request, res: Spawn.Response) -> Any:
+        try:
+            res.name = self.world.spawn(req.name, req.x, req.y, req.theta, self._now_ns())
+        except (InvalidTopicNameException, InvalidServiceNameException, ValueError) as exc:
+            # rclcpp's turtlesim throws here (and likely dies); a grading run should survive
+            self._log("error", f"Failed to spawn turtle [{req.name}]: {exc}")
+            res.name = ""
+        return res
+
+    def _on_kill(self, req: Kill.Request, res: Kill.Response) -> Any:
+        self.world.kill(req.name)
+        return res
+
+    def _on_save_canvas(self, _req: Empty.Request, res: Empty.Response) -> Any:
+        self.save_canvas()
+        return res
+
+    def _on_parameter_event(self, _msg: ParameterEvent) -> None:
+        """The real node repaints its window here; headless there is nothing to do."""
+
+    # -- rotate_absolute ----------------------------------------------------------------------
+    def _on_goal_accepted(self, turtle: Turtle, handle: Any) -> None:
+        if turtle.endpoints is None:  # turtle killed between request and acceptance
+            handle.execute()
+            return
+        result = Future()
+        uuid = bytes(handle.goal_id.uuid)
+        self._sim_results[uuid] = result
+        goal = RotateGoal(theta=float(handle.request.theta), handle=(handle, result))
+        self._sim_goals[uuid] = goal
+        previous = turtle.accept_goal(goal)
+        if previous is not None:
+            self._finish_goal(previous, "aborted")
+        handle.execute()
+
+    def _on_cancel_request(self, handle: Any) -> CancelResponse:
+        goal = self._sim_goals.get(bytes(handle.goal_id.uuid))
+        if goal is not None:
+            goal.cancel_requested = True
+        return CancelResponse.ACCEPT
+
+    async def _execute_goal(self, handle: Any) -> RotateAbsolute.Result:
+        """Wait for the tick loop (or a preemption / cmd_vel) to finish the goal."""
+        result = self._sim_results.pop(bytes(handle.goal_id.uuid), None)
+        if result is None:  # its turtle was killed before the goal was accepted
+            if handle.is_active:
+                handle.abort()
+            return RotateAbsolute.Result()
+        return await result
+
+    def _finish_goal(self, goal: RotateGoal, status: str) -> None:
+        """Report a terminal state with the goal's last computed delta."""
+        handle, future = goal.handle
+        self._sim_goals.pop(bytes(handle.goal_id.uuid), None)
+        try:
+            if status == "succeeded":
+                handle.succeed()
+            elif status == "canceled":
+                if not handle.is_cancel_requested:
+                    handle._update_state(_rclpy.GoalEvent.CANCEL_GOAL)
+                handle.canceled()
+            else:
+                handle.abort()
+        except Exception as exc:  # noqa: BLE001 - an invalid transition must not stop the sim
+            self._sim_logger.debug(f"could not set goal state {status}: {exc}")
+        if not future.done():
+            future.set_result(RotateAbsolute.Result(delta=goal.delta))
+
+    # -- the tick -------------------------------------------------------------------------------
+    def _on_tick(self) -> None:
+        if not self.context.ok():
+            return
+        # the C++ node logs every turtle's internal state at DEBUG each tick; check once
+        self._debug = self._sim_logger.is_enabled_for(LoggingSeverity.DEBUG)
+        missed = self._missed_ticks()
+        now = self._now_ns()
+        for behind in range(missed, -1, -1):  # late ticks first, at their grid times
+            if self.world.tick(now - behind * _TICK_NS, self._publish) and self._sim_graveyard:
+                self._bury()
+
+    def _missed_ticks(self) -> int:
+        """Timer periods skipped since the previous callback (rcl drops periods when a callback
+        runs more than one period late, e.g. when the machine is busy).
+
+        We run those ticks now, so a starved sim still integrates 62.5 ticks per second and a
+        1 s command still moves ~63 ticks.  rcl keeps ``next_call_time`` on a fixed grid, so
+        ``now + time_until_next_call`` identifies the grid slot exactly.  After a stall longer
+        than ``_MAX_CATCH_UP`` ticks (suspend, debugger) we resynchronise instead.
+        """
+        until = self._tick_timer.time_until_next_call()
+        if until is None:
+            return 0
+        next_call = self._steady_clock.now().nanoseconds + until
+        if self._grid0 is None:
+            self._grid0 = next_call
+        slot = round((next_call - self._grid0) / _TICK_NS) - 1  # slot of this callback
+        missed = slot - self._grid_slot - 1
+        self._grid_slot = slot
+        if missed <= 0:
+            return 0
+        if missed > _MAX_CATCH_UP:
+            self.resynced_ticks += missed
+            return 0
+        self.caught_up_ticks += missed
+        return missed
+
+    def _publish(self, turtle: Turtle) -> None:
+        ep: _Endpoints = turtle.endpoints
+        pose = ep.pose_msg
+        pose.x = turtle.pose_x
+        pose.y = turtle.pose_y
+        pose.theta = turtle.pose_theta
+        pose.linear_velocity = turtle.pose_linear
+        pose.angular_velocity = turtle.pose_angular
+        ep.pose_pub.publish(pose)
+        color = ep.color_msg
+        color.r, color.g, color.b = turtle.color
+        ep.color_pub.publish(color)
+        if self._debug:
+            self._sim_logger.debug("[%s]: pos_x: %f pos_y: %f theta: %f" % (
+                self.get_namespace(), turtle.x, turtle.ys, turtle.orient))
+        if turtle.feedback is not None or turtle.finished is not None:
+            self._goal_outputs(turtle)
+
+    def _goal_outputs(self, turtle: Turtle) -> None:
+        """Feedback of this tick (also on the success tick), then the terminal state."""
+        finished = turtle.finished
+        goal = finished[0] if finished is not None else turtle.goal
+        if goal is None:
+            return
+        if turtle.feedback is not None:
+            goal.handle[0].publish_feedback(RotateAbsolute.Feedback(remaining=turtle.feedback))
+        if finished is not None:
+            self._finish_goal(goal, finished[1])
+
+    def _bury(self) -> None:
+        keep = []
+        for due, action in self._sim_graveyard:
+            if due <= self.world.ticks:
+                action.destroy()
+            else:
+                keep.append((due, action))
+        self._sim_graveyard = keep
+
+    # -- canvas -----------------------------------------------------------------------------------
+    def background(self) -> tuple[int, int, int]:
+        return tuple(int(self.get_parameter(f"background_{c}").value)  # type: ignore[return-value]
+                     for c in "rgb")
+
+    def save_canvas(self, path: str | Path | None = None) -> Path | None:
+        """Write background + trails + turtle markers as PNG to ``path`` (default canvas_out)."""
+        target = Path(path) if path else self.canvas_out
+        if target is None:
+            return None
+        turtles = [(t.x * METER, t.ys * METER, t.orient) for t in self.world.ordered()]
+        return self.world.canvas.save_png(target, self.background(), turtles)
+
+
+def make_executor(context: rclpy.context.Context) -> Any:
+    """The executor of the sim: ``GRADER_SIM_EXECUTOR`` = ``events`` (default) or ``single``.
+
+    rclpy's EventsExecutor (C++, Jazzy "experimental") costs a fraction of the CPU of the
+    Python SingleThreadedExecutor, which rebuilds its wait set from ~200 entities on every wake;
+    that margin is what keeps the 16 ms cadence on a loaded 2-core machine with 20 turtles.
+    """
+    kind = os.environ.get("GRADER_SIM_EXECUTOR", "events")
+    if kind == "events":
+        try:
+            from rclpy.experimental import EventsExecutor  # noqa: PLC0415
+        except ImportError:
+            pass
+        else:
+            return EventsExecutor(context=context)
+    return SingleThreadedExecutor(context=context)
+
+
+def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = None) -> int:
+    """Run the node until SIGINT/SIGTERM or ROS shutdown; save the canvas; return 0.
+
+    ``args`` is the full argv for rclpy (ROS arguments after ``--ros-args``).
+    """
+    context = rclpy.Context()
+    rclpy.init(args=list(args) if args is not None else None, context=context,
+               signal_handler_options=SignalHandlerOptions.NO)
+    stop = {"flag": False}
+
+    def _request_stop(_signum: int, _frame: Any) -> None:
+        stop["flag"] = True
+
+    previous = {sig: signal.signal(sig, _request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    node = None
+    executor = None
+    try:
+        node = TurtlesimNode(context=context, canvas_out=canvas_out)
+        executor = make_executor(context)
+        executor.add_node(node)
+        while not stop["flag"] and context.ok():
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if node is not None:
+            if node.caught_up_ticks or node.resynced_ticks:
+                print(f"turtlesim: ran {node.caught_up_ticks} timer ticks late, dropped "
+                      f"{node.resynced_ticks} after long stalls", file=sys.stderr)
+            try:
+                node.save_canvas()
+            except OSError as exc:
+                print(f"turtlesim: could not save canvas: {exc}", file=sys.stderr)
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
+        if node is not None:
+            node.destroy_node()
+        if context.ok():
+            rclpy.shutdown(context=context)
+    return 0
