@@ -146,7 +146,12 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
     action_topics = []
     if m is not None:
         action_topics = [str(t) for t in m["topic"] if "/_action/" in str(t)]
-        ours = [t for t in action_topics if t.startswith(name + "/_action/")]
+        # a server publishes <name>/_action/status; an action *client* only subscribes to it,
+        # so the topic alone (recorded with 0 messages) does not prove a server exists
+        pubs = {str(t): list(p_) for t, p_ in zip(m["topic"], m["publishers"])} if "publishers" in m else {}
+        status = name + "/_action/status"
+        ours = [t for t in action_topics if t == status
+                and (pubs.get(t) or m.loc[m["topic"] == t, "count"].sum() > 0)]
         ev["action_topics"] = action_topics
         if ours:
             return Finding(name, 1.0, "pass", f"The action server {name} is advertised ({ours[0]} seen).", ev)

@@ -610,6 +610,9 @@ def normality(frames: Frames, p: dict) -> Finding:
     ev.update({"mean": mean, "std": std, "shapiro_W": float(sw.statistic), "shapiro_p": float(sw.pvalue),
                "anderson_stat": ad_stat, "anderson_p": ad_p,
                "mean_bound": p["z_bound"] * se_mean, "std_bound": p["z_bound"] * se_std})
+    counts, edges = np.histogram(np.clip(x, -4.0, 4.0), bins=np.linspace(-4.0, 4.0, 33))
+    ev["histogram"] = {"bins": edges.round(3).tolist(), "counts": counts.tolist(),
+                       "reference": "normal", "xlabel": "z"}
     shape_ok = sw.pvalue >= p["alpha"] and ad_p >= p["alpha"]
     std_ok = abs(mean) <= p["z_bound"] * se_mean and abs(std - 1.0) <= p["z_bound"] * se_std
     frac = 0.5 * shape_ok + 0.5 * std_ok

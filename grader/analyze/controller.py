@@ -117,7 +117,8 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         rows.append(row)
     frac = score / len(gl)
     n_reached = sum(1 for r in rows if r.get("reached"))
-    ev = {"goals": rows, "tol_reached": p["tol_reached"], "goal_source": gl[0].source}
+    ev = {"goals": rows, "tol_reached": p["tol_reached"], "goal_source": gl[0].source,
+          "trajectory": _trajectory(t, x, y, gl)}
     value = f"{n_reached}/{len(gl)} reached"
     problems = []
     for r in rows:
@@ -139,6 +140,19 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         hint = (" Check the signs of d_e and theta_e (eq. 2-3), that K1, K2 > 0, and that cmd_vel is "
                 "published on /turtle1/cmd_vel from the timer callback.")
     return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
+
+
+def _trajectory(t: np.ndarray, x: np.ndarray, y: np.ndarray, gl: list, max_points: int = 400) -> list[dict]:
+    """The path driven towards each goal, thinned for the report's SVG plot."""
+    paths = []
+    for k, g in enumerate(gl, 1):
+        m = (t >= g.t) & (t <= g.t_end)
+        if m.sum() < 2:
+            continue
+        step = max(1, int(m.sum()) // max_points)
+        paths.append({"x": np.round(x[m][::step], 3).tolist(), "y": np.round(y[m][::step], 3).tolist(),
+                      "goal": [g.x, g.y], "label": f"goal {k} ({g.x:g}, {g.y:g})"})
+    return paths
 
 
 @register("turn_direction", defaults={

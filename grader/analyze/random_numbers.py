@@ -12,6 +12,7 @@ from scipy import stats
 
 from grader.analyze import Finding, register
 from grader.analyze._common import (Frames, meta, meta_row, missing_topic_feedback, norm_type, sentence,
+                                    topic_or_student_topic,
                                     publishers_of, topic)
 
 
@@ -57,6 +58,7 @@ def topic_type(frames: Frames, p: dict) -> Finding:
     "ks_min_samples": 20,   # run the uniformity test only with at least this many messages
     "ks_alpha": 0.001,      # KS p-value below this -> "not uniform"
     "shape_credit": 0.5,    # credit when every message is [u1, u2] in (0,1) but uniformity fails
+    "fallback_type": None,  # e.g. std_msgs/msg/Float32MultiArray: judge the student's own topic if misnamed
 })
 def random_numbers_values(frames: Frames, p: dict) -> Finding:
     """Every message holds exactly two values in (0, 1); u1 and u2 look U(0,1) and differ.
@@ -65,10 +67,17 @@ def random_numbers_values(frames: Frames, p: dict) -> Finding:
     useful, and is only Normal if both are uniform and independent (publishing the same number
     twice is a classic slip).
     """
-    name = p["topic"]
-    df = topic(frames, name)
+    df, name, note = topic_or_student_topic(frames, p["topic"], p["fallback_type"])
     if df is None:
         return Finding.fail(missing_topic_feedback(frames, name), {"topic": name})
+    finding = _values(df, name, p)
+    if note:
+        finding.feedback = note + finding.feedback
+        finding.evidence = {**finding.evidence, "measured_topic": name}
+    return finding
+
+
+def _values(df, name: str, p: dict) -> Finding:
     n = len(df)
     if "data[0]" not in df.columns:
         return Finding.fail(f"Messages on {name} carry no data array: fill msg.data = [u1, u2].",

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from grader.analyze import Finding, register
-from grader.analyze._common import Frames, missing_topic_feedback, times, topic
+from grader.analyze._common import Frames, missing_topic_feedback, times, topic, topic_or_student_topic
 
 
 def rate_stats(t: np.ndarray, gap_factor: float | None = 5.0) -> dict:
@@ -59,6 +59,7 @@ def rate_stats(t: np.ndarray, gap_factor: float | None = 5.0) -> dict:
     "min_messages": 5,      # fewer -> fail (not enough to measure)
     "gap_factor": 5.0,      # intervals > gap_factor x median are pauses, not timer periods
     "use_pub_time": False,  # measure on publisher send time (pub_t) instead of receive time
+    "fallback_type": None,  # measure the student's own topic of this type when `topic` is misnamed
 })
 def publish_rate(frames: Frames, p: dict) -> Finding:
     """Mean publish rate vs. the expected rate.
@@ -69,9 +70,14 @@ def publish_rate(frames: Frames, p: dict) -> Finding:
     name, expected = p["topic"], p["expected_hz"]
     if not name or not expected:
         return Finding.error("publish_rate needs params 'topic' and 'expected_hz'.")
-    df = topic(frames, name)
+    df, name, note = topic_or_student_topic(frames, name, p["fallback_type"])
     if df is None:
         return Finding.fail(missing_topic_feedback(frames, name), {"topic": name})
+    if note:
+        finding = publish_rate(frames, {**p, "topic": name, "fallback_type": None})
+        finding.feedback = note + finding.feedback
+        finding.evidence = {**finding.evidence, "measured_topic": name}
+        return finding
     t = times(df)
     if p["use_pub_time"] and "pub_t" in df.columns:
         pt = df["pub_t"].to_numpy(float)

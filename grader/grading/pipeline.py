@@ -112,6 +112,27 @@ def _unavailable_nodes(frames: dict) -> list[str]:
             for e in _events(frames) if e.get("event") == "node_unavailable"]
 
 
+def _crashed_nodes(frames: dict) -> list[str]:
+    """Student processes that exited on their own, with the last line of what they printed."""
+    out = []
+    last_line: dict[str, str] = {}
+    df = frames.get("/grader/stdout")
+    if df is not None and "data" in df:
+        for raw in df["data"]:
+            try:
+                rec = json.loads(raw)
+            except (TypeError, ValueError):
+                continue
+            if rec.get("line", "").strip():
+                last_line[rec.get("process", "?")] = rec["line"].strip()
+    for e in _events(frames):
+        if e.get("event") == "process_exit" and not e.get("stopped_by_grader"):
+            name = e.get("process", "?")
+            tail = last_line.get(name, "")
+            out.append(f"{name} exited with code {e.get('returncode')}" + (f" ({tail[:160]})" if tail else ""))
+    return out
+
+
 def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems."""
     from grader import analyze
@@ -142,9 +163,16 @@ def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], li
                 continue
             finding = analyze.run(item.analyzer, frames, dict(item.params))
             missing = _unavailable_nodes(frames)
-            if missing and finding.status in ("fail", "error"):
-                finding.feedback = (finding.feedback + " Could not run " + "; ".join(missing)).strip()
-                finding.evidence = {**finding.evidence, "unavailable_nodes": missing}
+            crashed = _crashed_nodes(frames)
+            if (missing or crashed) and finding.status in ("fail", "error"):
+                # the analysis could not happen because the student's node did not run: that is
+                # the student's failure (0 points), not the grader's error
+                why = (["Could not run " + "; ".join(missing)] if missing else []) + \
+                      (["Node crashed: " + "; ".join(crashed)] if crashed else [])
+                finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
+                finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
+                if finding.status == "error":
+                    finding.status, finding.fraction = "fail", 0.0
             per_scenario.append(finding)
         findings[item.id] = worst_finding(per_scenario) if per_scenario else None
     return findings, problems

@@ -138,8 +138,19 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
             for node in spec.nodes:
                 if node.autostart:
                     start_node(node.name)
-            ctx: dict[str, Any] = {"start_node": start_node}
+            ctx: dict[str, Any] = {
+                "start_node": start_node,
+                "students_gone": lambda: bool(students) and not any(p.alive() for p in students.values())}
             for step in spec.steps:
+                if spec.nodes and step.action() != "start" and students is not None \
+                        and not any(p.alive() for p in students.values()):
+                    # nobody left to grade (build failed, crashed on start-up): waiting for this
+                    # step's timeout would only cost time; the bag says why
+                    driver.event("step_skipped", step=step.id, reason="no student process is running",
+                                 exited={n: p.returncode for n, p in students.items()})
+                    record["steps"].append({"id": step.id, "action": step.action(), "duration_s": 0.0,
+                                            "ended_by": "skipped", "detail": {}})
+                    continue
                 outcome = run_step(driver, step, ctx)
                 record["steps"].append(outcome)
                 if outcome["ended_by"] == "timeout" and step.abort_on_timeout:

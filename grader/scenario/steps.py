@@ -69,6 +69,9 @@ def _condition(driver: Driver, step: Step, ctx: dict[str, Any]) -> Callable[[], 
         what = until["advertised"]
         ready = {"publisher": what["topic"]} if "topic" in what else \
             {"service": what["service"]} if "service" in what else {"action_server": what["action"]}
+        if "topic" in what:
+            # advertised *and* recorded: the recorder's subscription must be in place too
+            return lambda: driver.is_ready(ready) and all(driver.recorder_matched(n) for n in driver.student_nodes())
         return lambda: driver.is_ready(ready)
     if "subscribed" in until:
         return lambda: driver.is_ready({"subscriber": until["subscribed"]})
@@ -252,12 +255,19 @@ def run_step(driver: Driver, step: Step, ctx: dict[str, Any]) -> StepOutcome:
     driver.event("step_start", step=step.id, action=action)
     detail: dict[str, Any] = {}
     ended_by = "done"
+    gone = ctx.get("students_gone", lambda: False)
+
+    def wait_for(cond) -> str:
+        remaining = max(0.0, step.timeout_s - (time.monotonic() - t0))
+        driver.wait_until(lambda: cond() or gone(), remaining)
+        return "condition" if cond() else ("students_exited" if gone() else "timeout")
+
     if action == "wait":
-        time.sleep(float(step.wait or 0.0))
+        if driver.wait_until(gone, float(step.wait or 0.0)):
+            ended_by = "students_exited"
         cond = _condition(driver, step, ctx)
-        if cond is not None:
-            remaining = max(0.0, step.timeout_s - (time.monotonic() - t0))
-            ended_by = "condition" if driver.wait_until(cond, remaining) else "timeout"
+        if cond is not None and ended_by != "students_exited":
+            ended_by = wait_for(cond)
     else:
         try:
             detail = ACTIONS[action](driver, getattr(step, action), ctx)
@@ -266,8 +276,7 @@ def run_step(driver: Driver, step: Step, ctx: dict[str, Any]) -> StepOutcome:
             ended_by = "error"
         cond = _condition(driver, step, ctx) if ended_by != "error" else None
         if cond is not None:
-            remaining = max(0.0, step.timeout_s - (time.monotonic() - t0))
-            ended_by = "condition" if driver.wait_until(cond, remaining) else "timeout"
+            ended_by = wait_for(cond)
             if "settle_s" in until and "goal_reached" not in until:
                 time.sleep(float(until["settle_s"]))
     if action == "action_goal" and ended_by == "timeout" and ctx.get("goal_handle") is not None:

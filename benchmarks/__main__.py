@@ -1,0 +1,16 @@
+"""`python -m benchmarks` (what `make bench` runs): every benchmark, one after the other."""
+
+import runpy
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+for script in ("bench_sim.py", "bench_bag.py", "bench_grade.py"):
+    print(f"\n===== {script} =====", flush=True)
+    sys.argv = [str(HERE / script)]
+    try:
+        runpy.run_path(str(HERE / script), run_name="__main__")
+    except SystemExit as exc:
+        if exc.code not in (0, None):
+            print(f"{script} exited {exc.code}")
