@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Iterable, Mapping
 
+FASTDDS_PROFILE = Path(__file__).resolve().parent / "dds" / "fastdds_profile.xml"
 PY_SITE = f"lib/python{sys.version_info.major}.{sys.version_info.minor}/site-packages"
 
 
@@ -72,6 +73,8 @@ def child_env(*, domain_id: int | None = None, prefixes: Iterable[Path] = (),
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; would override the range
     env.pop("ROS_STATIC_PEERS", None)
+    if not env.get("FASTRTPS_DEFAULT_PROFILES_FILE") and not env.get("FASTDDS_DEFAULT_PROFILES_FILE"):
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(FASTDDS_PROFILE)   # quicker discovery
     env["PYTHONUNBUFFERED"] = "1"        # student print() lines reach the log as they happen
     env["RCUTILS_COLORIZED_OUTPUT"] = "0"
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")

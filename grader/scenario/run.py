@@ -159,6 +159,12 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
             time.sleep(spec.settle_s)
             driver.graph_snapshot()
             driver.event("scenario_end", scenario=spec.id)
+        except KeyboardInterrupt:
+            # SIGTERM from the parent (batch Ctrl-C or time limit): stop, but keep what was recorded
+            record["errors"].append("interrupted: the scenario was stopped before it finished")
+            record["interrupted"] = True
+            if driver is not None:
+                driver.event("scenario_interrupted")
         except Exception as exc:  # noqa: BLE001 - recorded; the bag so far is still finalized
             record["errors"].append(f"{type(exc).__name__}: {exc}")
             record["traceback"] = traceback.format_exc()
@@ -181,6 +187,12 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
     return record
 
 
+def _interrupt_once(*_args) -> None:
+    """First SIGTERM unwinds the scenario like Ctrl-C; later ones must not break the clean-up."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 2:
@@ -188,7 +200,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     spec = Scenario.from_dict(json.loads(Path(argv[0]).read_text()))
     # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    signal.signal(signal.SIGTERM, _interrupt_once)
     record = run_scenario_here(spec, Path(argv[1]))
     return 0 if not record["errors"] else 1
 

@@ -103,7 +103,8 @@ def find_packages(root: Path) -> list[PackageSource]:
             found.append(PackageSource(_package_name(d / "package.xml"), d, _build_type(d / "package.xml")))
             return
         for child in sorted(d.iterdir()):
-            if child.is_dir() and child.name not in SKIP_DIRS and not child.is_symlink():
+            if child.is_dir() and child.name not in SKIP_DIRS and not child.name.startswith(".") \
+                    and not child.is_symlink():
                 walk(child)
 
     walk(root)

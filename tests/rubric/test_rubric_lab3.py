@@ -75,7 +75,7 @@ def test_scenarios_and_their_inputs(lab3):
 
     ex2 = lab3.scenarios["ex2_controller"]
     goals = [(s.action.x, s.action.y) for s in ex2.steps if isinstance(s.action, PublishGoal)]
-    assert goals[0] == (2.0, 7.0) and len(goals) == 3
+    assert goals[0] == (2.0, 7.0) and len(goals) == 4
     for step in ex2.steps[1:]:
         assert step.until.name == "goal_reached" and step.until.params["tolerance"] == 0.1
         assert step.until.params["settle"] > 0 and step.timeout <= 30
@@ -98,22 +98,27 @@ def test_scenarios_and_their_inputs(lab3):
 
 
 def test_geometry_of_ex2_goals():
-    """The 'behind' goal must need a short LEFT turn of > 150 deg from the heading of arrival at
-    (2, 7), the last goal a RIGHT turn > 90 deg; otherwise turn_direction tests nothing."""
+    """turn_direction must have something to test: from the heading of arrival at each goal,
+    the next one needs (b) a turn that only a *wrapped* theta_e takes the short way, for any
+    plausible arrival heading at (2, 7), (c) about 180 degrees, (d) a RIGHT turn > 90 degrees."""
     import math
     start = (5.544444561004639, 5.544444561004639)
-    a, b, c = (2.0, 7.0), (6.0, 4.0), (2.5, 2.5)
+    scenario = load_rubric(LAB3, check_files=False).scenarios["ex2_controller"]
+    a, b, c, d = [(s.action.x, s.action.y) for s in scenario.steps if s.action is not None]
+    assert a == (2.0, 7.0)  # the lab's own goal
 
     def bearing(p, q):
-        return math.atan2(q[1] - p[1], q[0] - p[0])
+        return math.degrees(math.atan2(q[1] - p[1], q[0] - p[0]))
 
     def wrap(angle):
-        return (angle + math.pi) % (2 * math.pi) - math.pi
+        return (angle + 180) % 360 - 180
 
-    turn_b = math.degrees(wrap(bearing(a, b) - bearing(start, a)))
-    turn_c = math.degrees(wrap(bearing(b, c) - bearing(a, b)))
-    assert 150 < turn_b < 180
-    assert -150 < turn_c < -90
+    for arrival_heading in range(100, 181, 10):        # arriving at (2, 7) from the centre
+        naive = bearing(a, b) - arrival_heading
+        assert abs(naive) > 180 and abs(wrap(naive)) < 150, arrival_heading
+    assert abs(wrap(bearing(b, c) - bearing(a, b))) > 165
+    assert -150 < wrap(bearing(c, d) - bearing(b, c)) < -90
+    assert all(0.5 < v < 10.5 for p in (a, b, c, d) for v in p)
 
 
 def test_params_fit_the_registered_analyzers():

@@ -1,0 +1,57 @@
+"""Ctrl-C in the middle of a batch: exit 130, the bag being recorded is finalized, nothing keeps
+running, and `--resume` later grades what was left."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+FIXTURES = REPO / "fixtures" / "submissions" / "enee467_lab3"
+
+
+def _processes_mentioning(text: str) -> set[int]:
+    """Processes whose command line or environment names ``text`` (this test's output folder:
+    every process of a run gets ROS_LOG_DIR inside it, student nodes included)."""
+    found = set()
+    for proc in Path("/proc").iterdir():
+        if proc.name.isdigit():
+            try:
+                cmd = b" ".join((proc / f).read_bytes() for f in ("cmdline", "environ")).decode(errors="replace")
+            except OSError:
+                continue
+            if text in cmd and int(proc.name) != os.getpid():
+                found.add(int(proc.name))
+    return found
+
+
+@pytest.mark.slow
+@pytest.mark.ros
+def test_ctrl_c_mid_batch(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "grader.cli", "grade", str(FIXTURES), "--rubric",
+                             str(REPO / "rubrics" / "enee467_lab3.yaml"), "-o", str(out),
+                             "--only", "reference", "pub_10hz", "--cache-dir", str(tmp_path / "cache")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # wait until the first scenario is recording, then press Ctrl-C
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not list(out.glob("*/scenarios/*/bag/*.mcap")):
+        time.sleep(0.2)
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=90)
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "--resume" in err
+    assert not list(out.glob("*/result.json")), "a half-graded submission must not get a result"
+    bags = list(out.glob("*/scenarios/*/bag"))
+    assert bags
+    from grader.bag.frames import load_bag_meta
+    assert all(load_bag_meta(b).finalized for b in bags)
+    time.sleep(1.0)
+    assert not _processes_mentioning(str(out)), "a process of the batch outlived it"

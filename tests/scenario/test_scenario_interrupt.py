@@ -1,0 +1,36 @@
+"""Stopping a scenario midway (batch Ctrl-C / time limit) still leaves a finalized bag and a record."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from grader.scenario import Scenario, Step
+
+
+@pytest.mark.ros
+def test_sigterm_mid_scenario_finalizes_bag(tmp_path: Path) -> None:
+    spec = Scenario(id="long", steps=[Step(id="wait", wait=60.0, timeout_s=60.0)], time_limit_s=90)
+    (tmp_path / "spec.json").write_text(json.dumps(spec.to_json()))
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "grader.scenario.run", str(tmp_path / "spec.json"), str(out)],
+                            start_new_session=True)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and not (out / "logs" / "turtlesim.stdout.log").exists():
+        time.sleep(0.1)
+    time.sleep(3.0)
+    os.killpg(proc.pid, signal.SIGTERM)
+    assert proc.wait(timeout=30) == 1
+    record = json.loads((out / "scenario.json").read_text())
+    assert record["interrupted"] is True
+    from grader.bag.frames import load_bag_meta
+    meta = load_bag_meta(out / "bag")
+    assert meta.finalized, meta.problems
+    assert meta.counts["/turtle1/pose"] > 60
