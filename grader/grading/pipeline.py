@@ -133,9 +133,30 @@ def _crashed_nodes(frames: dict) -> list[str]:
     return out
 
 
+def analyze_item(item, frames: dict):
+    """One item's analyzer on one scenario's frames (never raises).
+
+    When the analysis could not happen because the student's node did not run (it could not be
+    built or started, or it crashed), that is the student's failure (0 points) with the reason
+    in the feedback, not a grader error.
+    """
+    from grader import analyze
+
+    finding = analyze.run(item.analyzer, frames, dict(item.params))
+    missing = _unavailable_nodes(frames)
+    crashed = _crashed_nodes(frames)
+    if (missing or crashed) and finding.status in ("fail", "error"):
+        why = (["Could not run " + "; ".join(missing)] if missing else []) + \
+              (["Node crashed: " + "; ".join(crashed)] if crashed else [])
+        finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
+        finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
+        if finding.status == "error":
+            finding.status, finding.fraction = "fail", 0.0
+    return finding
+
+
 def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems."""
-    from grader import analyze
     from grader.analyze import Finding
     from grader.rubric.score import worst_finding
 
@@ -161,19 +182,7 @@ def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], li
                                             feedback=f"The recording of scenario {sc} could not be read: {frames}",
                                             evidence={}))
                 continue
-            finding = analyze.run(item.analyzer, frames, dict(item.params))
-            missing = _unavailable_nodes(frames)
-            crashed = _crashed_nodes(frames)
-            if (missing or crashed) and finding.status in ("fail", "error"):
-                # the analysis could not happen because the student's node did not run: that is
-                # the student's failure (0 points), not the grader's error
-                why = (["Could not run " + "; ".join(missing)] if missing else []) + \
-                      (["Node crashed: " + "; ".join(crashed)] if crashed else [])
-                finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
-                finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
-                if finding.status == "error":
-                    finding.status, finding.fraction = "fail", 0.0
-            per_scenario.append(finding)
+            per_scenario.append(analyze_item(item, frames))
         findings[item.id] = worst_finding(per_scenario) if per_scenario else None
     return findings, problems
 
