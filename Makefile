@@ -12,7 +12,8 @@ bootstrap:
 
 demo: bootstrap
 	$(GRADER) doctor
-	$(GRADER) grade fixtures/submissions/enee467_lab3 --rubric rubrics/enee467_lab3.yaml -o demo-out
+	$(GRADER) grade fixtures/submissions/enee467_lab3 --rubric rubrics/enee467_lab3.yaml -o demo-out --jobs 2
+	@echo "open demo-out/index.html (one report per submission) and demo-out/grades.csv"
 
 test: bootstrap
 	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)

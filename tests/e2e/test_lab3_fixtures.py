@@ -21,7 +21,7 @@ FIXTURES = REPO / "fixtures" / "submissions" / "enee467_lab3"
 RUBRIC = REPO / "rubrics" / "enee467_lab3.yaml"
 SUBMISSIONS = sorted(p.name for p in FIXTURES.iterdir() if (p / "expected.yaml").exists())
 
-pytestmark = [pytest.mark.slow, pytest.mark.ros]
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(2400)]
 
 
 @pytest.fixture(scope="module")
