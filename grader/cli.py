@@ -41,8 +41,10 @@ def _sigterm_as_interrupt(*_args) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    # a batch killed with SIGTERM unwinds like Ctrl-C: children stop, bags are finalized
+    # a batch killed with SIGTERM unwinds like Ctrl-C: children stop, bags are finalized; and
+    # Ctrl-C works even when started from a shell that ignores SIGINT in background jobs
     signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

@@ -23,6 +23,9 @@ from grader.scenario.spec import Scenario
 
 RECORDER_READY_S = 10.0
 SIM_READY_S = 15.0
+#: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
+#: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario
+STUDENT_STOP_GRACE_S = 2.0
 
 
 class _EventedProcess(ManagedProcess):
@@ -120,7 +123,8 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
                 proc = graph.start(ProcessSpec(
                     node.name, node.argv + node.ros_args(), env=node.env or None,
                     stdin=script if (script or node.stdin) else None, close_stdin=node.stdin_close,
-                    limits=limits), process_class=_EventedProcess, stdin_gate=gate)
+                    limits=limits, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0),
+                    process_class=_EventedProcess, stdin_gate=gate)
                 proc.driver = driver
                 if gate is not None:
                     threading.Thread(target=_open_gate, args=(driver, proc, before, gate),
