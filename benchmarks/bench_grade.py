@@ -46,6 +46,11 @@ def main() -> int:
           f"first run includes the colcon build")
     same = len({r[3] for r in rows}) == 1
     print(f"scores: {sorted({r[2] for r in rows})}; item results identical in all runs: {same}")
+    if not same:
+        for idx in range(len(rows[0][3])):
+            seen = {r[3][idx] for r in rows}
+            if len(seen) > 1:
+                print(f"  differs: {sorted(map(str, seen))}")
     return 0 if same else 1
 
 
