@@ -62,10 +62,11 @@ def test_simulator_bag_10s(graph, tmp_path: Path, capsys) -> None:
     assert grader_main(["bag", "info", str(bag), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     pose = next(t for t in info["topics"] if t["name"] == "/turtle1/pose")
-    # the simulator's 16 ms timer drops ticks when the machine is overloaded (as turtlesim's Qt
-    # timer does): the median period is exact, the mean rate may lag by a few ticks
+    # the bar: 62.5 +- 1 Hz as `grader bag info` reports it. (On a machine overloaded by
+    # other jobs, load average ~4, the simulator itself skipped ticks and the mean fell to 60.9 Hz
+    # while the recorder lost nothing; the test suite runs serially, so that load is not expected.)
     assert pose["rate_median_hz"] == pytest.approx(62.5, abs=1.0)
-    assert pose["rate_hz"] == pytest.approx(62.5, abs=2.5)
+    assert pose["rate_hz"] == pytest.approx(62.5, abs=1.0)
     assert pose["last"] - pose["first"] >= 9.5
     assert info["finalized"] and not info["problems"]
     assert "/spawn" in [s["service"] for s in info["services"]]
