@@ -3,9 +3,7 @@ and the self-check table printed by `grader check`."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
-from typing import Any, Mapping
 
 from grader import __version__
 

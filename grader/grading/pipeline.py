@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
+from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
 
 SCENARIOS_DIR = "scenarios"
@@ -69,19 +70,6 @@ def needed_scenarios(items: Iterable) -> list[str]:
     return seen
 
 
-def _events(frames: dict) -> list[dict]:
-    df = frames.get("/grader/events")
-    if df is None or "data" not in df:
-        return []
-    out = []
-    for raw in df["data"]:
-        try:
-            out.append(json.loads(raw))
-        except (TypeError, ValueError):
-            continue
-    return out
-
-
 def scenario_frames(scenario_dir: Path) -> dict:
     """Frames of one scenario's bag plus ``__meta__`` (topic, type, count, publishers)."""
     import pandas as pd
@@ -94,10 +82,9 @@ def scenario_frames(scenario_dir: Path) -> dict:
     frames = load_frames(bag)
     meta = load_bag_meta(bag)
     publishers: dict[str, set[str]] = {}
-    for ev in _events(frames):
-        if ev.get("event") == "graph":
-            for topic, nodes in (ev.get("publishers") or {}).items():
-                publishers.setdefault(topic, set()).update(nodes)
+    for ev in events(frames, "graph"):
+        for topic, nodes in (ev.get("publishers") or {}).items():
+            publishers.setdefault(topic, set()).update(nodes)
     frames["__meta__"] = pd.DataFrame(
         [{"topic": n, "type": t.type, "count": t.count, "publishers": sorted(publishers.get(n, set()))}
          for n, t in meta.topics.items()], columns=["topic", "type", "count", "publishers"])
@@ -109,24 +96,17 @@ def scenario_frames(scenario_dir: Path) -> dict:
 
 def _unavailable_nodes(frames: dict) -> list[str]:
     return [f"{e.get('process')}: {str(e.get('error', '')).splitlines()[0] if e.get('error') else 'not available'}"
-            for e in _events(frames) if e.get("event") == "node_unavailable"]
+            for e in events(frames, "node_unavailable")]
 
 
 def _crashed_nodes(frames: dict) -> list[str]:
     """Student processes that exited on their own, with the last line of what they printed."""
+    lines = stdout_lines(frames)
+    last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
+                 if str(raw).strip()}
     out = []
-    last_line: dict[str, str] = {}
-    df = frames.get("/grader/stdout")
-    if df is not None and "data" in df:
-        for raw in df["data"]:
-            try:
-                rec = json.loads(raw)
-            except (TypeError, ValueError):
-                continue
-            if rec.get("line", "").strip():
-                last_line[rec.get("process", "?")] = rec["line"].strip()
-    for e in _events(frames):
-        if e.get("event") == "process_exit" and not e.get("stopped_by_grader"):
+    for e in events(frames, "process_exit"):
+        if not e.get("stopped_by_grader"):
             name = e.get("process", "?")
             tail = last_line.get(name, "")
             out.append(f"{name} exited with code {e.get('returncode')}" + (f" ({tail[:160]})" if tail else ""))

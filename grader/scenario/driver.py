@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
+from grader.executors import make_executor
 from grader.runner import ManagedProcess
 
 EVENTS_TOPIC = "/grader/events"
@@ -65,19 +66,6 @@ def to_plain(msg: Any) -> Any:
     return msg
 
 
-def _make_executor(ctx):
-    """rclpy's EventsExecutor where available: it costs a fraction of the CPU of the polling
-    executors, and on 2 cores every percent the grader burns is taken from the student's nodes."""
-    try:
-        from rclpy.experimental import EventsExecutor
-
-        return EventsExecutor(context=ctx)
-    except ImportError:
-        from rclpy.executors import SingleThreadedExecutor
-
-        return SingleThreadedExecutor(context=ctx)
-
-
 class Driver:
     """Owns an rclpy context on the scenario's domain and a background executor thread."""
 
@@ -112,7 +100,7 @@ class Driver:
         self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
                                       self._on_rosout, QoSProfile(depth=1000))
         self.node.create_timer(0.05, self._tail_outputs)
-        self.executor = _make_executor(self.ctx)
+        self.executor = make_executor(self.ctx)   # EventsExecutor: the CPU goes to student nodes
         self.executor.add_node(self.node)
         self._spin = threading.Thread(target=self._spin_forever, name="driver-spin", daemon=True)
         self._spin.start()

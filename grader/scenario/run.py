@@ -18,7 +18,9 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from grader.runner import Limits, ManagedProcess, ProcessSpec, RosGraph, StdinLine, python_argv
+from grader.bag.recorder import recorder_argv, wait_ready
+from grader.errors import GraderError
+from grader.runner import Limits, ManagedProcess, ProcessSpec, RosGraph, StdinLine
 from grader.scenario.spec import Scenario
 
 RECORDER_READY_S = 10.0
@@ -52,22 +54,6 @@ def _open_gate(driver, proc: ManagedProcess, before: set, gate: threading.Event)
     gate.set()
 
 
-def _wait_for_text(proc: ManagedProcess, text: str, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if text in proc.output():
-            return True
-        if not proc.alive():
-            return False
-        time.sleep(0.05)
-    return False
-
-
-def _recorder_argv(bag_dir: Path, topics: list[str]) -> list[str]:
-    args = ["-o", str(bag_dir)] + (list(topics) if topics else ["--all"])
-    return python_argv("grader.bag.recorder", *args)
-
-
 def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
     """Execute ``spec``; returns (and writes) the scenario record."""
     from grader.scenario.driver import Driver
@@ -82,10 +68,12 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
     with RosGraph(out) as graph:
         record["domain_id"] = graph.domain_id
         try:
-            recorder = graph.start(ProcessSpec("recorder", _recorder_argv(out / "bag", spec.record),
+            recorder = graph.start(ProcessSpec("recorder", recorder_argv(out / "bag", spec.record or None),
                                                stop_grace_s=10.0))
-            if not _wait_for_text(recorder, "READY", RECORDER_READY_S):
-                record["errors"].append("recorder did not report READY: " + recorder.errors()[-500:])
+            try:
+                wait_ready(recorder.stdout_path, RECORDER_READY_S, proc=recorder)
+            except GraderError as exc:
+                record["errors"].append(f"{exc} {recorder.errors()[-500:]}")
             sim = None
             if spec.sim:
                 from grader.sim import sim_argv
