@@ -138,7 +138,7 @@ def ensure_venv(mode: str) -> None:
 
 def pip_install(mode: str, state: dict) -> None:
     reqs = [REQ_DIR / "base.txt"] + ([REQ_DIR / "ros-wheels.txt"] if mode == "wheels" else [])
-    key = digest(*reqs, ROOT / "pyproject.toml", extra=mode)
+    key = digest(*reqs, extra=mode)   # the grader itself is a .pth, so pyproject.toml is not an input
     if state.get("pip") == key:
         return
     log("installing Python packages (" + ", ".join(r.name for r in reqs) + ")")
