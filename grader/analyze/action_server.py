@@ -200,7 +200,9 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
             dist = math.hypot(pos[0] - g["x"], pos[1] - g["y"]) if pos else None
             row["distance_at_result"] = dist
             if not g["success"]:
-                problem = f"result success=False (status {g['status']})"
+                where = f", turtle {dist:.2f} m away" if dist is not None else ""
+                limit = f", goal timeout {g['time_out']:g} s" if g["time_out"] is not None else ""
+                problem = f"result success=False after {row['duration_s']:.1f} s (status {g['status']}{where}{limit})"
             elif dist is not None and dist > tol + p["pos_slack"]:
                 problem = f"reported success but the turtle was {dist:.2f} m away (goal_tol {tol:g})"
         row["ok"] = problem is None
