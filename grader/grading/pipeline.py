@@ -118,7 +118,8 @@ def analyze_item(item, frames: dict):
 
     When the analysis could not happen because the student's node did not run (it could not be
     built or started, or it crashed), that is the student's failure (0 points) with the reason
-    in the feedback, not a grader error.
+    in the feedback, not a grader error. Integrity checks are the exception: code that never ran
+    did nothing suspicious, so for them "could not check" stays an error (see `combine_findings`).
     """
     from grader import analyze
 
@@ -130,15 +131,30 @@ def analyze_item(item, frames: dict):
               (["Node crashed: " + "; ".join(crashed)] if crashed else [])
         finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
         finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
-        if finding.status == "error":
+        if finding.status == "error" and item.kind != "integrity":
             finding.status, finding.fraction = "fail", 0.0
     return finding
+
+
+def combine_findings(item, per_scenario: list):
+    """One finding for an item run on several scenarios: the worst one counts.
+
+    An integrity check is judged on the scenarios where it could run: a scenario in which the
+    student's node never started (or recorded nothing to check) gives no evidence either way, so
+    its "could not check" error does not hide the verdict of the others. Without that, whether the
+    flag showed up would depend on how long the simulator ran before the empty scenario ended.
+    """
+    from grader.rubric.score import worst_finding
+
+    if item.kind == "integrity":
+        checked = [f for f in per_scenario if f is not None and f.status != "error"]
+        per_scenario = checked or per_scenario
+    return worst_finding(per_scenario) if per_scenario else None
 
 
 def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems."""
     from grader.analyze import Finding
-    from grader.rubric.score import worst_finding
 
     frames_cache: dict[str, dict | Exception] = {}
     problems: list[str] = []
@@ -163,7 +179,7 @@ def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], li
                                             evidence={}))
                 continue
             per_scenario.append(analyze_item(item, frames))
-        findings[item.id] = worst_finding(per_scenario) if per_scenario else None
+        findings[item.id] = combine_findings(item, per_scenario)
     return findings, problems
 
 
