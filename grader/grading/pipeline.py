@@ -124,9 +124,11 @@ def analyze_item(item, frames: dict):
     from grader import analyze
 
     finding = analyze.run(item.analyzer, frames, dict(item.params))
+    if finding.status not in ("fail", "error"):
+        return finding      # only a failed analysis needs the events and output parsed for a reason
     missing = _unavailable_nodes(frames)
     crashed = _crashed_nodes(frames)
-    if (missing or crashed) and finding.status in ("fail", "error"):
+    if missing or crashed:
         why = (["Could not run " + "; ".join(missing)] if missing else []) + \
               (["Node crashed: " + "; ".join(crashed)] if crashed else [])
         finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
