@@ -93,6 +93,11 @@ def test_scenarios_and_their_inputs(lab3):
     assert {a.type for a in actions.values()} == {"turtle_control_interfaces/action/SendGoal"}
     assert actions["out_of_bounds"].goal["goal"] == {"x": 15.0, "y": 15.0}
     assert actions["timeout"].goal["timeout"] == 0.5
+    # the goal that must succeed carries a timeout far above the reference's ~8 s (the interface's
+    # 10 s default failed on a loaded CI machine), and its step outlasts that timeout
+    reachable = next(s for s in ex3.steps if s.id == "reachable")
+    assert actions["reachable"].goal["timeout"] >= 20.0
+    assert reachable.timeout > actions["reachable"].goal["timeout"]
     assert any(isinstance(s.action, Start) and s.action.processes == ("client",) for s in ex3.steps)
     assert ex3.process("client").executable == "turtle_controller_client_node"
 
