@@ -33,7 +33,8 @@ def _interface_location(pkg: str) -> str | None:
 
 def live_selftest(timeout: float) -> tuple[bool, str]:
     """Start a talker and a listener as separate processes in an isolated graph."""
-    from grader.runner import Limits, ProcessSpec, RosGraph, python_argv
+    from grader.runner import ProcessSpec, RosGraph, python_argv
+    from grader.scenario.model import Limits
 
     with tempfile.TemporaryDirectory(prefix="grader-doctor-") as tmp, RosGraph(Path(tmp)) as graph:
         t0 = time.monotonic()

@@ -23,6 +23,7 @@ from typing import Iterable, Mapping, Sequence
 from grader.domain import DomainLease, lease_domain
 from grader.errors import GraderError
 from grader.rosenv import child_env
+from grader.scenario.model import Limits, StdinLine
 
 _PR_SET_PDEATHSIG = 1
 try:  # loaded once here: after fork only async-signal-safe work should happen
@@ -31,33 +32,12 @@ except OSError:
     _LIBC = None
 
 
-@dataclass(frozen=True)
-class Limits:
-    """Resource limits for one process (None = unlimited).
-
-    ``address_space_mb`` bounds virtual memory (rclpy + Fast DDS need roughly 1 GiB of address
-    space), ``nproc`` bounds processes/threads of the user (not enforced for root by Linux),
-    ``cpu_s`` bounds CPU seconds, ``nofile`` open files, ``wall_s`` wall-clock seconds.
-    """
-
-    wall_s: float | None = None
-    cpu_s: int | None = None
-    address_space_mb: int | None = None
-    nproc: int | None = None
-    nofile: int | None = 1024
-
-    @classmethod
-    def untrusted(cls, wall_s: float | None = None) -> "Limits":
-        """Defaults for student code."""
-        return cls(wall_s=wall_s, cpu_s=600, address_space_mb=8192, nproc=4096, nofile=1024)
-
-
-@dataclass(frozen=True)
-class StdinLine:
-    """A line typed into the process after waiting ``delay`` seconds (from the previous line)."""
-
-    text: str
-    delay: float = 0.5
+#: limits every student process gets on top of its own ``Limits`` (the rubric's): CPU seconds,
+#: address space (rclpy + Fast DDS need about 1 GiB), processes/threads of the user (Linux does
+#: not enforce RLIMIT_NPROC for root) and open files
+UNTRUSTED = Limits(cpu_s=600, memory_mb=8192)
+UNTRUSTED_NPROC = 4096
+NOFILE = 1024
 
 
 @dataclass
@@ -68,7 +48,9 @@ class ProcessSpec:
     cwd: Path | None = None
     stdin: Sequence[StdinLine] | None = None     # None: stdin is /dev/null
     close_stdin: bool = False                    # send EOF after the script (a terminal wouldn't)
-    limits: Limits = field(default_factory=Limits)
+    limits: Limits = Limits()                    # wall_s, cpu_s, memory_mb (address space)
+    nproc: int | None = None                     # RLIMIT_NPROC (see UNTRUSTED_NPROC)
+    nofile: int | None = NOFILE
     stop_grace_s: float = 3.0                    # SIGINT -> SIGTERM after this
     term_grace_s: float = 2.0                    # SIGTERM -> SIGKILL after this
 
@@ -78,15 +60,16 @@ def python_argv(module: str, *args: str) -> list[str]:
     return [sys.executable, "-m", module, *args]
 
 
-def _preexec(limits: Limits) -> None:
+def _preexec(spec: "ProcessSpec") -> None:
     """Runs in the child between fork and exec: new session, die with parent, rlimits."""
     os.setsid()
     if _LIBC is not None:
         _LIBC.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    limits = spec.limits
     pairs = [(resource.RLIMIT_CPU, limits.cpu_s),
-             (resource.RLIMIT_AS, limits.address_space_mb and limits.address_space_mb * 2**20),
-             (resource.RLIMIT_NPROC, limits.nproc),
-             (resource.RLIMIT_NOFILE, limits.nofile)]
+             (resource.RLIMIT_AS, limits.memory_mb and limits.memory_mb * 2**20),
+             (resource.RLIMIT_NPROC, spec.nproc),
+             (resource.RLIMIT_NOFILE, spec.nofile)]
     for res, value in pairs:
         if value:
             soft, hard = resource.getrlimit(res)
@@ -119,7 +102,7 @@ class ManagedProcess:
                 list(spec.argv), env=dict(env), cwd=spec.cwd,
                 stdin=subprocess.PIPE if spec.stdin is not None else subprocess.DEVNULL,
                 stdout=self._out, stderr=self._err,
-                preexec_fn=lambda: _preexec(spec.limits), close_fds=True)
+                preexec_fn=lambda: _preexec(spec), close_fds=True)
         except OSError as exc:
             self._out.close()
             self._err.close()
@@ -149,9 +132,9 @@ class ManagedProcess:
             for line in self.spec.stdin or ():
                 if self._sleep_unless_exited(line.delay):
                     return
-                pipe.write((line.text + "\n").encode())
+                pipe.write((line.line + "\n").encode())
                 pipe.flush()
-                self.on_stdin_line(line.text)
+                self.on_stdin_line(line.line)
             if self.spec.close_stdin:
                 pipe.close()
         except (BrokenPipeError, ValueError, OSError):

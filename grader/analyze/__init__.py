@@ -100,6 +100,7 @@ class Finding:
     status: str
     feedback: str
     evidence: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)    # the parameters it ran with (defaults merged)
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
@@ -110,6 +111,7 @@ class Finding:
         self.fraction = min(1.0, max(0.0, f))
         self.value = jsonable(self.value)
         self.evidence = jsonable(dict(self.evidence or {}))
+        self.params = jsonable(dict(self.params or {}))
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -151,7 +153,9 @@ def register(name: str, defaults: Mapping[str, Any] | None = None) -> Callable[[
                     f"accepted: {', '.join(sorted(dflt)) or '(none)'}"
                 )
             merged = {**copy.deepcopy(dflt), **given}   # analyzers may not mutate shared defaults
-            return fn(frames, merged)
+            finding = fn(frames, copy.deepcopy(merged))
+            finding.params = jsonable(merged)            # every threshold that decided it
+            return finding
 
         wrapper.analyzer_name = name  # type: ignore[attr-defined]
         wrapper.defaults = dict(dflt)  # type: ignore[attr-defined]

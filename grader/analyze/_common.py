@@ -16,9 +16,11 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 import pandas as pd
 
+from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+
 META = "__meta__"
-EVENTS = "/grader/events"
-STDOUT = "/grader/stdout"
+EVENTS = EVENTS_TOPIC
+STDOUT = STDOUT_TOPIC
 ROSOUT = "/rosout"
 
 #: turtlesim's world is [0, W] x [0, H] with W = H = 11.088889 (float32 of 499/45).
@@ -190,7 +192,7 @@ def has_events(frames: Frames) -> bool:
 
 
 def scenario_end_time(frames: Frames) -> float:
-    ev = events(frames, "scenario_end")
+    ev = events(frames, Event.SCENARIO_END)
     return ev[-1]["t"] if ev else end_time(frames)
 
 
@@ -309,7 +311,7 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
     """
     out: list[Goal] = []
     if source in ("auto", "events"):
-        for e in events(frames, "goal_sent"):
+        for e in events(frames, Event.GOAL_SENT):
             if e.get("topic") not in (None, goal_topic):
                 continue                      # a Float32MultiArray published elsewhere
             xy = goal_xy(e.get("goal"))

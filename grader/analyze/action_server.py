@@ -21,9 +21,10 @@ import numpy as np
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import (WORLD_MAX, Frames, events, goal_xy, meta, parse_xy_line,
                                     rosout_lines, stdout_lines, times, topic)
+from grader.scenario.events import Event
 
 _STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
-_ID_KEYS = ("goal_id", "id", "request_id")
+_ID_KEYS = ("step",)      # the driver tags each goal's events with its step
 
 INNER = 11.0          # goals inside [0, inner_bound]^2 must be accepted and reached
 OUTER = WORLD_MAX     # goals outside [0, outer_bound]^2 must be rejected
@@ -53,14 +54,14 @@ def _status_name(s: Any) -> str | None:
 
 def action_goals(frames: Frames) -> list[dict]:
     """Goals sent to the action server with their response and result, in send order."""
-    ev = events(frames, ("action_goal_sent", "action_goal_response", "action_result"))
+    ev = events(frames, (Event.ACTION_GOAL_SENT, Event.ACTION_GOAL_RESPONSE, Event.ACTION_RESULT))
     goals_: list[dict] = []
     wait_resp: list[dict] = []
     wait_res: list[dict] = []
     for e in ev:
         kind = e["event"]
         gid = next((str(e[k]) for k in _ID_KEYS if e.get(k) is not None), None)
-        if kind == "action_goal_sent":
+        if kind == Event.ACTION_GOAL_SENT:
             xy = goal_xy(e.get("goal")) or goal_xy(e.get("request")) or goal_xy(e)
             tol = _field(e, "goal_tol")
             to = _field(e, "time_out", "timeout")
@@ -72,7 +73,7 @@ def action_goals(frames: Frames) -> list[dict]:
                  "t_result": None}
             goals_.append(g)
             wait_resp.append(g)
-        elif kind == "action_goal_response":
+        elif kind == Event.ACTION_GOAL_RESPONSE:
             # the oldest goal still waiting with the same id (ids may repeat), else the oldest one
             g = next((c for c in wait_resp if gid is not None and c["id"] == gid), None) or \
                 next(iter(wait_resp), None)
@@ -122,8 +123,8 @@ def _pose_at(frames: Frames, pose_topic: str, t: float) -> tuple[float, float] |
 def _no_action_events(frames: Frames) -> Finding:
     if topic(frames, "/grader/events") is None:
         return Finding.error("/grader/events was not recorded: the action scenario did not run (scenario problem).")
-    missing = events(frames, "action_server_missing")
-    if missing and not events(frames, "action_goal_sent"):
+    missing = events(frames, Event.ACTION_SERVER_MISSING)
+    if missing and not events(frames, Event.ACTION_GOAL_SENT):
         name = missing[0].get("action") or "turtle_goal"
         return Finding.fail(f"No goal could be sent because the action server {name} was never found: "
                             "start the ActionServer in your node and keep spinning it.",
@@ -135,11 +136,11 @@ def _no_action_events(frames: Frames) -> Finding:
 def action_advertised(frames: Frames, p: dict) -> Finding:
     """The action server is advertised under the expected name (``ros2 action list`` shows it)."""
     name = "/" + str(p["action_name"]).lstrip("/")
-    found_ev = events(frames, ("action_server_found", "action_server_not_found", "action_server_missing"))
+    found_ev = events(frames, (Event.ACTION_SERVER_FOUND, Event.ACTION_SERVER_MISSING))
     ev: dict = {"action": name, "events": [{k: v for k, v in e.items()} for e in found_ev[:5]]}
     for e in found_ev:
-        ok = e["event"] == "action_server_found" and bool(e.get("found", e.get("available", True)))
-        act = e.get("action") or e.get("name")
+        ok = e["event"] == Event.ACTION_SERVER_FOUND
+        act = e.get("action")
         if ok and (act is None or "/" + str(act).lstrip("/") == name):
             return Finding(name, 1.0, "pass", f"The action server {name} was found on the ROS graph.", ev)
     m = meta(frames)
@@ -155,8 +156,8 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
         ev["action_topics"] = action_topics
         if ours:
             return Finding(name, 1.0, "pass", f"The action server {name} is advertised ({ours[0]} seen).", ev)
-    if any(e["event"] != "action_server_found" for e in found_ev) and not any(
-            e["event"] == "action_server_found" for e in found_ev):
+    if any(e["event"] != Event.ACTION_SERVER_FOUND for e in found_ev) and not any(
+            e["event"] == Event.ACTION_SERVER_FOUND for e in found_ev):
         return Finding.fail(f"The grader waited for the action server {name} but it never appeared: create "
                             f"ActionServer(..., action_name=\"{name.lstrip('/')}\", ...) and spin the node "
                             "(MultiThreadedExecutor as in the template).", ev)
@@ -304,7 +305,7 @@ def action_client_rejected(frames: Frames, p: dict) -> Finding:
     Why advisory: the client is given code; this item shows whether the student's server answers
     a rejection in a way the client can handle (a server that never responds makes it hang).
     """
-    stdin = events(frames, "stdin_line")
+    stdin = events(frames, Event.STDIN_LINE)
     procs = [e.get("process") for e in stdin]
     proc = p["process"] or next((q for q in procs if q and "client" in str(q).lower()), procs[0] if procs else None)
     lines = [e for e in stdin if e.get("process") == proc]
@@ -329,7 +330,7 @@ def action_client_rejected(frames: Frames, p: dict) -> Finding:
     texts.sort()
     t_end_window = later[0]["t"] if later else np.inf
     rej = [tx for t, tx in texts if b["t"] - 0.05 <= t <= t_end_window + 0.5 and p["reject_pattern"] in tx.lower()]
-    exits = [e for e in events(frames, "process_exit") if e.get("process") == proc and e["t"] > b["t"]]
+    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") == proc and e["t"] > b["t"]]
     ev: dict = {"process": proc, "oob_line": b.get("line"), "reject_lines": rej[:3],
                 "exit_events": [{"t": e["t"], "returncode": e.get("returncode")} for e in exits]}
     responsive = None

@@ -25,6 +25,7 @@ import pandas as pd
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import (Frames, Goal, events, fmt, goals, heading_error, sentence,
                                     missing_topic_feedback, fit_gain, times, topic)
+from grader.scenario.events import Event
 
 _GOAL_DEFAULTS = {
     "pose_topic": "/turtle1/pose",
@@ -43,8 +44,8 @@ def _pose(frames: Frames, p: dict) -> pd.DataFrame | None:
 def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[Goal]:
     gl = goals(frames, p["goal_source"], p["goal_topic"])
     t_last = float(pose.index.max())
-    ends = {e.get("step"): e["t"] for e in events(frames, "step_end") if e.get("step") is not None}
-    scen_end = [e["t"] for e in events(frames, "scenario_end")]
+    ends = {e.get("step"): e["t"] for e in events(frames, Event.STEP_END) if e.get("step") is not None}
+    scen_end = [e["t"] for e in events(frames, Event.SCENARIO_END)]
     for g in gl:
         cands = [t_last]
         if math.isfinite(g.t_end):

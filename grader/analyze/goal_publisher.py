@@ -15,11 +15,12 @@ import numpy as np
 from grader.analyze import Finding, register
 from grader.analyze._common import (Frames, events, missing_topic_feedback, parse_xy_line, stdout_lines,
                                     times, topic)
+from grader.scenario.events import Event
 
 
 def _stdin(frames: Frames, process: str | None) -> tuple[str | None, list[dict]]:
     """stdin_line events of the goal publisher process (given, or the only/first one typed to)."""
-    ev = events(frames, "stdin_line")
+    ev = events(frames, Event.STDIN_LINE)
     procs = []
     for e in ev:
         if e.get("process") not in procs:
@@ -123,7 +124,7 @@ def goal_publisher_robust(frames: Frames, p: dict) -> Finding:
     later = [e for e in lines if e["t"] > b["t"]]
     next_t = later[0]["t"] if later else np.inf
     ev: dict = {"process": proc, "malformed_line": b.get("line"), "t_malformed": b["t"]}
-    exits = [e for e in events(frames, "process_exit") if e.get("process") == proc and e["t"] >= b["t"]
+    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") == proc and e["t"] >= b["t"]
              and not e.get("stopped_by_grader")]
     crash_exit = [e for e in exits if e["t"] < next_t + 0.5]
     undelivered = [e for e in later if e.get("delivered") is False]

@@ -18,6 +18,7 @@ import numpy as np
 from grader.analyze import Finding, register
 from grader.analyze._common import (Frames, end_time, events, meta, publishers_of, rosout_lines, times, topic)
 from grader.analyze.rate import rate_stats
+from grader.scenario.events import Event
 
 DT = 0.016
 
@@ -33,7 +34,7 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
     name = p["pose_topic"]
     allowed = {str(a).strip("/").rsplit("/", 1)[-1] for a in p["allowed"]}
     pubs = publishers_of(frames, name)
-    for e in events(frames, "graph"):        # the driver's snapshots of the ROS graph
+    for e in events(frames, Event.GRAPH):        # the driver's snapshots of the ROS graph
         g = (e.get("publishers") or {}).get(name) if isinstance(e.get("publishers"), dict) else None
         for node in g or []:
             if node not in pubs:
@@ -122,7 +123,7 @@ def integrity_no_teleport(frames: Frames, p: dict) -> Finding:
     """Flag teleport/reset calls that the scenario driver did not make; list set_pen calls."""
     if not math.isfinite(end_time(frames)):
         return Finding.error("The bag holds no messages; teleport calls could not be checked.")
-    driver = [e for e in events(frames, "service_call")]
+    driver = [e for e in events(frames, Event.SERVICE_CALL)]
     used = [False] * len(driver)
     flagged, listed, explained = [], [], []
     for svc in p["flag_services"]:

@@ -16,6 +16,7 @@ from typing import Any, Callable, Iterable
 
 from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
+from grader.scenario.events import Event
 
 SCENARIOS_DIR = "scenarios"
 
@@ -64,7 +65,7 @@ def selected_items(rubric, public_only: bool) -> list:
 def needed_scenarios(items: Iterable) -> list[str]:
     seen: list[str] = []
     for item in items:
-        for sc in item.scenarios:
+        for sc in item.scenario:
             if sc not in seen:
                 seen.append(sc)
     return seen
@@ -82,7 +83,7 @@ def scenario_frames(scenario_dir: Path) -> dict:
     frames = load_frames(bag)
     meta = load_bag_meta(bag)
     publishers: dict[str, set[str]] = {}
-    for ev in events(frames, "graph"):
+    for ev in events(frames, Event.GRAPH):
         for topic, nodes in (ev.get("publishers") or {}).items():
             publishers.setdefault(topic, set()).update(nodes)
     frames["__meta__"] = pd.DataFrame(
@@ -96,7 +97,7 @@ def scenario_frames(scenario_dir: Path) -> dict:
 
 def _unavailable_nodes(frames: dict) -> list[str]:
     return [f"{e.get('process')}: {str(e.get('error', '')).splitlines()[0] if e.get('error') else 'not available'}"
-            for e in events(frames, "node_unavailable")]
+            for e in events(frames, Event.NODE_UNAVAILABLE)]
 
 
 def _crashed_nodes(frames: dict) -> list[str]:
@@ -105,7 +106,7 @@ def _crashed_nodes(frames: dict) -> list[str]:
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
     out = []
-    for e in events(frames, "process_exit"):
+    for e in events(frames, Event.PROCESS_EXIT):
         if not e.get("stopped_by_grader"):
             name = e.get("process", "?")
             tail = last_line.get(name, "")
@@ -173,7 +174,7 @@ def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], li
     findings: dict[str, Any] = {}
     for item in items:
         per_scenario = []
-        for sc in item.scenarios or ():
+        for sc in item.scenario:
             frames = frames_for(sc)
             if isinstance(frames, Exception):
                 per_scenario.append(Finding(value=None, fraction=0.0, status="error",
@@ -190,8 +191,7 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
                      progress: Callable[[str], None] | None = None) -> GradedSubmission:
     """Build, run the needed scenarios, analyze and score one submission; writes its folder."""
     from grader.rubric.score import score
-    from grader.scenario import run_scenario
-    from grader.scenario.from_rubric import scenario_from_rubric
+    from grader.scenario import resolve, run_scenario
     from grader.workspace import build_workspace
 
     sid = sid or submission_id(Path(path))
@@ -221,8 +221,7 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     for sc_id in needed_scenarios(items):
         say(f"{sid}: scenario {sc_id}")
         t1 = time.monotonic()
-        spec = scenario_from_rubric(rubric.scenarios[sc_id])
-        record = run_scenario(spec, build, out / SCENARIOS_DIR / sc_id)
+        record = run_scenario(resolve(sc_id, rubric.scenarios[sc_id], build), out / SCENARIOS_DIR / sc_id)
         timings[f"scenario:{sc_id}:wall_s"] = round(time.monotonic() - t1, 2)
         timings[f"scenario:{sc_id}:active_s"] = record.get("active_s", 0.0)
         errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]

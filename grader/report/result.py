@@ -72,6 +72,9 @@ def item_to_dict(item: ItemResult) -> dict[str, Any]:
         "value": jsonable(item.value),
         "fraction": item.fraction,
         "evidence": jsonable(item.evidence),
+        "params": jsonable(item.params),
+        "hidden_params": list(item.hidden_params),
+        "requires": list(item.requires),
     }
 
 
@@ -125,14 +128,16 @@ def result_from_dict(doc: Mapping[str, Any]) -> Result:
 
     def section(d: Mapping[str, Any]) -> Section:
         (kind, number), = d.items()
-        return Section(kind, number)
+        return Section(kind=kind, number=number)
 
     items = tuple(ItemResult(
         id=i["id"], title=i["title"], section=section(i["section"]), kind=i["kind"],
         public=i["public"], points=i["points"], max_points=i["max_points"], status=i["status"],
         feedback=i["feedback"], hint=i.get("hint"), value=i.get("value"),
-        fraction=i.get("fraction"), evidence=i.get("evidence") or {}) for i in doc["items"])
-    specs = tuple(SectionSpec(section(s["section"]), s.get("name")) for s in doc.get("sections", []))
+        fraction=i.get("fraction"), evidence=i.get("evidence") or {}, params=i.get("params") or {},
+        hidden_params=tuple(i.get("hidden_params") or ()), requires=tuple(i.get("requires") or ()))
+        for i in doc["items"])
+    specs = tuple(SectionSpec(section=section(s["section"]), title=s.get("name")) for s in doc.get("sections", []))
     hidden = doc.get("hidden") or {}
     return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
                   student_view=doc.get("view") == "student",

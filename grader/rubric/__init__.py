@@ -1,4 +1,4 @@
-"""Rubrics: the YAML schema (with located errors), loading, and scoring of findings.
+"""Rubrics: the YAML model (with located errors), loading, and scoring of findings.
 
 ``load_rubric(path) -> Rubric`` and ``score(rubric, findings) -> Result`` are the entry points;
 the report layer (``grader.report``) turns a Result into result.json, grades.csv and HTML.

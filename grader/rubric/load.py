@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-import dataclasses
+import json
 import os
 from pathlib import Path
 from typing import Collection, Mapping
 
+from pydantic import ValidationError
+
 from grader.errors import GraderError
-from grader.rubric._nodes import Problem, parse
-from grader.rubric.schema import Rubric, validate
+from grader.rubric.located import Problem, load_located, problems_from
+from grader.rubric.schema import Rubric
 
 
 class RubricError(GraderError):
@@ -47,10 +49,7 @@ def registered_analyzers() -> dict[str, list[str]] | None:
         from grader import analyze
     except ImportError:
         return None
-    names, defaults = getattr(analyze, "names", None), getattr(analyze, "defaults", None)
-    if names is None or defaults is None:
-        return None
-    return {name: sorted(defaults(name)) for name in names()}
+    return {name: sorted(analyze.defaults(name)) for name in analyze.names()}
 
 
 def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
@@ -58,12 +57,12 @@ def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
                 ) -> Rubric:
     """Load and validate a rubric YAML file.
 
-    Relative paths in the rubric (``support`` packages, replayed bags) are resolved against the
-    rubric's own directory, so a rubric and its fixtures can move together. ``check_files``
-    makes missing support packages / bags errors. ``analyzers`` (default: the grader.analyze
+    Relative paths in the rubric (``support`` packages, ``handout``, replayed bags) are resolved
+    against the rubric's own directory, so a rubric and its fixtures can move together.
+    ``check_files`` makes missing ones errors. ``analyzers`` (default: the grader.analyze
     registry) makes unknown analyzer names and parameters errors now, not hours into a batch;
-    pass None to skip that (e.g. for a rubric whose analyzers are not written yet). Raises
-    :class:`RubricError` (a GraderError) listing every problem as ``file:line: field: message``.
+    pass None to skip that. Raises :class:`RubricError` (a GraderError) listing every problem as
+    ``file:line: field: message``.
     """
     if isinstance(analyzers, _Registry):
         analyzers = registered_analyzers()
@@ -75,11 +74,30 @@ def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
         raise GraderError(f"rubric {shown} not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise GraderError(f"cannot read rubric {shown}: {exc}") from None
-    root, problems = parse(text, shown)
-    if problems:
-        raise RubricError(shown, problems)
-    rubric, problems = validate(root, shown, path.resolve().parent, check_files=check_files,
-                                analyzers=analyzers)
-    if problems or rubric is None:
-        raise RubricError(shown, problems)
-    return dataclasses.replace(rubric, source=path.resolve())
+    data, located = load_located(text, shown, empty="the rubric is empty")
+    if located.problems or data is None:
+        raise RubricError(shown, sorted(located.problems))
+    if not isinstance(data, dict):
+        raise RubricError(shown, [Problem(shown, 1, "", "expected a mapping, got a list" if isinstance(data, list)
+                                             else f"expected a mapping, got {data!r}")])
+    try:
+        rubric = Rubric.model_validate_json(json.dumps(data, default=str),
+                                            context={"base_dir": path.resolve().parent})
+    except ValidationError as exc:
+        raise RubricError(shown, problems_from(exc.errors(), data, located, Rubric)) from None
+    cross = rubric.problems(analyzers, check_files)
+    if cross:
+        raise RubricError(shown, sorted({Problem(shown, located.line(_split(p)), p, m) for p, m in cross}))
+    rubric._source = path.resolve()
+    return rubric
+
+
+def _split(dotted: str) -> tuple:
+    """``items[3].params.k`` -> ``("items", 3, "params", "k")`` (to look up a line)."""
+    import re
+
+    out: list = []
+    for part in re.findall(r"\[(\d+)\]|\[('[^']*')\]|([^.\[\]]+)", dotted):
+        index, quoted, name = part
+        out.append(int(index) if index else quoted.strip("'") if quoted else name)
+    return tuple(out)

@@ -1,50 +1,79 @@
-"""The rubric schema as code: dataclasses plus a validator that reports every problem at once.
+"""The rubric model: items, points, sections, and the scenarios they are graded on.
 
 A rubric is the single place where an instructor states *what* is graded (items, points,
-sections), *how* (analyzer + params, partial-credit rule) and *on which recording* (scenario).
-Keeping all of it declarative means a new lab is a new YAML file (and at most a new analyzer),
-not new grading code. Every problem is reported as ``file:line: field.path: message`` so the
-instructor can fix the whole file in one pass. Format reference: grader/rubric/README.md.
+sections), *how* (analyzer + params, partial-credit rule, which items gate others) and *on which
+recording* (scenario, see ``grader.scenario.model``). A new lab is a new YAML file (and at most a
+new analyzer), not new grading code. The classes mirror the YAML keys one to one; the loader
+(``grader.rubric.load``) validates a file into them and reports every problem as
+``file:line: field.path: message``. Format reference: rubrics/README.md.
 """
 
 from __future__ import annotations
 
 import math
-import re
 import string
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Collection, Iterable, Mapping
+from typing import Annotated, Any, Collection, Literal, Mapping, Union
 
-from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+from pydantic import BeforeValidator, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
-from grader.rubric._nodes import Fields, Problem, Reader, describe, join_path, suggest
-from grader.rubric.scenarios import PACKAGE, Scenario, read_scenario
+from grader.scenario.model import Model, PackageName, Scenario, _named, with_rules
 
 SCHEMA_VERSION = 1
 KINDS = ("auto", "manual", "advisory", "integrity")
 STATUSES = ("pass", "partial", "fail", "error")
-FEEDBACK_KEYS = STATUSES
-LAB_ID = re.compile(r"^[a-z0-9][a-z0-9._-]*$")
-ITEM_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-SCENARIO_ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
-ANALYZER = re.compile(r"^[a-z][a-z0-9_]*$")
-SECTION_KIND = re.compile(r"^[a-z][a-z0-9_]*$")
 _EPS = 1e-9
 
+LabId = _named(r"^[a-z0-9][a-z0-9._-]*$", "a lab id like 'enee467-lab3' (lower case, digits, . _ -)")
+ItemId = _named(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", "an item id like 'ex1.pub_rate'")
+ScenarioId = _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "a scenario id (letters, digits, _ or -)")
+AnalyzerName = _named(r"^[a-z][a-z0-9_]*$", "an analyzer name (lower_case)")
+# (the same language as an analyzer name, written differently so each has its own error text)
+SectionKind = _named(r"^[a-z][a-z_0-9]*$", "a lower-case section kind like exercise")
+SectionNumber = Union[Annotated[int, Field(ge=0)],
+                      _named(r"^[A-Za-z0-9._-]+$", "a section number like 1 or '2b'")]
+Text = Annotated[str, Field(min_length=1, pattern=r"\S")]
+Points = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
-# ----------------------------------------------------------------------------------------------
-# dataclasses
 
-@dataclass(frozen=True)
-class Section:
+def _relative_path(value: Any, info: ValidationInfo) -> Any:
+    """Paths in a rubric are relative to the rubric's own folder."""
+    base = (info.context or {}).get("base_dir")
+    if isinstance(value, str) and base is not None:
+        return str((Path(base) / value).resolve())
+    return value
+
+
+RubricPath = Annotated[Path, BeforeValidator(_relative_path), Field(strict=False)]
+
+
+class Section(Model):
     """Where an item is counted: ``report``, ``{question: 3}``, ``{exercise: 1}``, ``integrity``.
 
-    Any lower-case kind is allowed (``part``, ``task``...) so a future lab can name its own.
+    Any lower-case kind is allowed (``part``, ``task``...) so a lab can name its own.
     """
 
-    kind: str
-    number: int | str | None = None
+    kind: SectionKind
+    number: SectionNumber | None = None
+
+    def __init__(self, kind: str | None = None, number: int | str | None = None, /, **data: Any) -> None:
+        """``Section("exercise", 1)`` as well as keywords."""
+        if kind is not None:
+            data.setdefault("kind", kind)
+            data.setdefault("number", number)
+        super().__init__(**data)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _yaml_forms(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            return {"kind": value}
+        if isinstance(value, dict) and len(value) == 1 and "kind" not in value:
+            (kind, number), = value.items()
+            return {"kind": kind, "number": number}
+        if isinstance(value, dict) and "kind" not in value:
+            raise ValueError("expected a section like report, {exercise: 1} or {question: 3}")
+        return value
 
     @property
     def key(self) -> str:
@@ -62,31 +91,63 @@ class Section:
         return {self.kind: self.number}
 
 
-@dataclass(frozen=True)
-class SectionSpec:
+class SectionSpec(Model):
     """An entry of the optional ``sections:`` table: display order, title, declared total."""
 
     section: Section
     title: str | None = None
-    points: float | None = None
-    line: int = 0
+    points: Points | None = None
+
+    def __init__(self, section: Section | None = None, title: str | None = None,
+                 points: float | None = None, /, **data: Any) -> None:
+        if section is not None:
+            data.update(section=section, title=title, points=points)
+        super().__init__(**data)
 
     @property
     def display_title(self) -> str:
         return f"{self.section.label}: {self.title}" if self.title else self.section.label
 
 
-@dataclass(frozen=True)
-class Partial:
+class Partial(Model):
     """How an analyzer's ``fraction`` (0..1) becomes a share of the item's points.
 
     ``linear``: fraction as is. ``none``: all or nothing (full points only at fraction 1).
-    ``steps``: the credit of the first ``(threshold, credit)`` pair whose threshold the
+    ``{steps: [[threshold, credit], ...]}``: the credit of the first pair whose threshold the
     fraction reaches, thresholds descending; below every threshold the credit is 0.
     """
 
-    mode: str = "linear"
-    steps: tuple[tuple[float, float], ...] = ()
+    mode: Literal["linear", "none", "steps"] = "linear"
+    steps: Annotated[tuple[Annotated[tuple[Annotated[float, Field(ge=0, le=1)], Annotated[float, Field(ge=0, le=1)]],
+                                     Field(strict=False)], ...], Field(strict=False)] = ()
+
+    def __init__(self, mode: str | None = None, steps: tuple = (), /, **data: Any) -> None:
+        if mode is not None:
+            data.update(mode=mode, steps=steps)
+        super().__init__(**data)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _yaml_forms(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            return {"mode": value}
+        if isinstance(value, dict) and "steps" in value and "mode" not in value:
+            steps = value["steps"]
+            if isinstance(steps, list):
+                steps = tuple(tuple(p) if isinstance(p, list) else p for p in steps)
+            return {**value, "mode": "steps", "steps": steps}
+        return value
+
+    @model_validator(mode="after")
+    def _descending(self) -> "Partial":
+        if self.mode == "steps" and not self.steps:
+            raise ValueError("expected at least one [threshold, credit] pair")
+        for (t0, c0), (t1, c1) in zip(self.steps, self.steps[1:]):
+            if t1 >= t0:
+                raise ValueError(f"thresholds must decrease: {t1:g} follows {t0:g}")
+            if c1 > c0:
+                raise ValueError(f"credit must not grow as the threshold falls: {c1:g} after {c0:g}")
+        return self
 
     def credit(self, fraction: float) -> float:
         if not math.isfinite(fraction):
@@ -100,381 +161,6 @@ class Partial:
                     return credit
             return 0.0
         return fraction
-
-
-@dataclass(frozen=True)
-class Item:
-    """One graded line of the rubric. ``scenarios`` lists the recordings its analyzer reads;
-    with several, the analyzer runs on each and the worst finding counts (integrity checks
-    that must hold in every run)."""
-
-    id: str
-    title: str
-    section: Section
-    points: float
-    kind: str = "auto"
-    public: bool = True
-    scenarios: tuple[str, ...] = ()
-    analyzer: str | None = None
-    params: Mapping[str, Any] = field(default_factory=dict)
-    partial: Partial = field(default_factory=Partial)
-    feedback: Mapping[str, str] = field(default_factory=dict)
-    hint: str | None = None
-    line: int = 0
-
-    @property
-    def scenario(self) -> str | None:
-        """The (first) scenario id, for the common single-scenario case."""
-        return self.scenarios[0] if self.scenarios else None
-
-    @property
-    def automatic(self) -> bool:
-        """Graded by an analyzer (every kind except manual)."""
-        return self.kind != "manual"
-
-
-@dataclass(frozen=True)
-class Rubric:
-    lab: str
-    title: str
-    source: Path
-    items: tuple[Item, ...]
-    scenarios: Mapping[str, Scenario] = field(default_factory=dict)
-    sections: tuple[SectionSpec, ...] = ()
-    support: Mapping[str, Path] = field(default_factory=dict)
-    total: float | None = None
-    description: str = ""
-
-    def item(self, item_id: str) -> Item:
-        for item in self.items:
-            if item.id == item_id:
-                return item
-        raise KeyError(item_id)
-
-    @property
-    def item_ids(self) -> list[str]:
-        return [i.id for i in self.items]
-
-    @property
-    def total_max(self) -> float:
-        return float(sum(i.points for i in self.items))
-
-    @property
-    def auto_max(self) -> float:
-        return float(sum(i.points for i in self.items if i.kind == "auto"))
-
-    @property
-    def manual_max(self) -> float:
-        return float(sum(i.points for i in self.items if i.kind == "manual"))
-
-    def section_specs(self) -> list[SectionSpec]:
-        """Sections in display order: the ``sections:`` table, then undeclared ones as met."""
-        specs = list(self.sections)
-        known = {s.section for s in specs}
-        for item in self.items:
-            if item.section not in known:
-                known.add(item.section)
-                specs.append(SectionSpec(item.section))
-        return specs
-
-    def support_paths(self) -> dict[str, Path]:
-        """``{package: absolute path}`` for ``grader.workspace`` (supplied when missing)."""
-        return dict(self.support)
-
-    def scenarios_used(self) -> list[str]:
-        """Scenario ids some item needs, in first-use order (what the runner must record)."""
-        seen: dict[str, None] = {}
-        for item in self.items:
-            for sid in item.scenarios:
-                seen.setdefault(sid, None)
-        return list(seen)
-
-
-# ----------------------------------------------------------------------------------------------
-# validation
-
-_TOP_KEYS = ("schema", "lab", "title", "description", "total", "support", "sections",
-             "scenarios", "items")
-_ITEM_KEYS = ("id", "title", "section", "points", "kind", "public", "scenario", "analyzer",
-              "params", "partial", "feedback", "hint")
-
-
-def validate(root: Node | None, file: str, base_dir: Path, *, check_files: bool = True,
-             analyzers: Collection[str] | Mapping[str, Collection[str]] | None = None,
-             ) -> tuple[Rubric | None, list[Problem]]:
-    """Turn a composed YAML document into a Rubric, or list every problem found.
-
-    ``analyzers``: names known to ``grader.analyze`` (or name -> accepted parameter names);
-    when given, unknown analyzer names (and parameters) are problems too. Passed in, so the
-    schema itself does not import the analysis layer.
-    ``check_files``: support packages and replayed bags must exist.
-    """
-    reader = Reader(file)
-    if root is None:
-        reader.error(1, "", "the rubric is empty")
-        return None, reader.problems
-    f = reader.fields(root, "", _TOP_KEYS, required=("lab", "title", "items"))
-    if f is None:
-        return None, reader.problems
-    if "schema" in f:
-        version = f.number("schema", integer=True, minimum=1)
-        if version is not None and version != SCHEMA_VERSION:
-            f.error("schema", f"this grader reads rubric schema {SCHEMA_VERSION}, got {version}")
-    lab = f.string("lab", pattern=LAB_ID, what="a lab id like 'enee467-lab3' (lower case, digits, . _ -)")
-    title = f.string("title")
-    description = f.string("description", "") or ""
-    total = f.number("total", minimum=0)
-    support = _read_support(reader, f, base_dir, check_files)
-    sections = _read_sections(reader, f)
-    scenarios: dict[str, Scenario] = {}
-    scenario_lines: dict[str, int] = {}
-    if "scenarios" in f:
-        for sid, key_node, snode, spath in reader.mapping_entries(f.value_node("scenarios"),
-                                                                  f.sub("scenarios")):
-            scenario_lines[sid] = key_node.start_mark.line + 1
-            if not SCENARIO_ID.match(sid):
-                reader.error(key_node, spath, f"expected a scenario id (letters, digits, _ or -), got {sid!r}")
-                continue
-            scenario = read_scenario(reader, snode, spath, sid, base_dir, check_files)
-            if scenario is not None:
-                scenarios[sid] = scenario
-    before_items = len(reader.problems)
-    items = _read_items(reader, f, set(scenario_lines), analyzers)
-    if items is not None and len(reader.problems) == before_items:
-        # sums are only meaningful when every item was read; other problems don't stop them
-        _check_sections(reader, f, sections, items)
-        _check_total(reader, f, total, items)
-    if reader.problems:
-        return None, sorted(reader.problems)
-    rubric = Rubric(lab=lab, title=title, source=Path(file), items=tuple(items or ()),
-                    scenarios=scenarios, sections=tuple(sections), support=support,
-                    total=total, description=description)
-    return rubric, []
-
-
-def _read_support(reader: Reader, f: Fields, base_dir: Path, check_files: bool) -> dict[str, Path]:
-    support: dict[str, Path] = {}
-    if "support" not in f:
-        return support
-    for name, key_node, vnode, path in reader.mapping_entries(f.value_node("support"), f.sub("support")):
-        if not PACKAGE.match(name):
-            reader.error(key_node, path, f"expected a ROS package name, got {name!r}")
-            continue
-        text = reader.string(vnode, path, what="a path to the package (relative to the rubric)")
-        if text is None:
-            continue
-        resolved = (base_dir / text).resolve()
-        if check_files and not (resolved / "package.xml").is_file():
-            reader.error(vnode, path, f"support package {name!r}: no package.xml in {text!r} "
-                                      f"(looked in {resolved})")
-            continue
-        support[name] = resolved
-    return support
-
-
-def read_section(reader: Reader, node: Node, path: str) -> Section | None:
-    """``report`` | ``{exercise: 1}`` | ``{question: 3}`` (one key: a lower-case kind)."""
-    if isinstance(node, ScalarNode):
-        kind = reader.string(node, path, pattern=SECTION_KIND,
-                             what="a section like report, {exercise: 1} or {question: 3}")
-        return Section(kind) if kind else None
-    if not isinstance(node, MappingNode) or len(node.value) != 1:
-        reader.error(node, path, f"expected a section like report, {{exercise: 1}} or {{question: 3}}, "
-                                 f"got {describe(node, reader.scalar(node))}")
-        return None
-    key_node, value_node = node.value[0]
-    kind = reader.string(key_node, path, pattern=SECTION_KIND, what="a lower-case section kind")
-    number = reader.scalar(value_node)
-    if isinstance(number, bool) or not (
-            (isinstance(number, int) and number >= 0)
-            or (isinstance(number, str) and re.match(r"^[A-Za-z0-9._-]+$", number))):
-        reader.error(value_node, join_path(path, kind or "?"),
-                     f"expected a section number like 1 or '2b', got {describe(value_node, number)}")
-        return None
-    return Section(kind, number) if kind else None
-
-
-def _read_sections(reader: Reader, f: Fields) -> list[SectionSpec]:
-    specs: list[SectionSpec] = []
-    if "sections" not in f:
-        return specs
-    seen: dict[Section, int] = {}
-    for _, node, path in reader.items(f.value_node("sections"), f.sub("sections")):
-        g = reader.fields(node, path, ("section", "title", "points"), required=("section",))
-        if g is None or "section" not in g:
-            continue
-        section = read_section(reader, g.value_node("section"), g.sub("section"))
-        title = g.string("title")
-        points = g.number("points", minimum=0)
-        if section is None:
-            continue
-        if section in seen:
-            g.error("section", f"section {section.key!r} is listed twice (first on line {seen[section]})")
-            continue
-        seen[section] = g.line
-        specs.append(SectionSpec(section, title, points, g.line))
-    return specs
-
-
-def _read_items(reader: Reader, f: Fields, scenario_ids: set[str],
-                analyzers: Collection[str] | Mapping[str, Collection[str]] | None) -> list[Item] | None:
-    if "items" not in f:
-        return None
-    items: list[Item] = []
-    first_line: dict[str, int] = {}
-    nodes = list(reader.items(f.value_node("items"), f.sub("items")))
-    if not nodes and not reader.problems:
-        f.error("items", "a rubric needs at least one item")
-    for _, node, path in nodes:
-        item = _read_item(reader, node, path, scenario_ids, analyzers)
-        if item is None:
-            continue
-        if item.id in first_line:
-            reader.error(node, join_path(path, "id"),
-                         f"duplicate item id {item.id!r} (first on line {first_line[item.id]})")
-            continue
-        first_line[item.id] = item.line
-        items.append(item)
-    return items
-
-
-def _read_item(reader: Reader, node: Node, path: str, scenario_ids: set[str],
-               analyzers: Collection[str] | Mapping[str, Collection[str]] | None) -> Item | None:
-    mark = len(reader.problems)
-    g = reader.fields(node, path, _ITEM_KEYS, required=("id", "title", "section"))
-    if g is None:
-        return None
-    item_id = g.string("id", pattern=ITEM_ID, what="an item id like 'ex1.pub_rate'")
-    title = g.string("title")
-    section = g.get("section", lambda n, p: read_section(reader, n, p))
-    kind = g.string("kind", "auto", choices=KINDS)
-    points = g.number("points", minimum=0)
-    public = g.boolean("public", True)
-    hint = g.string("hint")
-    params = g.mapping("params")
-    scenarios = _read_item_scenarios(reader, g, scenario_ids)
-    analyzer = g.string("analyzer", pattern=ANALYZER, what="an analyzer name (lower_case)")
-    if analyzer and analyzers is not None:
-        if analyzer not in analyzers:
-            g.error("analyzer", f"unknown analyzer {analyzer!r}{suggest(analyzer, analyzers)}")
-        elif isinstance(analyzers, Mapping) and "params" in g:
-            _check_params(reader, g, analyzer, analyzers[analyzer])
-    partial = _read_partial(reader, g) if "partial" in g else Partial()
-    feedback = _read_feedback(reader, g)
-    if kind == "manual":
-        for key in ("scenario", "analyzer", "params", "partial"):
-            if key in g:
-                g.error(key, f"manual items are graded by a person; remove {key!r} or use kind: auto")
-    elif kind is not None:
-        for key in ("scenario", "analyzer"):
-            if key not in g:
-                g.error(key, f"required key is missing ({kind} items are checked by an "
-                             f"analyzer on a scenario's recording)")
-    if kind in ("advisory", "integrity"):
-        if points not in (None, 0):
-            g.error("points", f"{kind} items carry no points (they are "
-                              f"{'warnings' if kind == 'advisory' else 'flags for review'}); "
-                              f"set points: 0 or use kind: auto")
-        if "partial" in g:
-            g.error("partial", f"{kind} items carry no points, so partial credit does not apply")
-        points = 0.0 if points is None else points
-    elif "points" not in g:
-        g.error("points", f"required key is missing ({kind or 'auto'} items need points)")
-    elif points == 0:
-        g.error("points", f"{kind} items need points > 0; use kind: advisory for a 0-point check")
-    if len(reader.problems) > mark:
-        return None
-    return Item(id=item_id, title=title, section=section, points=float(points), kind=kind,
-                public=bool(public), scenarios=scenarios, analyzer=analyzer, params=params,
-                partial=partial, feedback=feedback, hint=hint, line=g.line)
-
-
-def _check_params(reader: Reader, g: Fields, analyzer: str, accepted: Collection[str]) -> None:
-    """Parameter names the analyzer does not accept (it would refuse them at grading time)."""
-    node = g.value_node("params")
-    if not isinstance(node, MappingNode):
-        return
-    for key_node, _, _ in reader.pairs(node, g.sub("params")):
-        key = reader.scalar(key_node)
-        if isinstance(key, str) and key not in accepted:
-            known = ", ".join(sorted(accepted)) or "none"
-            hint = suggest(key, accepted) or f" (accepted: {known})"
-            reader.error(key_node, join_path(g.sub("params"), key),
-                         f"analyzer {analyzer!r} takes no parameter {key!r}{hint}")
-
-
-def _read_item_scenarios(reader: Reader, g: Fields, scenario_ids: set[str]) -> tuple[str, ...]:
-    if "scenario" not in g:
-        return ()
-    node, path = g.value_node("scenario"), g.sub("scenario")
-    names: list[tuple[str, Node, str]] = []
-    if isinstance(node, ScalarNode):
-        sid = reader.string(node, path, what="a scenario id")
-        if sid:
-            names.append((sid, node, path))
-    else:
-        for _, child, cpath in reader.items(node, path):
-            sid = reader.string(child, cpath, what="a scenario id")
-            if sid:
-                names.append((sid, child, cpath))
-        if isinstance(node, SequenceNode) and not node.value:
-            reader.error(node, path, "expected at least one scenario id")
-    for sid, snode, spath in names:
-        if sid not in scenario_ids:
-            hint = suggest(sid, scenario_ids) or (
-                f" (defined: {', '.join(sorted(scenario_ids))})" if scenario_ids else " (no scenarios defined)")
-            reader.error(snode, spath, f"unknown scenario {sid!r}{hint}")
-    return tuple(s for s, _, _ in names)
-
-
-def _read_partial(reader: Reader, g: Fields) -> Partial:
-    node, path = g.value_node("partial"), g.sub("partial")
-    if isinstance(node, ScalarNode):
-        mode = reader.string(node, path, choices=("linear", "none"),
-                             what="linear, none or {steps: [[threshold, credit], ...]}")
-        return Partial(mode or "linear")
-    h = reader.fields(node, path, ("steps",), required=("steps",))
-    if h is None or "steps" not in h:
-        return Partial()
-    steps: list[tuple[float, float]] = []
-    for index, pair, ppath in reader.items(h.value_node("steps"), h.sub("steps")):
-        values = getattr(pair, "value", None)
-        if not isinstance(values, list) or len(values) != 2 or isinstance(pair, MappingNode):
-            reader.error(pair, ppath, f"expected a pair [threshold, credit], got "
-                                      f"{describe(pair, reader.scalar(pair))}")
-            continue
-        threshold = reader.number(values[0], join_path(ppath, 0), minimum=0, maximum=1)
-        credit = reader.number(values[1], join_path(ppath, 1), minimum=0, maximum=1)
-        if threshold is None or credit is None:
-            continue
-        if steps and threshold >= steps[-1][0]:
-            reader.error(pair, ppath, f"thresholds must decrease: {threshold:g} follows {steps[-1][0]:g}")
-        elif steps and credit > steps[-1][1]:
-            reader.error(pair, ppath, f"credit must not grow as the threshold falls: "
-                                      f"{credit:g} after {steps[-1][1]:g}")
-        steps.append((float(threshold), float(credit)))
-    if not steps:
-        h.error("steps", "expected at least one [threshold, credit] pair")
-    return Partial("steps", tuple(steps))
-
-
-def _read_feedback(reader: Reader, g: Fields) -> dict[str, str]:
-    if "feedback" not in g:
-        return {}
-    h = reader.fields(g.value_node("feedback"), g.sub("feedback"), FEEDBACK_KEYS)
-    if h is None:
-        return {}
-    texts: dict[str, str] = {}
-    for key in h.keys():
-        text = h.string(key)
-        if text is None:
-            continue
-        problem = template_problem(text)
-        if problem:
-            h.error(key, problem)
-            continue
-        texts[key] = text
-    return texts
 
 
 def template_problem(text: str) -> str | None:
@@ -493,30 +179,268 @@ def template_problem(text: str) -> str | None:
     return None
 
 
-def _check_sections(reader: Reader, f: Fields, sections: list[SectionSpec], items: list[Item]) -> None:
-    """Item sections must be declared (when a table exists) and add up to declared points."""
-    if "sections" not in f:
-        return
-    declared = {s.section: s for s in sections}
-    labels = {s.section.key: s for s in sections}
-    sums: dict[Section, float] = {s: 0.0 for s in declared}
-    for index, item in enumerate(items):
-        if item.section not in declared:
-            reader.error(item.line, f"items[{index}].section",
-                         f"section {item.section.key!r} is not in the sections table"
-                         f"{suggest(item.section.key, labels)}")
-            continue
-        sums[item.section] += item.points
-    for index, spec in enumerate(sections):
-        if spec.points is not None and abs(sums[spec.section] - spec.points) > _EPS:
-            reader.error(spec.line, f"sections[{index}].points",
-                         f"section {spec.section.key!r} declares {spec.points:g} points but its "
-                         f"items add up to {sums[spec.section]:g}")
+class Feedback(Model):
+    """Texts per status (``str.format`` templates: ``{value}``, ``{feedback}``, evidence and
+    params keys). ``partial`` falls back to ``fail``; no text: the analyzer's own feedback."""
+
+    pass_: str | None = Field(None, alias="pass")
+    partial: str | None = None
+    fail: str | None = None
+    error: str | None = None
+
+    model_config = {**Model.model_config, "populate_by_name": True}
+
+    @field_validator("pass_", "partial", "fail", "error")
+    @classmethod
+    def _template(cls, text: str | None) -> str | None:
+        problem = template_problem(text) if text is not None else None
+        if problem:
+            raise ValueError(problem)
+        return text
+
+    def get(self, status: str) -> str | None:
+        return getattr(self, "pass_" if status == "pass" else status, None)
 
 
-def _check_total(reader: Reader, f: Fields, total: float | None, items: Iterable[Item]) -> None:
-    if total is None:
-        return
-    got = sum(i.points for i in items)
-    if abs(got - total) > _EPS:
-        f.error("total", f"total is {total:g} but the items add up to {got:g}")
+def _scenario_ids(value: Any) -> Any:
+    if isinstance(value, str):
+        return (value,)
+    return tuple(value) if isinstance(value, list) else value
+
+
+class Item(Model):
+    """One graded line of the rubric.
+
+    ``scenario``: the recordings its analyzer reads; with several, the analyzer runs on each and
+    the worst finding counts (integrity checks that must hold in every run). ``requires``: items
+    that must pass before this one earns points (e.g. a server that advertises its action earns
+    nothing until it also reaches a goal). ``hidden_params``: parameters (thresholds) not shown
+    in the student view. ``handout_credit``: why the lab's handed-out code may earn this item
+    (the handout test fails on any scored item the handout passes without it).
+    """
+
+    id: ItemId
+    title: Text
+    section: Section
+    points: Points = 0.0
+    kind: Literal["auto", "manual", "advisory", "integrity"] = "auto"
+    public: bool = True
+    scenario: Annotated[tuple[ScenarioId, ...], BeforeValidator(_scenario_ids), Field(strict=False)] = ()
+    analyzer: AnalyzerName | None = None
+    params: dict[str, Any] = {}
+    partial: Partial = Partial()
+    feedback: Feedback = Feedback()
+    hint: Text | None = None
+    requires: Annotated[tuple[ItemId, ...], BeforeValidator(_scenario_ids), Field(strict=False)] = ()
+    hidden_params: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    handout_credit: Text | None = None
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _kind_rules(cls, value: Any, handler: Any) -> Any:
+        """Rules that depend on which keys were written; reported together with field errors."""
+        if not isinstance(value, dict):
+            return handler(value)
+        own: list[tuple[tuple, str]] = []
+        kind = value.get("kind", "auto")
+        if kind == "manual":
+            for key in ("scenario", "analyzer", "params", "partial", "requires", "hidden_params"):
+                if key in value:
+                    own.append(((key,), f"manual items are graded by a person; remove {key!r} or use kind: auto"))
+        elif kind in KINDS:
+            for key in ("scenario", "analyzer"):
+                if key not in value:
+                    own.append(((key,), f"required key is missing ({kind} items are checked by an "
+                                        "analyzer on a scenario's recording)"))
+        if kind in ("advisory", "integrity"):
+            if value.get("points") not in (None, 0):
+                own.append((("points",), f"{kind} items carry no points (they are "
+                            f"{'warnings' if kind == 'advisory' else 'flags for review'}); "
+                            "set points: 0 or use kind: auto"))
+            if "partial" in value:
+                own.append((("partial",), f"{kind} items carry no points, so partial credit does not apply"))
+            value = {**value, "points": 0.0}
+        elif kind in ("auto", "manual"):
+            if "points" not in value:
+                own.append((("points",), f"required key is missing ({kind} items need points)"))
+            elif value["points"] == 0 and not isinstance(value["points"], bool):
+                own.append((("points",), f"{kind} items need points > 0; use kind: advisory for a 0-point check"))
+        return with_rules(cls, handler, value, own)
+
+    @property
+    def automatic(self) -> bool:
+        """Graded by an analyzer (every kind except manual)."""
+        return self.kind != "manual"
+
+    @property
+    def max_points(self) -> float:
+        return float(self.points)
+
+
+class Rubric(Model):
+    """A lab's whole grading scheme. ``source`` is the file it was loaded from."""
+
+    schema_: Literal[1] = Field(SCHEMA_VERSION, alias="schema")
+    lab: LabId
+    title: Text
+    description: str = ""
+    total: Points | None = None
+    handout: RubricPath | None = Field(None, description="the lab's handed-out starter code (a "
+                                       "submission folder); it must earn no points")
+    support: dict[PackageName, RubricPath] = Field(
+        {}, description="packages supplied when a submission lacks them (e.g. given interfaces)")
+    sections: Annotated[tuple[SectionSpec, ...], Field(strict=False)] = ()
+    scenarios: dict[ScenarioId, Scenario] = {}
+    items: Annotated[tuple[Item, ...], Field(min_length=1, strict=False)]
+
+    model_config = {**Model.model_config, "populate_by_name": True}
+    _source: Path = PrivateAttr(default=Path("rubric.yaml"))
+
+    @property
+    def source(self) -> Path:
+        return self._source
+
+    def item(self, item_id: str) -> Item:
+        for item in self.items:
+            if item.id == item_id:
+                return item
+        raise KeyError(item_id)
+
+    @property
+    def item_ids(self) -> list[str]:
+        return [i.id for i in self.items]
+
+    @property
+    def total_max(self) -> float:
+        return float(sum(i.max_points for i in self.items))
+
+    @property
+    def auto_max(self) -> float:
+        return float(sum(i.max_points for i in self.items if i.kind == "auto"))
+
+    @property
+    def manual_max(self) -> float:
+        return float(sum(i.max_points for i in self.items if i.kind == "manual"))
+
+    def section_specs(self) -> list[SectionSpec]:
+        """Sections in display order: the ``sections:`` table, then undeclared ones as met."""
+        specs = list(self.sections)
+        known = {s.section for s in specs}
+        for item in self.items:
+            if item.section not in known:
+                known.add(item.section)
+                specs.append(SectionSpec(section=item.section))
+        return specs
+
+    def support_paths(self) -> dict[str, Path]:
+        """``{package: absolute path}`` for ``grader.workspace`` (supplied when missing)."""
+        return dict(self.support)
+
+    def scenarios_used(self) -> list[str]:
+        """Scenario ids some item needs, in first-use order (what the runner must record)."""
+        seen: dict[str, None] = {}
+        for item in self.items:
+            for sid in item.scenario:
+                seen.setdefault(sid, None)
+        return list(seen)
+
+    def problems(self, analyzers: Mapping[str, Any] | Collection[str] | None, check_files: bool) -> list[tuple[str, str]]:
+        """Cross-references as ``(field path, message)``: scenarios, analyzers, sections, sums,
+        ``requires``, files. ``analyzers``: name -> accepted parameter names (None: unchecked)."""
+        from grader.scenario.model import _suggest
+
+        out: list[tuple[str, str]] = []
+        for sid, scenario in self.scenarios.items():
+            out += [(f"scenarios.{sid}.{path}", msg) for path, msg in scenario.problems()]
+            if check_files:
+                for i, step in enumerate(scenario.steps):
+                    if step.replay is not None and not step.replay.bag.exists():
+                        out.append((f"scenarios.{sid}.steps[{i}].replay.bag",
+                                    f"bag not found (looked for {step.replay.bag})"))
+        if check_files:
+            for name, path in self.support.items():
+                if not (path / "package.xml").is_file():
+                    out.append((f"support.{name}", f"support package {name!r}: no package.xml in {path}"))
+            if self.handout is not None and not self.handout.is_dir():
+                out.append(("handout", f"handout folder not found (looked for {self.handout})"))
+        ids: dict[str, int] = {}
+        scored = {i.id for i in self.items if i.kind == "auto"}
+        all_ids = [i.id for i in self.items]
+        for index, item in enumerate(self.items):
+            at = f"items[{index}]"
+            if item.id in ids:
+                out.append((f"{at}.id", f"duplicate item id {item.id!r} (first at items[{ids[item.id]}])"))
+            ids.setdefault(item.id, index)
+            for sid in item.scenario:
+                if sid not in self.scenarios:
+                    hint = _suggest(sid, list(self.scenarios)) or (
+                        f" (defined: {', '.join(sorted(self.scenarios))})" if self.scenarios
+                        else " (no scenarios defined)")
+                    out.append((f"{at}.scenario", f"unknown scenario {sid!r}{hint}"))
+            if item.analyzer and analyzers is not None:
+                if item.analyzer not in analyzers:
+                    out.append((f"{at}.analyzer", f"unknown analyzer {item.analyzer!r}"
+                                + _suggest(item.analyzer, list(analyzers))))
+                elif isinstance(analyzers, Mapping):
+                    accepted = set(analyzers[item.analyzer])
+                    for key in item.params:
+                        if key not in accepted:
+                            out.append((f"{at}.params.{key}", f"analyzer {item.analyzer!r} takes no parameter "
+                                        f"{key!r}" + (_suggest(key, sorted(accepted)) or
+                                                      f" (accepted: {', '.join(sorted(accepted)) or 'none'})")))
+                    for key in item.hidden_params:
+                        if key not in accepted:
+                            out.append((f"{at}.hidden_params", f"analyzer {item.analyzer!r} has no "
+                                        f"parameter {key!r} to hide"))
+            for req in item.requires:
+                if req not in all_ids:
+                    out.append((f"{at}.requires", f"unknown item {req!r}" + _suggest(req, all_ids)))
+                elif req not in scored:
+                    out.append((f"{at}.requires", f"{req!r} is not a scored (auto) item; only those can gate points"))
+                elif req == item.id:
+                    out.append((f"{at}.requires", "an item cannot require itself"))
+            if item.requires and item.kind != "auto":
+                out.append((f"{at}.requires", "only auto items earn points that can be gated"))
+        out += self._cycles()
+        out += self._sums()
+        return out
+
+    def _cycles(self) -> list[tuple[str, str]]:
+        graph = {i.id: set(i.requires) for i in self.items}
+        for index, item in enumerate(self.items):
+            seen, todo = set(), list(item.requires)
+            while todo:
+                nxt = todo.pop()
+                if nxt == item.id:
+                    return [(f"items[{index}].requires", f"{item.id!r} requires itself through others")]
+                if nxt not in seen:
+                    seen.add(nxt)
+                    todo += graph.get(nxt, ())
+        return []
+
+    def _sums(self) -> list[tuple[str, str]]:
+        out: list[tuple[str, str]] = []
+        if self.sections:
+            declared = {s.section for s in self.sections}
+            sums = {s: 0.0 for s in declared}
+            seen: set = set()
+            for index, spec in enumerate(self.sections):
+                if spec.section in seen:
+                    out.append((f"sections[{index}].section", f"section {spec.section.key!r} is listed twice"))
+                seen.add(spec.section)
+            for index, item in enumerate(self.items):
+                if item.section not in declared:
+                    from grader.scenario.model import _suggest
+                    out.append((f"items[{index}].section", f"section {item.section.key!r} is not in the "
+                                "sections table" + _suggest(item.section.key, [s.section.key for s in self.sections])))
+                    continue
+                sums[item.section] += item.max_points
+            for index, spec in enumerate(self.sections):
+                if spec.points is not None and abs(sums[spec.section] - spec.points) > _EPS:
+                    out.append((f"sections[{index}].points", f"section {spec.section.key!r} declares "
+                                f"{spec.points:g} points but its items add up to {sums[spec.section]:g}"))
+        if self.total is not None:
+            got = sum(i.max_points for i in self.items)
+            if abs(got - self.total) > _EPS:
+                out.append(("total", f"total is {self.total:g} but the items add up to {got:g}"))
+        return out

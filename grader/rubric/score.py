@@ -45,6 +45,9 @@ class ItemResult:
     value: Any = None
     fraction: float | None = None
     evidence: Mapping[str, Any] = field(default_factory=dict)
+    params: Mapping[str, Any] = field(default_factory=dict)       # thresholds that decided it
+    hidden_params: tuple[str, ...] = ()                           # not shown to students
+    requires: tuple[str, ...] = ()                                # items gating its points
 
 
 @dataclass(frozen=True)
@@ -150,7 +153,7 @@ class Result:
         for item in self.items:
             if item.section not in known:
                 known.add(item.section)
-                specs.append(SectionSpec(item.section))
+                specs.append(SectionSpec(section=item.section))
         out = []
         for spec in specs:
             items = [i for i in self.items if i.section == spec.section]
@@ -167,13 +170,14 @@ class Result:
         return tuple(out)
 
     def for_student(self) -> "Result":
-        """The self-check view: hidden (``public: false``) items and their points removed."""
-        visible = tuple(i for i in self.items if i.public)
+        """The self-check view: hidden (``public: false``) items and their points removed, and
+        the thresholds an item marks hidden (``hidden_params``) left out."""
+        visible = tuple(replace(i, params={k: v for k, v in i.params.items() if k not in i.hidden_params})
+                        for i in self.items if i.public)
         hidden = [i for i in self.items if not i.public]
         return replace(self, items=visible, student_view=True,
                        hidden_items=self.hidden_items + len(hidden),
                        hidden_points=_sum([self.hidden_points, *(i.max_points for i in hidden)]))
-
 
 def _sum(values: Iterable[float | None]) -> float:
     return round(sum(v for v in values if v is not None), 2)
@@ -206,8 +210,27 @@ def score(rubric: Rubric, findings: Mapping[str, FindingLike | None], *,
             items.append(_score_manual(item, manual.get(item.id)))
         else:
             items.append(_score_auto(item, findings.get(item.id)))
+    items = _gate(items)
     return Result(lab=rubric.lab, title=rubric.title, items=tuple(items),
                   section_specs=tuple(rubric.sections))
+
+
+def _gate(items: list[ItemResult]) -> list[ItemResult]:
+    """Items with ``requires`` earn their points only when every required item passed."""
+    status = {i.id: i.status for i in items}
+    out = []
+    for item in items:
+        unmet = [r for r in item.requires if status.get(r) != "pass"]
+        if not unmet or not item.points:
+            out.append(item)
+            continue
+        names = ", ".join(f"{r} ({status.get(r, 'missing')})" for r in unmet)
+        text = (f"No points yet: this item counts once {' and '.join(unmet)} "
+                f"{'passes' if len(unmet) == 1 else 'pass'} (now: {names}). " + item.feedback).strip()
+        out.append(replace(item, points=0.0, status="fail", feedback=text,
+                           evidence={**item.evidence, "gated_by": unmet, "own_status": item.status,
+                                     "own_points": item.points}))
+    return out
 
 
 def worst_finding(findings: Iterable[FindingLike | None]) -> FindingLike | None:
@@ -261,8 +284,8 @@ def _score_auto(item: Item, finding: FindingLike | None) -> ItemResult:
         points = 0.0
     evidence = getattr(finding, "evidence", None) or {}
     text = _feedback(item, status, finding, fraction, points, evidence)
-    return _result(item, points, status, text, fraction,
-                   value=getattr(finding, "value", None), evidence=evidence)
+    return _result(item, points, status, text, fraction, value=getattr(finding, "value", None),
+                   evidence=evidence, params=getattr(finding, "params", None) or None)
 
 
 def _fraction(value: Any) -> float:
@@ -274,11 +297,13 @@ def _fraction(value: Any) -> float:
 
 
 def _result(item: Item, points: float | None, status: str, feedback: str, fraction: float | None,
-            value: Any = None, evidence: Mapping[str, Any] | None = None) -> ItemResult:
+            value: Any = None, evidence: Mapping[str, Any] | None = None,
+            params: Mapping[str, Any] | None = None) -> ItemResult:
     return ItemResult(id=item.id, title=item.title, section=item.section, kind=item.kind,
                       public=item.public, points=points, max_points=item.points, status=status,
                       feedback=feedback, hint=item.hint, value=value, fraction=fraction,
-                      evidence=dict(evidence or {}))
+                      evidence=dict(evidence or {}), params=dict(params if params is not None else item.params),
+                      hidden_params=tuple(item.hidden_params), requires=tuple(item.requires))
 
 
 def _feedback(item: Item, status: str, finding: FindingLike, fraction: float,
@@ -290,7 +315,7 @@ def _feedback(item: Item, status: str, finding: FindingLike, fraction: float,
         template = item.feedback.get("fail")
     if template is None:
         return own
-    context: dict[str, Any] = dict(item.params)
+    context: dict[str, Any] = dict(getattr(finding, "params", None) or item.params)
     context.update({k: v for k, v in evidence.items() if isinstance(k, str)})
     context.update(value=getattr(finding, "value", None), fraction=fraction,
                    points=points, max_points=item.points,

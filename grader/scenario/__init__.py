@@ -1,13 +1,13 @@
 """Scenarios: run a submission's nodes against the reference simulator while recording a bag.
 
-The parent side (this module) resolves executables against a build and runs each scenario in a
-child process (``grader.scenario.run``) with the build's environment and a wall-clock limit.
+The parent side (this module) resolves a rubric scenario against a build (:func:`resolve`: the
+argv of every process, a launch file's nodes) into a :class:`~grader.scenario.model.ScenarioRun`
+and runs it in a child process (``grader.scenario.run``) with the build's environment and a
+wall-clock limit.
 """
 
 from __future__ import annotations
 
-import copy
-import json
 import os
 import signal
 import subprocess
@@ -18,15 +18,17 @@ from pathlib import Path
 from typing import Any
 
 from grader.errors import GraderError
-from grader.scenario.spec import NodeSpec, Scenario, Step
+from grader.scenario.model import LaunchedProcess, Scenario, ScenarioRun
 
-__all__ = ["NodeSpec", "Scenario", "Step", "resolve", "run_scenario", "cancel_all", "CANCELLED"]
+__all__ = ["Scenario", "ScenarioRun", "resolve", "run_scenario", "cancel_all", "CANCELLED"]
 
 #: set by a batch on Ctrl-C: running scenarios are told to stop (their bags get finalized) and
 #: no new scenario starts
 CANCELLED = threading.Event()
 _RUNNING: set[subprocess.Popen] = set()
 _RUNNING_LOCK = threading.Lock()
+#: how long the child may outlive the scenario's own limit (bag finalisation, stops)
+GRACE_S = 60.0
 
 
 def cancel_all() -> None:
@@ -40,61 +42,63 @@ def cancel_all() -> None:
                 pass
 
 
-def resolve(scenario: Scenario, build) -> Scenario:
-    """Fill each node's argv from ``build`` (a BuildResult, or None for grader-only scenarios).
+def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
+    """What the child needs besides the scenario: each process's argv from ``build`` (a
+    BuildResult, or None for grader-only scenarios), a launch file's nodes, install prefixes.
 
-    A node that cannot be resolved (package missing or failed to build, executable missing)
-    keeps an ``error`` instead: the scenario still runs, and the items that need that node fail
-    with that explanation.
+    A process that cannot be resolved (package missing or failed to build, executable missing,
+    broken launch file) keeps an ``error`` instead: the scenario still runs, and the items that
+    need that process fail with that explanation.
     """
-    spec = copy.deepcopy(scenario)
-    for node in spec.nodes:
+    from grader.launch import resolve_launch
+
+    launched: dict[str, tuple[LaunchedProcess, ...]] = {}
+    sim_node = "turtlesim"
+    notes: list[str] = []
+    for proc in scenario.processes:
         if build is None:
-            node.error = "no build available"
+            launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error="no build available"),)
+            continue
+        if proc.launch:
+            result = resolve_launch(proc, build, sim_in_scenario=scenario.sim)
+            launched[proc.name] = tuple(result.processes)
+            sim_node = result.sim_node or sim_node
+            notes += result.notes
             continue
         try:
-            node.argv = build.argv(node.package, node.executable, node.module)
+            argv = build.argv(proc.package, proc.executable, proc.module) + proc.ros_args()
+            launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, argv=tuple(argv)),)
         except GraderError as exc:
-            node.error = str(exc)
-    spec.prefixes = [str(p) for p in build.prefixes()] if build is not None else []
-    return spec
+            launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error=str(exc)),)
+    prefixes = tuple(str(p) for p in build.prefixes()) if build is not None else ()
+    return ScenarioRun(id=scenario_id, scenario=scenario, launched=launched, prefixes=prefixes,
+                       sim_node=sim_node, notes=tuple(notes))
 
 
-def run_scenario(scenario: Scenario, build, out: Path, *, env: dict[str, str] | None = None) -> dict[str, Any]:
-    """Run one scenario in a child process; returns its record (see grader.scenario.run)."""
+def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = None) -> dict[str, Any]:
+    """Run one resolved scenario in a child process; returns its record (see grader.scenario.run)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    spec = resolve(scenario, build)
-    (out / "spec.json").write_text(json.dumps(spec.to_json(), indent=1))
-    child_env = env or (build.env() if build is not None else None)
-    if child_env is None:
-        from grader.rosenv import child_env as make_env
-        child_env = make_env()
-    limit = spec.time_limit_s + 60.0
+    run_file = out / "run.json"
+    run_file.write_text(run.model_dump_json(indent=1))
+    if env is None:
+        from grader.rosenv import child_env
+        env = child_env(prefixes=[Path(p) for p in run.prefixes])
+    limit = run.scenario.time_limit_s + GRACE_S
     if CANCELLED.is_set():
         raise KeyboardInterrupt
     t0 = time.monotonic()
     with open(out / "scenario.log", "wb") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "grader.scenario.run", str(out / "spec.json"), str(out)],
-                                env=child_env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        proc = subprocess.Popen([sys.executable, "-m", "grader.scenario.run", str(run_file), str(out)],
+                                env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         with _RUNNING_LOCK:
             _RUNNING.add(proc)
         try:
             proc.wait(timeout=limit)
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGTERM)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
+            _terminate(proc)
         except BaseException:
-            # Ctrl-C in the parent: let the child finalize its bag, then re-raise
-            os.killpg(proc.pid, signal.SIGTERM)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
+            _terminate(proc)          # Ctrl-C in the parent: let the child finalize its bag
             raise
         finally:
             with _RUNNING_LOCK:
@@ -105,12 +109,23 @@ def run_scenario(scenario: Scenario, build, out: Path, *, env: dict[str, str] | 
                 pass
     if CANCELLED.is_set():
         raise KeyboardInterrupt
+    import json
+
     record_path = out / "scenario.json"
     if record_path.exists():
         record = json.loads(record_path.read_text())
     else:
         tail = (out / "scenario.log").read_text(errors="replace")[-1500:]
-        record = {"scenario": spec.id, "steps": [], "processes": {}, "bag": str(out / "bag"),
+        record = {"scenario": run.id, "steps": [], "processes": {}, "bag": str(out / "bag"),
                   "errors": [f"scenario process ended with code {proc.returncode} without a record:\n{tail}"]}
     record["parent_wall_s"] = round(time.monotonic() - t0, 3)
     return record
+
+
+def _terminate(proc: subprocess.Popen) -> None:
+    os.killpg(proc.pid, signal.SIGTERM)
+    try:
+        proc.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()

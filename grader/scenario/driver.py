@@ -17,9 +17,8 @@ from typing import Any, Callable
 
 from grader.executors import make_executor
 from grader.runner import ManagedProcess
+from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 
-EVENTS_TOPIC = "/grader/events"
-STDOUT_TOPIC = "/grader/stdout"
 GRADER_NODE_PREFIX = "grader_"
 
 
@@ -69,12 +68,13 @@ def to_plain(msg: Any) -> Any:
 class Driver:
     """Owns an rclpy context on the scenario's domain and a background executor thread."""
 
-    def __init__(self, domain_id: int, processes: dict[str, ManagedProcess]) -> None:
+    def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim") -> None:
         import rclpy
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from std_msgs.msg import String
 
         self.rclpy = rclpy
+        self.sim_node = sim_node
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx, domain_id=domain_id)
         self.node = rclpy.create_node("grader_driver", context=self.ctx)
@@ -86,8 +86,9 @@ class Driver:
         self.processes = processes
         self.events: list[dict[str, Any]] = []
         self.lock = threading.Lock()
-        self.pose: Any = None
-        self.pose_history: list[tuple[float, float, float, float]] = []   # t, x, y, v
+        self.pose: Any = None                      # latest pose of the first watched topic
+        self.pose_topic: str | None = None
+        self.poses: dict[str, Any] = {}            # topic -> latest pose
         self.last_output = time.monotonic()
         self.counts: dict[str, int] = {}
         self._subs: dict[str, Any] = {}
@@ -117,14 +118,14 @@ class Driver:
                 if not self.rclpy.ok(context=self.ctx):
                     break
 
-    def event(self, event: str, **fields: Any) -> None:
-        record = {"event": event, "wall": time.time(), **fields}
+    def event(self, event: Event, **fields: Any) -> None:
+        record = {"event": str(event), "wall": time.time(), **fields}
         with self.lock:
             self.events.append(record)
         self.events_pub.publish(self.String(data=json.dumps(record, default=str)))
 
     def _on_rosout(self, msg: Any) -> None:
-        if not msg.name.startswith(GRADER_NODE_PREFIX) and msg.name not in ("turtlesim", "grader_recorder"):
+        if not msg.name.startswith(GRADER_NODE_PREFIX) and msg.name != self.sim_node:
             self.last_output = time.monotonic()
             self.counts["/rosout:student"] = self.counts.get("/rosout:student", 0) + 1
 
@@ -161,7 +162,7 @@ class Driver:
                         self.counts["stdout:student"] = self.counts.get("stdout:student", 0) + 1
             if name not in self._exited and proc.returncode is not None:
                 self._exited.add(name)
-                self.event("process_exit", process=name, returncode=proc.returncode,
+                self.event(Event.PROCESS_EXIT, process=name, returncode=proc.returncode,
                            stopped_by_grader=proc.stopped_by_grader, timed_out=proc.timed_out)
 
     def flush_outputs(self) -> None:
@@ -174,14 +175,19 @@ class Driver:
             del self._tail_rest[path]
 
     def watch_pose(self, topic: str = "/turtle1/pose") -> None:
+        """Keep the latest turtlesim Pose of ``topic`` in ``poses[topic]`` (and ``pose`` for the
+        first one watched)."""
         from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-        def on_pose(msg: Any) -> None:
-            self.pose = msg
-            self.pose_history.append((time.monotonic(), msg.x, msg.y, msg.linear_velocity))
-            if len(self.pose_history) > 2000:
-                del self.pose_history[:1000]
+        if topic in self._subs:
+            return
 
+        def on_pose(msg: Any) -> None:
+            self.poses[topic] = msg
+            if self.pose_topic == topic:
+                self.pose = msg
+
+        self.pose_topic = self.pose_topic or topic
         self._subs[topic] = self.node.create_subscription(
             self._import("turtlesim/msg/Pose"), topic, on_pose,
             QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
@@ -230,16 +236,19 @@ class Driver:
         return predicate()
 
     def graph_snapshot(self) -> None:
-        """Publish who publishes and subscribes what (node names): integrity checks need it."""
+        """Publish the nodes, and who publishes and subscribes what: integrity checks and
+        "the launch file starts these nodes" need it."""
         pubs: dict[str, list[str]] = {}
         subs: dict[str, list[str]] = {}
+        nodes = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in self.node.get_node_names_and_namespaces())
+        services = sorted(n for n, _ in self.node.get_service_names_and_types())
         for topic, _types in self.node.get_topic_names_and_types():
             try:
                 pubs[topic] = sorted({i.node_name for i in self.node.get_publishers_info_by_topic(topic)})
                 subs[topic] = sorted({i.node_name for i in self.node.get_subscriptions_info_by_topic(topic)})
             except Exception:  # noqa: BLE001 - a topic vanishing mid-query is fine
                 continue
-        self.event("graph", publishers=pubs, subscribers=subs)
+        self.event(Event.GRAPH, nodes=nodes, publishers=pubs, subscribers=subs, services=services)
 
     # -- readiness -------------------------------------------------------------------------
     def _student_endpoint(self, topic: str, publisher: bool) -> bool:
@@ -260,7 +269,7 @@ class Driver:
 
     def student_nodes(self) -> set[tuple[str, str]]:
         return {(n, ns) for n, ns in self.node.get_node_names_and_namespaces()
-                if not n.startswith(GRADER_NODE_PREFIX) and n != "turtlesim"}
+                if not n.startswith(GRADER_NODE_PREFIX) and n != self.sim_node}
 
     def recorder_matched(self, name_ns: tuple[str, str]) -> bool:
         """Every topic the node publishes has a grader subscriber (the recorder) matched."""
@@ -276,22 +285,21 @@ class Driver:
                 return False
         return True
 
-    def is_ready(self, ready: dict[str, str]) -> bool:
-        """``{subscriber: topic}``, ``{publisher: topic}``, ``{action_server: name}``, ``{service: name}``."""
-        node = self.node
-        if "subscriber" in ready and not self._student_endpoint(ready["subscriber"], publisher=False):
-            return False
-        if "publisher" in ready and not self._student_endpoint(ready["publisher"], publisher=True):
-            return False
-        if "action_server" in ready:
-            name = ready["action_server"].rstrip("/")
-            services = {n for n, _ in node.get_service_names_and_types()}
-            if f"{name}/_action/send_goal" not in services:
-                return False
-        if "service" in ready:
-            if ready["service"] not in {n for n, _ in node.get_service_names_and_types()}:
-                return False
-        return True
+    def student_publishes(self, topic: str) -> bool:
+        return self._student_endpoint(topic, publisher=True)
+
+    def student_subscribes(self, topic: str) -> bool:
+        return self._student_endpoint(topic, publisher=False)
+
+    def service_type(self, name: str) -> str | None:
+        """The type a server advertises for service ``name`` (None while there is none)."""
+        for service, types in self.node.get_service_names_and_types():
+            if service == name and types:
+                return types[0]
+        return None
+
+    def action_available(self, name: str) -> bool:
+        return self.service_type(name.rstrip("/") + "/_action/send_goal") is not None
 
     def shutdown(self) -> None:
         try:

@@ -1,10 +1,11 @@
-"""Scenario child process: ``python -m grader.scenario.run SPEC.json OUT_DIR``.
+"""Scenario child process: ``python -m grader.scenario.run RUN.json OUT_DIR``.
 
-Runs one scenario in its own isolated ROS graph: recorder first (so it sees everything), then the
-reference simulator, the driver, the student's nodes, the steps; then stops the student's nodes,
-the recorder (SIGINT finalizes the bag) and the simulator (which saves its canvas). Writes
-``OUT_DIR/scenario.json``. Runs in a child process started with the build's environment, so the
-student's interface types import here and rclpy state never leaks between scenarios.
+Runs one scenario (a :class:`grader.scenario.model.ScenarioRun`) in its own isolated ROS graph:
+recorder first (so it sees everything), then the reference simulator, the driver, the
+student's processes, the steps; then stops the student's processes, the recorder (SIGINT
+finalizes the bag) and the simulator (which saves its canvas). Writes ``OUT_DIR/scenario.json``.
+Runs in a child process started with the build's environment, so the student's interface types
+import here and rclpy state never leaks between scenarios.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ from typing import Any
 
 from grader.bag.recorder import recorder_argv, wait_ready
 from grader.errors import GraderError
-from grader.runner import Limits, ManagedProcess, ProcessSpec, RosGraph, StdinLine
-from grader.scenario.spec import Scenario
+from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
+from grader.scenario.events import Event
+from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
 
 RECORDER_READY_S = 10.0
 SIM_READY_S = 15.0
@@ -37,7 +39,7 @@ class _EventedProcess(ManagedProcess):
 
     def on_stdin_line(self, text: str) -> None:
         if self.driver is not None:
-            self.driver.event("stdin_line", process=self.name, line=text, delivered=True)
+            self.driver.event(Event.STDIN_LINE, process=self.name, line=text, delivered=True)
 
 
 def _open_gate(driver, proc: ManagedProcess, before: set, gate: threading.Event) -> None:
@@ -50,17 +52,74 @@ def _open_gate(driver, proc: ManagedProcess, before: set, gate: threading.Event)
             time.sleep(0.3)
             break
         time.sleep(0.05)
-    driver.event("stdin_ready", process=proc.name, nodes=sorted("/".join(n[::-1]).replace("//", "/") for n in new))
+    driver.event(Event.STDIN_READY, process=proc.name,
+                 nodes=sorted("/".join(n[::-1]).replace("//", "/") for n in new))
     gate.set()
 
 
-def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
-    """Execute ``spec``; returns (and writes) the scenario record."""
-    from grader.scenario.driver import Driver
-    from grader.scenario.steps import prepare, run_step
+def process_limits(proc: Process, scenario_wall_s: float) -> Limits:
+    """The rubric's limits for a student process over the grader's defaults for student code."""
+    return Limits(wall_s=proc.limits.wall_s or scenario_wall_s,
+                  cpu_s=proc.limits.cpu_s or UNTRUSTED.cpu_s,
+                  memory_mb=proc.limits.memory_mb or UNTRUSTED.memory_mb)
 
+
+class Launcher:
+    """Starts a rubric process: each of its OS processes (one, or a launch file's nodes)."""
+
+    def __init__(self, run: ScenarioRun, graph: RosGraph, driver, students: dict[str, ManagedProcess]) -> None:
+        self.run, self.graph, self.driver, self.students = run, graph, driver, students
+        self.members: dict[str, list[str]] = {p.name: [] for p in run.scenario.processes}
+
+    def start(self, name: str) -> list[str]:
+        proc = self.run.scenario.process(name)
+        if proc.start_delay:
+            time.sleep(proc.start_delay)
+        launched = self.run.launched.get(name, ())
+        started: list[str] = []
+        delayed = [lp for lp in launched if lp.start_delay > 0]
+        for lp in launched:
+            if lp.start_delay <= 0 and self._start_one(proc, lp):
+                started.append(lp.name)
+        for lp in delayed:      # a launch file's TimerAction: start later, without blocking steps
+            threading.Timer(lp.start_delay, self._start_one, args=(proc, lp)).start()
+            started.append(lp.name)
+        return started
+
+    def _start_one(self, proc: Process, lp: LaunchedProcess) -> bool:
+        driver = self.driver
+        if not lp.argv:
+            driver.event(Event.NODE_UNAVAILABLE, process=lp.name, of=proc.name, package=proc.package,
+                         executable=proc.executable, module=proc.module, launch=proc.launch, error=lp.error)
+            return False
+        script = list(proc.stdin or ()) if proc.launch is None else []
+        gate = threading.Event() if script else None
+        before = driver.student_nodes()
+        managed = self.graph.start(ProcessSpec(
+            lp.name, list(lp.argv), env={**proc.env, **lp.env} or None,
+            stdin=script if (script or proc.stdin is not None) else None,
+            close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.scenario.time_limit_s),
+            nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0),
+            process_class=_EventedProcess, stdin_gate=gate)
+        managed.driver = driver
+        if gate is not None:
+            threading.Thread(target=_open_gate, args=(driver, managed, before, gate), daemon=True).start()
+        self.students[lp.name] = managed
+        self.members[proc.name].append(lp.name)
+        driver.event(Event.NODE_STARTED, process=lp.name, of=proc.name, package=proc.package,
+                     executable=proc.executable, module=proc.module, launch=proc.launch,
+                     node_name=lp.node_name, argv=list(lp.argv[3:]))
+        return True
+
+
+def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
+    """Execute ``run``; returns (and writes) the scenario record."""
+    from grader.scenario.driver import Driver
+    from grader.scenario.steps import Runtime, action_name, prepare, run_step
+
+    spec = run.scenario
     out.mkdir(parents=True, exist_ok=True)
-    record: dict[str, Any] = {"scenario": spec.id, "steps": [], "processes": {}, "errors": [],
+    record: dict[str, Any] = {"scenario": run.id, "steps": [], "processes": {}, "errors": [],
                               "bag": str(out / "bag"), "canvas": None}
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
@@ -68,8 +127,8 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
     with RosGraph(out) as graph:
         record["domain_id"] = graph.domain_id
         try:
-            recorder = graph.start(ProcessSpec("recorder", recorder_argv(out / "bag", spec.record or None),
-                                               stop_grace_s=10.0))
+            topics = None if spec.record == "all" else list(spec.record) + ["/grader/events", "/grader/stdout"]
+            recorder = graph.start(ProcessSpec("recorder", recorder_argv(out / "bag", topics), stop_grace_s=10.0))
             try:
                 wait_ready(recorder.stdout_path, RECORDER_READY_S, proc=recorder)
             except GraderError as exc:
@@ -78,90 +137,55 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
             if spec.sim:
                 from grader.sim import sim_argv
                 canvas = out / "canvas.png"
-                sim = graph.start(ProcessSpec("turtlesim", sim_argv(canvas_out=canvas, extra=spec.sim_args)))
+                sim = graph.start(ProcessSpec("turtlesim", sim_argv(
+                    canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"])))
                 record["canvas"] = str(canvas)
-            driver = Driver(graph.domain_id, students)
+            driver = Driver(graph.domain_id, students, sim_node=run.sim_node)
             if sim is not None:
                 driver.watch_pose()
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
-            prepare(driver, spec.steps)
+            launcher = Launcher(run, graph, driver, students)
+            rt = Runtime(driver, run, launcher.start, launcher.members)
+            prepare(rt)
             # give the recorder a moment to discover the driver's topics before anything is sent
             driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
-            driver.event("scenario_start", scenario=spec.id, domain_id=graph.domain_id)
-            by_name = {n.name: n for n in spec.nodes}
-
-            def start_node(name: str) -> bool:
-                node = by_name[name]
-                if node.start_delay_s:
-                    time.sleep(node.start_delay_s)
-                if not node.argv:
-                    driver.event("node_unavailable", process=node.name, package=node.package,
-                                 executable=node.executable, module=node.module, error=node.error)
-                    return False
-                script = [StdinLine(str(t), float(d)) for t, d in node.stdin_script]
-                limits = Limits.untrusted(wall_s=node.wall_s or spec.time_limit_s)
-                if node.cpu_s or node.memory_mb:
-                    limits = Limits(wall_s=limits.wall_s, cpu_s=node.cpu_s or limits.cpu_s,
-                                    address_space_mb=node.memory_mb or limits.address_space_mb,
-                                    nproc=limits.nproc, nofile=limits.nofile)
-                gate = threading.Event() if script else None
-                before = driver.student_nodes()
-                proc = graph.start(ProcessSpec(
-                    node.name, node.argv + node.ros_args(), env=node.env or None,
-                    stdin=script if (script or node.stdin) else None, close_stdin=node.stdin_close,
-                    limits=limits, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0),
-                    process_class=_EventedProcess, stdin_gate=gate)
-                proc.driver = driver
-                if gate is not None:
-                    threading.Thread(target=_open_gate, args=(driver, proc, before, gate),
-                                     daemon=True).start()
-                students[node.name] = proc
-                driver.event("node_started", process=node.name, package=node.package,
-                             executable=node.executable, module=node.module, argv=node.argv[3:])
-                if node.ready:
-                    ok = driver.wait_until(lambda: driver.is_ready(node.ready) or not proc.alive(),
-                                           node.ready_timeout_s, poll=0.05) and proc.alive()
-                    driver.event("node_ready" if ok else "node_not_ready", process=node.name,
-                                 condition=node.ready)
-                return True
-
-            for node in spec.nodes:
-                if node.autostart:
-                    start_node(node.name)
-            ctx: dict[str, Any] = {
-                "start_node": start_node,
-                "students_gone": lambda: bool(students) and not any(p.alive() for p in students.values())}
+            driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=graph.domain_id,
+                         sim_node=run.sim_node)
+            for name, notes in _launch_notes(run).items():
+                driver.event(Event.LAUNCH_RESOLVED, process=name, notes=notes)
+            for proc in spec.processes:
+                if proc.autostart:
+                    launcher.start(proc.name)
             for step in spec.steps:
-                if spec.nodes and step.action() != "start" and students is not None \
-                        and not any(p.alive() for p in students.values()):
+                if spec.processes and step.start is None and not any(p.alive() for p in students.values()):
                     # nobody left to grade (build failed, crashed on start-up): waiting for this
-                    # step's timeout would only cost time; the bag says why
-                    driver.event("step_skipped", step=step.id, reason="no student process is running",
+                    # step's limit would only cost time; the bag says why
+                    driver.event(Event.STEP_SKIPPED, step=step.id, reason="no student process is running",
                                  exited={n: p.returncode for n, p in students.items()})
-                    record["steps"].append({"id": step.id, "action": step.action(), "duration_s": 0.0,
+                    record["steps"].append({"id": step.id, "action": action_name(step), "duration_s": 0.0,
                                             "ended_by": "skipped", "detail": {}})
                     continue
-                outcome = run_step(driver, step, ctx)
+                outcome = run_step(rt, step)
                 record["steps"].append(outcome)
-                if outcome["ended_by"] == "timeout" and step.abort_on_timeout:
-                    driver.event("scenario_aborted", step=step.id)
+                if outcome["ended_by"] == "timeout" and step.on_timeout == "abort":
+                    driver.event(Event.SCENARIO_ABORTED, step=step.id)
                     break
-            time.sleep(spec.settle_s)
+            time.sleep(0.5)            # let the last messages reach the recorder
             driver.graph_snapshot()
-            driver.event("scenario_end", scenario=spec.id)
+            driver.event(Event.SCENARIO_END, scenario=run.id)
         except KeyboardInterrupt:
             # SIGTERM from the parent (batch Ctrl-C or time limit): stop, but keep what was recorded
             record["errors"].append("interrupted: the scenario was stopped before it finished")
             record["interrupted"] = True
             if driver is not None:
-                driver.event("scenario_interrupted")
+                driver.event(Event.SCENARIO_INTERRUPTED)
         except Exception as exc:  # noqa: BLE001 - recorded; the bag so far is still finalized
             record["errors"].append(f"{type(exc).__name__}: {exc}")
             record["traceback"] = traceback.format_exc()
             if driver is not None:
-                driver.event("scenario_error", error=f"{type(exc).__name__}: {exc}")
+                driver.event(Event.SCENARIO_ERROR, error=f"{type(exc).__name__}: {exc}")
         finally:
             for name, proc in students.items():
                 crashed = proc.returncode is not None and not proc.stopped_by_grader
@@ -172,11 +196,22 @@ def run_scenario_here(spec: Scenario, out: Path) -> dict[str, Any]:
             if driver is not None:
                 driver.shutdown()
             graph.stop_all()
-    active = sum(s["duration_s"] for s in record["steps"])
-    record["active_s"] = round(active, 3)
+    record["active_s"] = round(sum(s["duration_s"] for s in record["steps"]), 3)
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
+
+
+def _launch_notes(run: ScenarioRun) -> dict[str, list[str]]:
+    notes: dict[str, list[str]] = {}
+    for proc in run.scenario.processes:
+        if proc.launch:
+            notes[proc.name] = [f"{lp.name}: node {lp.node_name or '?'} "
+                                + (" ".join(lp.argv[3:]) if lp.argv else f"not runnable: {lp.error}")
+                                for lp in run.launched.get(proc.name, ())]
+    if run.notes:
+        notes.setdefault("", []).extend(run.notes)
+    return notes
 
 
 def _interrupt_once(*_args) -> None:
@@ -188,12 +223,12 @@ def _interrupt_once(*_args) -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 2:
-        print("usage: python -m grader.scenario.run SPEC.json OUT_DIR", file=sys.stderr)
+        print("usage: python -m grader.scenario.run RUN.json OUT_DIR", file=sys.stderr)
         return 2
-    spec = Scenario.from_dict(json.loads(Path(argv[0]).read_text()))
+    run = ScenarioRun.model_validate_json(Path(argv[0]).read_text())
     # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks
     signal.signal(signal.SIGTERM, _interrupt_once)
-    record = run_scenario_here(spec, Path(argv[1]))
+    record = run_scenario_here(run, Path(argv[1]))
     return 0 if not record["errors"] else 1
 
 

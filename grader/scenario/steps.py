@@ -1,289 +1,360 @@
-"""Executing scenario steps: one function per action, one predicate per ``until`` condition."""
+"""Executing scenario steps: one handler per action class, one predicate per condition class.
+
+Dispatch is by type (``HANDLERS[type(step.do)]``, ``CONDITIONS[type(step.until)]``), so every
+class of ``grader.scenario.model`` has exactly one implementation here and a test can check
+that none is missing.
+"""
 
 from __future__ import annotations
 
 import math
+import re
 import time
-from pathlib import Path
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from grader.scenario import model as m
 from grader.scenario.driver import Driver, fill, import_type, to_plain
-from grader.scenario.spec import Step
+from grader.scenario.events import Event
 
 
-class StepOutcome(dict):
-    """JSON-able record of a step: id, action, start/end (wall), duration, ended_by, detail."""
+@dataclass
+class StepState:
+    """What a step's action leaves for its condition (and the step record)."""
+
+    step: m.Step
+    t0: float = field(default_factory=time.monotonic)
+    action_done: bool = False
+    service_done: bool = False
+    replay_done: bool = False
+    goal_handle: Any = None
+    detail: dict[str, Any] = field(default_factory=dict)
 
 
-def _goal_reached(driver: Driver, cond: dict[str, Any], settle_s: float) -> Callable[[], bool]:
-    """Turtle within ``tol`` of (x, y) and, for ``settle_s``, never farther than ``tol``."""
-    x, y, tol = float(cond["x"]), float(cond["y"]), float(cond.get("tol", 0.1))
-    state = {"since": None}
+class Runtime:
+    """What handlers need besides the driver: the scenario, its processes, how to start them."""
+
+    def __init__(self, driver: Driver, run: m.ScenarioRun,
+                 start: Callable[[str], list[str]], members: dict[str, list[str]]) -> None:
+        self.driver = driver
+        self.run = run
+        self.scenario = run.scenario
+        self.start = start                # rubric process name -> names of OS processes started
+        self.members = members            # rubric process name -> its OS process names so far
+        self.action_clients: dict[tuple[str, str], Any] = {}
+
+    def processes_of(self, name: str) -> list[Any]:
+        return [self.driver.processes[n] for n in self.members.get(name, []) if n in self.driver.processes]
+
+    def students_gone(self) -> bool:
+        procs = list(self.driver.processes.values())
+        return bool(procs) and not any(p.alive() for p in procs)
+
+
+# ----------------------------------------------------------------------------------- actions
+def _publish_goal(rt: Runtime, step: m.Step, goal: m.Goal, state: StepState) -> dict[str, Any]:
+    sc = rt.scenario
+    assert sc.goal_topic and sc.goal_type   # the model requires them for goal steps
+    pub = rt.driver.publisher(sc.goal_topic, sc.goal_type)
+    msg = import_type(sc.goal_type)()
+    if sc.goal_type.endswith("Float32MultiArray"):
+        msg.data = [float(goal.x), float(goal.y)]
+    else:
+        msg.x, msg.y = float(goal.x), float(goal.y)
+    pub.publish(msg)
+    rt.driver.event(Event.GOAL_SENT, step=step.id, goal=[goal.x, goal.y], topic=sc.goal_topic)
+    return {"topic": sc.goal_topic, "goal": [goal.x, goal.y]}
+
+
+def _publish(rt: Runtime, step: m.Step, spec: m.Publish, state: StepState) -> dict[str, Any]:
+    pub = rt.driver.publisher(spec.topic, spec.type)
+    msg = fill(import_type(spec.type)(), spec.msg)
+    period = 1.0 / spec.rate_hz if spec.rate_hz else 0.0
+    for i in range(spec.count):
+        pub.publish(msg)
+        if i + 1 < spec.count and period:
+            time.sleep(period)
+    fields = {"topic": spec.topic, "type": spec.type, "msg": to_plain(msg), "count": spec.count}
+    rt.driver.event(Event.MESSAGE_SENT, step=step.id, **fields)
+    return fields
+
+
+def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -> dict[str, Any]:
+    driver = rt.driver
+    out: dict[str, Any] = {"service": spec.name}
+    try:
+        type_name = spec.type
+        if type_name is None:
+            driver.wait_until(lambda: driver.service_type(spec.name) is not None, spec.server_timeout)
+            type_name = driver.service_type(spec.name)
+            if type_name is None:
+                driver.event(Event.SERVICE_MISSING, step=step.id, service=spec.name)
+                return out | {"available": False}
+        cls = import_type(type_name)
+        client = driver.node.create_client(cls, spec.name)
+        if not client.wait_for_service(timeout_sec=spec.server_timeout):
+            driver.event(Event.SERVICE_MISSING, step=step.id, service=spec.name)
+            return out | {"available": False}
+        request = fill(cls.Request(), spec.request)
+        driver.event(Event.SERVICE_CALL, step=step.id, service=spec.name, type=type_name,
+                     request=to_plain(request))
+        future = client.call_async(request)
+        driver.wait_until(future.done, spec.response_timeout)
+        response = to_plain(future.result()) if future.done() else None
+        driver.event(Event.SERVICE_RESPONSE, step=step.id, service=spec.name, response=response,
+                     timed_out=not future.done())
+        return out | {"available": True, "type": type_name, "response": response}
+    finally:
+        state.service_done = True
+
+
+def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> dict[str, Any]:
+    from rclpy.action import ActionClient
+
+    driver = rt.driver
+    key = (spec.name, spec.type)
+    if key not in rt.action_clients:
+        rt.action_clients[key] = ActionClient(driver.node, import_type(spec.type), spec.name)
+    client = rt.action_clients[key]
+    found = client.wait_for_server(timeout_sec=spec.server_timeout)
+    driver.event(Event.ACTION_SERVER_FOUND if found else Event.ACTION_SERVER_MISSING,
+                 step=step.id, action=spec.name)
+    if not found:
+        state.action_done = True
+        return {"server": False}
+    goal = fill(import_type(spec.type).Goal(), spec.goal)
+    driver.event(Event.ACTION_GOAL_SENT, step=step.id, action=spec.name, goal=to_plain(goal))
+    result: dict[str, Any] = {"server": True}
+
+    def on_result(future: Any) -> None:
+        res = future.result()
+        result.update(status=int(res.status), result=to_plain(res.result))
+        driver.event(Event.ACTION_RESULT, step=step.id, action=spec.name, status=int(res.status),
+                     result=to_plain(res.result))
+        state.action_done = True
+
+    def on_response(future: Any) -> None:
+        handle = future.result()
+        result["accepted"] = bool(handle.accepted)
+        driver.event(Event.ACTION_GOAL_RESPONSE, step=step.id, action=spec.name,
+                     accepted=bool(handle.accepted))
+        if handle.accepted:
+            state.goal_handle = handle
+            handle.get_result_async().add_done_callback(on_result)
+        else:
+            state.action_done = True
+
+    client.send_goal_async(goal).add_done_callback(on_response)
+    return result
+
+
+def replay_topics(spec: m.Replay) -> list[str]:
+    """The topics a replay step publishes: its ``topics``, else every topic of the bag except
+    the grader's own, logging, parameter events, service events and action internals."""
+    from grader.bag.reader import open_bag
+
+    if spec.topics:
+        return list(spec.topics)
+    names = open_bag(spec.bag).topics
+    return sorted(t for t in names if not (t.startswith("/grader/") or t in ("/rosout", "/parameter_events")
+                                           or t.endswith("/_service_event") or "/_action/" in t))
+
+
+def _replay(rt: Runtime, step: m.Step, spec: m.Replay, state: StepState) -> dict[str, Any]:
+    """Publish the recorded messages (their CDR bytes, untouched) at the recorded timing or at
+    ``rate_hz``; with ``lead``, never more than that many messages ahead of the student's output."""
+    from grader.bag.replay import plan
+
+    driver = rt.driver
+    topics = replay_topics(spec)
+    p = plan(spec.bag, topics)
+    pubs = [driver.publisher(name, type_name) for _, name, type_name, _ in p.topics]
+    n = len(p.payloads) if spec.count is None else min(spec.count, len(p.payloads))
+    driver.event(Event.REPLAY_START, step=step.id, topics=topics, count=n, rate_hz=spec.rate_hz,
+                 bag=str(spec.bag))
+    base = driver.output_count()
+    paced = spec.lead is not None
+
+    def offset(k: int) -> float:
+        """Seconds from the first message to message ``k`` on the replay's schedule."""
+        return k / spec.rate_hz if spec.rate_hz else (p.times[k] - p.times[0]) / 1e9
+
+    t_start = t0 = time.monotonic()
+    for i in range(n):
+        pubs[p.pubs[i]].publish(p.payloads[i])
+        if i + 1 < n:
+            delay = t0 + offset(i + 1) - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        if paced and spec.lead is not None:
+            ahead = i + 1 - spec.lead
+            if not driver.wait_until(lambda: driver.output_count() - base >= ahead, 0.25, poll=0.002):
+                base = driver.output_count() - (i + 1)   # inputs lost or ignored: re-sync
+            if i == 4 * spec.lead and driver.output_count() == base:
+                paced = False       # it prints nothing per message: the plain schedule from here on
+        if i + 1 < n:
+            t0 = max(t0, time.monotonic() - offset(i + 1))   # no burst after waiting for the student
+    driver.last_output = time.monotonic()
+    state.replay_done = True
+    driver.event(Event.REPLAY_END, step=step.id, count=n, outputs=driver.output_count() - base,
+                 paced=paced, duration_s=round(time.monotonic() - t_start, 3))
+    return {"topics": topics, "count": n}
+
+
+def _start(rt: Runtime, step: m.Step, spec: m.Start, state: StepState) -> dict[str, Any]:
+    return {"started": [name for proc in spec.root for name in rt.start(proc)]}
+
+
+def _stop(rt: Runtime, step: m.Step, spec: m.Stop, state: StepState) -> dict[str, Any]:
+    codes: dict[str, Any] = {}
+    for proc_name in spec.root:
+        for name in rt.members.get(proc_name, []):
+            proc = rt.driver.processes.get(name)
+            codes[name] = proc.stop() if proc else None
+            rt.driver.event(Event.NODE_STOPPED, process=name, returncode=codes[name])
+    return {"returncodes": codes}
+
+
+HANDLERS: dict[type, Callable[[Runtime, m.Step, Any, StepState], dict[str, Any]]] = {
+    m.Goal: _publish_goal, m.Publish: _publish, m.ServiceCall: _service, m.ActionGoal: _action,
+    m.Replay: _replay, m.Start: _start, m.Stop: _stop,
+}
+
+
+def prepare(rt: Runtime) -> None:
+    """Create the driver's publishers and counters before student nodes start, so the recorder
+    has seen them by the time anything is sent."""
+    sc = rt.scenario
+    for step in sc.steps:
+        if step.goal is not None and sc.goal_topic and sc.goal_type:
+            rt.driver.publisher(sc.goal_topic, sc.goal_type)
+        if step.publish is not None:
+            rt.driver.publisher(step.publish.topic, step.publish.type)
+        if step.replay is not None:
+            from grader.bag.reader import open_bag
+            bag = open_bag(step.replay.bag)
+            for topic in replay_topics(step.replay):
+                rt.driver.publisher(topic, bag.topics[topic].type)
+        if isinstance(step.until, m.Messages):
+            rt.driver.count_messages(step.until.topic, None, wait_s=0.0)
+        if isinstance(step.until, m.GoalReached):
+            rt.driver.watch_pose(step.until.pose_topic)
+
+
+# --------------------------------------------------------------------------------- conditions
+Predicate = Callable[[], bool]
+
+
+def _goal_reached(rt: Runtime, cond: m.GoalReached, state: StepState) -> Predicate:
+    """Turtle within ``tolerance`` of the goal and, for ``settle`` s, never farther."""
+    goal = state.step.target
+    assert goal is not None            # the model requires one
+    since: list[float | None] = [None]
 
     def check() -> bool:
-        pose = driver.pose
-        if pose is None:
+        pose = rt.driver.poses.get(cond.pose_topic)
+        if pose is None or math.hypot(pose.x - goal.x, pose.y - goal.y) > cond.tolerance:
+            since[0] = None
             return False
-        inside = math.hypot(pose.x - x, pose.y - y) <= tol
         now = time.monotonic()
-        if not inside:
-            state["since"] = None
-            return False
-        if state["since"] is None:
-            state["since"] = now
-        return now - state["since"] >= settle_s
+        since[0] = since[0] or now
+        return now - since[0] >= cond.settle
 
     return check
 
 
-def _condition(driver: Driver, step: Step, ctx: dict[str, Any]) -> Callable[[], bool] | None:
-    until = step.until or {}
-    if not until:
-        return None
-    settle = float(until.get("settle_s", 0.0))
-    if "goal_reached" in until:
-        return _goal_reached(driver, until["goal_reached"], settle)
-    if "messages" in until:
-        topic = until["messages"]["topic"]
-        want = int(until["messages"].get("count", 1))
-        base = ctx.setdefault("message_base", {}).get(topic, 0)
-        return lambda: driver.counts.get(topic, 0) - base >= want
-    if "idle_s" in until:
-        idle = float(until["idle_s"])
-        return lambda: time.monotonic() - driver.last_output >= idle
-    if "action_done" in until:
-        return lambda: ctx.get("action_done", False)
-    if "process_exit" in until:
-        name = until["process_exit"]
-        return lambda: (driver.processes.get(name) is None
-                        or driver.processes[name].returncode is not None)
-    if "output" in until:
-        import re
-        pattern = re.compile(until["output"]["pattern"])
-        name = until["output"].get("process")
-        start = {n: len(lines) for n, lines in driver.lines.items()}
-        return lambda: any(pattern.search(line)
-                           for n, lines in list(driver.lines.items()) if name in (None, n)
-                           for line in lines[start.get(n, 0):])
-    if "advertised" in until:
-        what = until["advertised"]
-        ready = {"publisher": what["topic"]} if "topic" in what else \
-            {"service": what["service"]} if "service" in what else {"action_server": what["action"]}
-        if "topic" in what:
-            # advertised *and* recorded: the recorder's subscription must be in place too
-            return lambda: driver.is_ready(ready) and all(driver.recorder_matched(n) for n in driver.student_nodes())
-        return lambda: driver.is_ready(ready)
-    if "subscribed" in until:
-        return lambda: driver.is_ready({"subscriber": until["subscribed"]})
-    raise ValueError(f"unknown until condition in step {step.id}: {sorted(until)}")
+def _process_exit(rt: Runtime, cond: m.ProcessExit, state: StepState) -> Predicate:
+    return lambda: all(p.returncode is not None for p in rt.processes_of(cond.process))
 
 
-def prepare(driver: Driver, steps: list[Step]) -> None:
-    """Create publishers and counters before student nodes start, so the recorder sees them."""
-    for step in steps:
-        if step.publish:
-            driver.publisher(step.publish["topic"], step.publish["type"])
-        if step.replay:
-            driver.publisher(step.replay["topic"], step.replay.get("type", "std_msgs/msg/Float32MultiArray"))
-        msgs = (step.until or {}).get("messages")
-        if msgs:
-            driver.count_messages(msgs["topic"], msgs.get("type"), wait_s=0.0)
+def _output(rt: Runtime, cond: m.Output, state: StepState) -> Predicate:
+    pattern = re.compile(cond.pattern)
+    lines = rt.driver.lines
+    start = {n: len(lines.get(n, [])) for n in rt.members.get(cond.process, [])}
+
+    def check() -> bool:
+        for name in rt.members.get(cond.process, []):
+            if any(pattern.search(line) for line in lines.get(name, [])[start.get(name, 0):]):
+                return True
+        return False
+
+    return check
 
 
-def _do_publish(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
-    pub = driver.publisher(spec["topic"], spec["type"])
-    msg = fill(import_type(spec["type"])(), spec.get("msg", {}))
-    count = int(spec.get("count", 1))
-    period = 1.0 / float(spec["rate_hz"]) if spec.get("rate_hz") else 0.0
-    for i in range(count):
-        pub.publish(msg)
-        if i + 1 < count and period:
-            time.sleep(period)
-    plain = to_plain(msg)
-    fields: dict[str, Any] = {"topic": spec["topic"], "type": spec["type"], "msg": plain}
-    if spec["type"].endswith("Float32MultiArray") and len(plain.get("data", [])) >= 2:
-        driver.event("goal_sent", goal=plain["data"][:2], topic=spec["topic"])
-    else:
-        driver.event("message_sent", **fields)
-    return fields
+def _messages(rt: Runtime, cond: m.Messages, state: StepState) -> Predicate:
+    rt.driver.count_messages(cond.topic, None, wait_s=0.0)
+    base = rt.driver.counts.get(cond.topic, 0)
+    return lambda: rt.driver.counts.get(cond.topic, 0) - base >= cond.count
 
 
-def _do_stdin(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
-    proc = driver.processes.get(spec["process"])
-    line = str(spec["line"])
-    ok = False
-    if proc is not None and proc.alive() and proc.popen.stdin is not None:
-        try:
-            proc.popen.stdin.write((line + "\n").encode())
-            proc.popen.stdin.flush()
-            ok = True
-        except (BrokenPipeError, OSError, ValueError):
-            ok = False
-    driver.event("stdin_line", process=spec["process"], line=line, delivered=ok)
-    return {"process": spec["process"], "line": line, "delivered": ok}
+def _advertised(rt: Runtime, cond: m.Advertised, state: StepState) -> Predicate:
+    driver = rt.driver
+    if cond.topic is not None:
+        topic = cond.topic
+        # advertised *and* recorded: the recorder's subscription must be in place too
+        return lambda: driver.student_publishes(topic) and all(
+            driver.recorder_matched(n) for n in driver.student_nodes())
+    if cond.service is not None:
+        service = cond.service
+        return lambda: driver.service_type(service) is not None
+    action = cond.action or ""
+    return lambda: driver.action_available(action)
 
 
-def _load_replay_rows(spec: dict[str, Any]) -> list[list[float]]:
-    from grader.bag.frames import load_frames
-
-    frames = load_frames(Path(spec["bag"]), topics=[spec["topic"]])
-    df = frames[spec["topic"]]
-    cols = sorted((c for c in df.columns if c.startswith("data[")), key=lambda c: int(c[5:-1]))
-    rows = df[cols].to_numpy().tolist()
-    return rows[: int(spec.get("count", len(rows)))]
-
-
-def _do_replay(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
-    """Publish recorded array messages at a fixed pace (the student's node must keep up)."""
-    type_name = spec.get("type", "std_msgs/msg/Float32MultiArray")
-    pub = driver.publisher(spec["topic"], type_name)
-    cls = import_type(type_name)
-    rows = _load_replay_rows(spec)
-    period = 1.0 / float(spec.get("rate_hz", 50.0))
-    driver.event("replay_start", topic=spec["topic"], count=len(rows), rate_hz=1.0 / period,
-                 bag=str(spec["bag"]))
-    window = int(spec.get("window", 4))
-    base = driver.output_count()
-    lockstep = True
-    t0 = t_start = time.monotonic()
-    for i, row in enumerate(rows):
-        pub.publish(cls(data=[float(v) for v in row if v == v]))
-        delay = t0 + (i + 1) * period - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-        if lockstep:
-            # never run more than `window` inputs ahead of the student's outputs, so a slow
-            # subscriber is paced instead of losing messages in its QoS history
-            if not driver.wait_until(lambda: driver.output_count() - base >= i + 1 - window, 0.25,
-                                     poll=0.002):
-                base = driver.output_count() - (i + 1)   # inputs were lost or ignored: re-sync
-            if i == 4 * window and driver.output_count() == base:
-                lockstep = False      # it prints nothing per message: plain fixed rate
-        t0 = max(t0, time.monotonic() - (i + 1) * period)   # no burst after a wait
-    driver.last_output = time.monotonic()   # idle is measured from the last input
-    driver.event("replay_end", topic=spec["topic"], count=len(rows), outputs=driver.output_count() - base,
-                 lockstep=lockstep, duration_s=round(time.monotonic() - t_start, 3))
-    return {"topic": spec["topic"], "count": len(rows)}
+CONDITIONS: dict[type, Callable[[Runtime, Any, StepState], Predicate]] = {
+    m.GoalReached: _goal_reached,
+    m.ActionDone: lambda rt, cond, state: (lambda: state.action_done),
+    m.ServiceDone: lambda rt, cond, state: (lambda: state.service_done),
+    m.ReplayDone: lambda rt, cond, state: (lambda: state.replay_done),
+    m.ProcessExit: _process_exit,
+    m.Output: _output,
+    m.Messages: _messages,
+    m.Advertised: _advertised,
+    m.Subscribed: lambda rt, cond, state: (lambda: rt.driver.student_subscribes(cond.topic)),
+}
 
 
-def _do_action_goal(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
-    from rclpy.action import ActionClient
-
-    clients = ctx.setdefault("action_clients", {})
-    key = (spec["action"], spec["type"])
-    if key not in clients:
-        clients[key] = ActionClient(driver.node, import_type(spec["type"]), spec["action"])
-    client = clients[key]
-    goal_id = spec.get("id", spec["action"])
-    ctx["action_done"] = False
-    ctx["goal_handle"] = None
-    found = client.wait_for_server(timeout_sec=float(spec.get("server_timeout_s", 5.0)))
-    driver.event("action_server_found" if found else "action_server_missing", action=spec["action"],
-                 id=goal_id)
-    if not found:
-        ctx["action_done"] = True
-        return {"id": goal_id, "server": False}
-    goal = fill(import_type(spec["type"]).Goal(), spec.get("goal", {}))
-    driver.event("action_goal_sent", action=spec["action"], id=goal_id, goal=to_plain(goal))
-    result: dict[str, Any] = {"id": goal_id, "server": True}
-
-    def on_result(future) -> None:
-        res = future.result()
-        result.update(status=int(res.status), result=to_plain(res.result))
-        driver.event("action_result", action=spec["action"], id=goal_id, status=int(res.status),
-                     result=to_plain(res.result))
-        ctx["action_done"] = True
-
-    def on_response(future) -> None:
-        handle = future.result()
-        result["accepted"] = bool(handle.accepted)
-        driver.event("action_goal_response", action=spec["action"], id=goal_id, accepted=bool(handle.accepted))
-        if handle.accepted:
-            ctx["goal_handle"] = handle
-            handle.get_result_async().add_done_callback(on_result)
-        else:
-            ctx["action_done"] = True
-
-    client.send_goal_async(goal).add_done_callback(on_response)
-    ctx["action_result"] = result
-    return result
+# -------------------------------------------------------------------------------------- a step
+def action_name(step: m.Step) -> str:
+    """The step's action as its YAML key (``publish``, ``service``...), ``wait`` or ``until``."""
+    for key in m.ACTION_KEYS:
+        if getattr(step, key) is not None:
+            return key
+    return "wait" if step.wait is not None else "until"
 
 
-def _do_service(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
-    cls = import_type(spec["type"])
-    client = driver.node.create_client(cls, spec["service"])
-    out: dict[str, Any] = {"service": spec["service"]}
-    if not client.wait_for_service(timeout_sec=float(spec.get("server_timeout_s", 5.0))):
-        driver.event("service_missing", service=spec["service"])
-        return out | {"available": False}
-    request = fill(cls.Request(), spec.get("request", {}))
-    driver.event("service_call", service=spec["service"], request=to_plain(request))
-    future = client.call_async(request)
-    driver.wait_until(future.done, float(spec.get("response_timeout_s", 5.0)))
-    response = to_plain(future.result()) if future.done() else None
-    driver.event("service_response", service=spec["service"], response=response)
-    return out | {"available": True, "response": response}
-
-
-def _do_stop(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
-    codes = {}
-    for name in spec.get("processes", [spec.get("process")]):
-        proc = driver.processes.get(name)
-        codes[name] = proc.stop() if proc else None
-        driver.event("node_stopped", process=name, returncode=codes[name])
-    return {"returncodes": codes}
-
-
-def _do_start(driver: Driver, spec: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
-    started = [name for name in spec.get("processes", []) if ctx["start_node"](name)]
-    return {"started": started}
-
-
-ACTIONS = {"publish": _do_publish, "stdin": _do_stdin, "replay": _do_replay,
-           "action_goal": _do_action_goal, "service": _do_service, "stop": _do_stop,
-           "start": _do_start}
-
-
-def run_step(driver: Driver, step: Step, ctx: dict[str, Any]) -> StepOutcome:
-    action = step.action()
-    until = step.until or {}
-    msgs = until.get("messages")
-    if msgs:
-        driver.count_messages(msgs["topic"], msgs.get("type"), wait_s=0.0)
-        ctx.setdefault("message_base", {})[msgs["topic"]] = driver.counts.get(msgs["topic"], 0)
-    start_wall, t0 = time.time(), time.monotonic()
-    driver.event("step_start", step=step.id, action=action)
-    detail: dict[str, Any] = {}
+def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
+    """Do the step's action, then wait for its condition (or its whole limit); the record."""
+    driver = rt.driver
+    state = StepState(step)
+    kind = action_name(step)
+    # conditions that count from the step's start are armed before the action runs
+    predicate = CONDITIONS[type(step.until)](rt, step.until, state) if step.until is not None else None
+    start_wall = time.time()
+    driver.event(Event.STEP_START, step=step.id, action=kind)
     ended_by = "done"
-    gone = ctx.get("students_gone", lambda: False)
-
-    def wait_for(cond) -> str:
-        remaining = max(0.0, step.timeout_s - (time.monotonic() - t0))
-        driver.wait_until(lambda: cond() or gone(), remaining)
-        return "condition" if cond() else ("students_exited" if gone() else "timeout")
-
-    if action == "wait":
-        if driver.wait_until(gone, float(step.wait or 0.0)):
-            ended_by = "students_exited"
-        cond = _condition(driver, step, ctx)
-        if cond is not None and ended_by != "students_exited":
-            ended_by = wait_for(cond)
-    else:
+    action = step.do
+    if action is not None:
         try:
-            detail = ACTIONS[action](driver, getattr(step, action), ctx)
+            state.detail = HANDLERS[type(action)](rt, step, action, state)
         except Exception as exc:  # noqa: BLE001 - a bad step must not kill the whole run
-            detail = {"error": f"{type(exc).__name__}: {exc}"}
+            state.detail = {"error": f"{type(exc).__name__}: {exc}"}
             ended_by = "error"
-        cond = _condition(driver, step, ctx) if ended_by != "error" else None
-        if cond is not None:
-            ended_by = wait_for(cond)
-            if "settle_s" in until and "goal_reached" not in until:
-                time.sleep(float(until["settle_s"]))
-    if action == "action_goal" and ended_by == "timeout" and ctx.get("goal_handle") is not None:
-        ctx["goal_handle"].cancel_goal_async()
-        driver.event("action_cancel_sent", id=detail.get("id"))
-    duration = time.monotonic() - t0
+        if step.target is not None and not isinstance(action, m.Goal):
+            # a goal set some other way (e.g. a service call): analyzers judge arrival at it
+            driver.event(Event.GOAL_SENT, step=step.id, goal=[step.target.x, step.target.y], topic=None)
+    if ended_by != "error":
+        remaining = max(0.0, step.limit_s - (time.monotonic() - state.t0))
+        if predicate is None:
+            ended_by = "students_exited" if driver.wait_until(rt.students_gone, remaining) else "done"
+        else:
+            driver.wait_until(lambda: predicate() or rt.students_gone(), remaining)
+            ended_by = "condition" if predicate() else ("students_exited" if rt.students_gone() else "timeout")
+    if isinstance(action, m.ActionGoal) and ended_by == "timeout" and state.goal_handle is not None:
+        state.goal_handle.cancel_goal_async()
+        driver.event(Event.ACTION_CANCEL_SENT, step=step.id)
+    duration = time.monotonic() - state.t0
     driver.graph_snapshot()
-    driver.event("step_end", step=step.id, action=action, ended_by=ended_by, duration_s=round(duration, 3))
-    return StepOutcome(id=step.id, action=action, start=start_wall, duration_s=round(duration, 3),
-                       ended_by=ended_by, detail=detail)
+    driver.event(Event.STEP_END, step=step.id, action=kind, ended_by=ended_by, duration_s=round(duration, 3))
+    return {"id": step.id, "action": kind, "start": start_wall, "duration_s": round(duration, 3),
+            "ended_by": ended_by, "detail": state.detail}

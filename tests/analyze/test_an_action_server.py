@@ -23,11 +23,11 @@ def _pose(track: list[tuple[float, float, float]]) -> object:
 def _goal(t, x, y, accepted, result=None, t_res=None, tol=0.1, time_out=None, gid=None, dt_resp=0.05):
     ev = [(t, "action_goal_sent", {"goal": {"goal": {"x": x, "y": y}, "goal_tol": tol,
                                            **({"time_out": time_out} if time_out is not None else {})},
-                                  **({"goal_id": gid} if gid else {})}),
-          (t + dt_resp, "action_goal_response", {"accepted": accepted, **({"goal_id": gid} if gid else {})})]
+                                  **({"step": gid} if gid else {})}),
+          (t + dt_resp, "action_goal_response", {"accepted": accepted, **({"step": gid} if gid else {})})]
     if result is not None:
         ev.append((t_res, "action_result", {"status": 4, "result": {"success": result},
-                                            **({"goal_id": gid} if gid else {})}))
+                                            **({"step": gid} if gid else {})}))
     return ev
 
 
@@ -120,7 +120,7 @@ def test_advertised() -> None:
     fr = _frames([], meta_topics=["/turtle_goals/_action/status"])
     f = check(get("action_advertised")(fr, {}))
     assert f.status == "fail" and "/turtle_goals" in f.feedback
-    fr = _frames([[(T0 + 1, "action_server_found", {"action": "/turtle_goal", "found": False})]])
+    fr = _frames([[(T0 + 1, "action_server_missing", {"action": "/turtle_goal"})]])
     assert check(get("action_advertised")(fr, {})).status == "fail"
 
 

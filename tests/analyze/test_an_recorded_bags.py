@@ -24,7 +24,7 @@ RUBRIC = load_rubric(REPO / "rubrics" / "enee467_lab3.yaml", check_files=False)
 CASES = [(sub.name, sc.name, item.id)
          for sub in sorted(BAGS.iterdir()) if sub.is_dir()
          for sc in sorted(sub.iterdir()) if (sc / "bag").is_dir()
-         for item in RUBRIC.items if item.analyzer and sc.name in item.scenarios]
+         for item in RUBRIC.items if item.analyzer and sc.name in item.scenario]
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from grader.runner import Limits, ProcessSpec, RosGraph, StdinLine
+from grader.runner import ProcessSpec, RosGraph
+from grader.scenario.model import Limits, StdinLine
 from grader.testing.ros import rclpy_node, spin_until
 
 NODES = Path(__file__).parent / "nodes"
@@ -81,8 +82,8 @@ def test_graph_exit_leaves_no_process(tmp_path: Path) -> None:
 
 def test_stdin_script_is_typed_line_by_line(ros_graph: RosGraph) -> None:
     proc = ros_graph.start(ProcessSpec("echo", node_argv("echo_stdin.py"), close_stdin=True,
-                                       stdin=[StdinLine("2.0,7.0", 0.1), StdinLine("oops", 0.1),
-                                              StdinLine("8.0,3.0", 0.1)]))
+                                       stdin=[StdinLine(line="2.0,7.0", delay=0.1), StdinLine(line="oops", delay=0.1),
+                                              StdinLine(line="8.0,3.0", delay=0.1)]))
     assert proc.wait(10) == 0
     out = proc.output()
     assert out.index("'2.0,7.0'") < out.index("'oops'") < out.index("'8.0,3.0'") < out.index("EOF")
@@ -91,14 +92,14 @@ def test_stdin_script_is_typed_line_by_line(ros_graph: RosGraph) -> None:
 def test_resource_limits_apply(ros_graph: RosGraph) -> None:
     code = "import resource; print(resource.getrlimit(resource.RLIMIT_NOFILE)[0], resource.getrlimit(resource.RLIMIT_AS)[0])"
     proc = ros_graph.start(ProcessSpec("limits", [sys.executable, "-c", code],
-                                       limits=Limits(nofile=77, address_space_mb=2048)))
+                                       nofile=77, limits=Limits(memory_mb=2048)))
     assert proc.wait(10) == 0
     assert proc.output().split() == ["77", str(2048 * 2**20)]
 
 
 def test_memory_hog_is_contained(ros_graph: RosGraph) -> None:
     proc = ros_graph.start(ProcessSpec("hog", [sys.executable, "-c", "x = bytearray(3 * 2**30)"],
-                                       limits=Limits(address_space_mb=1024)))
+                                       limits=Limits(memory_mb=1024)))
     assert proc.wait(20) not in (0, None)
     assert "MemoryError" in proc.errors()
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from grader.rubric import Section, load_rubric
-from grader.rubric.scenarios import ActionGoal, PublishGoal, Replay, Start
+from grader.scenario.model import ActionGoal, Goal, GoalReached, Replay, Start
 
 REPO = Path(__file__).resolve().parents[2]
 LAB3 = REPO / "rubrics" / "enee467_lab3.yaml"
@@ -69,26 +69,27 @@ def test_scenarios_and_their_inputs(lab3):
     pub = lab3.scenarios["ex1_publisher"].processes[0]
     assert (pub.package, pub.executable) == ("random_numbers", "simple_publisher")
 
-    replay = next(s.action for s in lab3.scenarios["ex1_subscriber"].steps if isinstance(s.action, Replay))
-    assert (replay.count, replay.rate_hz, replay.topics) == (1000, 100, ("/random_numbers",))
+    replay = next(s.do for s in lab3.scenarios["ex1_subscriber"].steps if isinstance(s.do, Replay))
+    assert (replay.count, replay.rate_hz, replay.topics, replay.lead) == (1000, 100, ("/random_numbers",), 4)
     assert replay.bag == (REPO / "fixtures" / "bags" / "random_numbers").resolve()
 
     ex2 = lab3.scenarios["ex2_controller"]
-    goals = [(s.action.x, s.action.y) for s in ex2.steps if isinstance(s.action, PublishGoal)]
+    goals = [s.do.xy for s in ex2.steps if isinstance(s.do, Goal)]
     assert goals[0] == (2.0, 7.0) and len(goals) == 4
+    assert (ex2.goal_topic, ex2.goal_type) == ("/turtle1/goal", "std_msgs/msg/Float32MultiArray")
     for step in ex2.steps[1:]:
-        assert step.until.name == "goal_reached" and step.until.params["tolerance"] == 0.1
-        assert step.until.params["settle"] > 0 and step.timeout <= 30
+        assert isinstance(step.until, GoalReached) and step.until.tolerance == 0.1
+        assert step.until.settle > 0 and step.timeout <= 30 and step.target == step.goal
 
     gp = lab3.scenarios["ex2_goal_publisher"].processes[0]
     assert gp.module == "turtle_control.goal_publisher:main"
-    assert [line.text for line in gp.stdin] == ["2.0,7.0", "oops", "8.0,3.0"]
+    assert [line.line for line in gp.stdin] == ["2.0,7.0", "oops", "8.0,3.0"]
 
     ex3 = lab3.scenarios["ex3_action"]
     server = ex3.process("server")
     assert server.parameters == {"controller_rate": 30.0, "K_1": 0.5, "K_2": 2.0}
     assert isinstance(server.parameters["controller_rate"], float)   # template declares a double
-    actions = {s.id: s.action for s in ex3.steps if isinstance(s.action, ActionGoal)}
+    actions = {s.id: s.action for s in ex3.steps if isinstance(s.do, ActionGoal)}
     assert {a.name for a in actions.values()} == {"/turtle_goal"}
     assert {a.type for a in actions.values()} == {"turtle_control_interfaces/action/SendGoal"}
     assert actions["out_of_bounds"].goal["goal"] == {"x": 15.0, "y": 15.0}
@@ -98,7 +99,7 @@ def test_scenarios_and_their_inputs(lab3):
     reachable = next(s for s in ex3.steps if s.id == "reachable")
     assert actions["reachable"].goal["timeout"] >= 20.0
     assert reachable.timeout > actions["reachable"].goal["timeout"]
-    assert any(isinstance(s.action, Start) and s.action.processes == ("client",) for s in ex3.steps)
+    assert any(isinstance(s.do, Start) and s.start.root == ("client",) for s in ex3.steps)
     assert ex3.process("client").executable == "turtle_controller_client_node"
 
 
@@ -109,7 +110,7 @@ def test_geometry_of_ex2_goals():
     import math
     start = (5.544444561004639, 5.544444561004639)
     scenario = load_rubric(LAB3, check_files=False).scenarios["ex2_controller"]
-    a, b, c, d = [(s.action.x, s.action.y) for s in scenario.steps if s.action is not None]
+    a, b, c, d = [s.goal.xy for s in scenario.steps if s.goal is not None]
     assert a == (2.0, 7.0)  # the lab's own goal
 
     def bearing(p, q):
@@ -140,7 +141,7 @@ def test_fixtures_it_names_exist():
     """The default load checks files: the supplied interface package and the replayed bag."""
     rubric = load_rubric(LAB3)
     assert (rubric.support_paths()["turtle_control_interfaces"] / "package.xml").is_file()
-    replay = next(s.action for s in rubric.scenarios["ex1_subscriber"].steps if isinstance(s.action, Replay))
+    replay = next(s.replay for s in rubric.scenarios["ex1_subscriber"].steps if s.replay is not None)
     assert replay.bag.exists()
 
 

@@ -12,15 +12,16 @@ from pathlib import Path
 
 import pytest
 
-from grader.scenario import Scenario, Step
+from grader.scenario.model import Scenario, ScenarioRun, Step
 
 
 @pytest.mark.ros
 def test_sigterm_mid_scenario_finalizes_bag(tmp_path: Path) -> None:
-    spec = Scenario(id="long", steps=[Step(id="wait", wait=60.0, timeout_s=60.0)], time_limit_s=90)
-    (tmp_path / "spec.json").write_text(json.dumps(spec.to_json()))
+    run = ScenarioRun(id="long", scenario=Scenario(steps=[Step(id="wait", wait=60.0)],
+                                                   limits={"wall_s": 90}), launched={})
+    (tmp_path / "run.json").write_text(run.model_dump_json())
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "grader.scenario.run", str(tmp_path / "spec.json"), str(out)],
+    proc = subprocess.Popen([sys.executable, "-m", "grader.scenario.run", str(tmp_path / "run.json"), str(out)],
                             start_new_session=True)
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline and not (out / "logs" / "turtlesim.stdout.log").exists():

@@ -7,24 +7,26 @@ from pathlib import Path
 
 import pytest
 
-from grader.scenario import Scenario, Step, run_scenario
+from grader.scenario import resolve, run_scenario
+from grader.scenario.model import Scenario
 
 
 @pytest.mark.ros
 @pytest.mark.slow
 def test_drive_turtle_and_record(tmp_path: Path) -> None:
-    scenario = Scenario(id="drive", steps=[
-        Step(id="go", publish={"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
-                               "msg": {"linear": {"x": 2.0}, "angular": {"z": 1.8}}},
-             until={"messages": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist", "count": 1}},
-             timeout_s=5),
-        Step(id="coast", wait=1.5),
-        Step(id="pen", service={"service": "/turtle1/set_pen", "type": "turtlesim/srv/SetPen",
-                                "request": {"r": 255, "g": 0, "b": 0, "width": 5, "off": 0}}),
-    ], time_limit_s=60)
-    record = run_scenario(scenario, None, tmp_path / "drive")
+    scenario = Scenario.model_validate({"steps": [
+        {"id": "go", "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
+                                 "msg": {"linear": {"x": 2.0}, "angular": {"z": 1.8}}},
+         "until": {"condition": "messages", "topic": "/turtle1/cmd_vel", "count": 1}, "timeout": 5},
+        {"id": "coast", "wait": 1.5},
+        {"id": "pen", "service": {"name": "/turtle1/set_pen", "request": {"r": 255, "g": 0, "b": 0, "width": 5,
+                                                                          "off": 0}},
+         "until": "service_done", "timeout": 10},
+    ], "limits": {"wall_s": 60}})
+    record = run_scenario(resolve("drive", scenario, None), tmp_path / "drive")
     assert record["errors"] == [], record
-    assert [s["ended_by"] for s in record["steps"]] == ["condition", "done", "done"]
+    assert [s["ended_by"] for s in record["steps"]] == ["condition", "done", "condition"]
+    assert record["steps"][2]["detail"]["type"] == "turtlesim/srv/SetPen"   # found from the graph
     from grader.bag.frames import load_frames
     frames = load_frames(tmp_path / "drive" / "bag")
     pose = frames["/turtle1/pose"]

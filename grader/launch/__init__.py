@@ -1,0 +1,206 @@
+"""Student launch files: what a rubric's ``launch:`` process starts.
+
+``resolve_launch`` turns ``{package: turtle_goal, launch: goal.launch.py}`` into the OS processes
+the scenario child starts (:class:`~grader.scenario.model.LaunchedProcess`), at resolution time,
+in the parent, so ``run.json`` shows exactly what will run:
+
+* Without a system ROS 2 (PyPI wheels have no ``launch``/``launch_ros``), the launch file is run
+  in a subprocess against the grader's implementation of the commonly used API subset
+  (``grader.launch.entities``); each declared node becomes a process of its own, started by the
+  grader's runner like any student process. A ``turtlesim turtlesim_node`` node is the grader's
+  reference simulator, under the node name the launch file gives it.
+* With a sourced ROS 2 Jazzy that has ``ros2 launch``, the real ``ros2 launch`` runs the file as
+  one process; an overlay package puts the reference simulator (or, when the scenario already
+  runs it, a stand-in that waits) where ``turtlesim turtlesim_node`` is looked up.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from grader.errors import GraderError
+from grader.scenario.model import LaunchedProcess, Process, param_text
+
+DESCRIBE_TIMEOUT_S = 30.0
+SIM_PACKAGE, SIM_EXECUTABLE = "turtlesim", "turtlesim_node"
+
+
+@dataclass
+class LaunchResolution:
+    processes: list[LaunchedProcess]
+    sim_node: str | None = None          # the node name the launch file gives turtlesim
+    notes: list[str] = field(default_factory=list)
+
+
+def find_launch_file(build: Any, package: str, name: str) -> tuple[Path | None, str]:
+    """The launch file as ``ros2 launch`` finds it (in the package's installed share folder),
+    else in the package's sources (with a note: setup.py does not install it)."""
+    share = build.install / package / "share" / package
+    hits = sorted(share.rglob(name)) if share.is_dir() else []
+    if hits:
+        return hits[0], ""
+    for manifest in sorted((build.root / "src").rglob("package.xml")):
+        text = manifest.read_text(errors="replace")
+        if f"<name>{package}</name>" in text.replace(" ", ""):
+            found = sorted(manifest.parent.rglob(name))
+            if found:
+                rel = found[0].relative_to(build.root)
+                return found[0], (f"{name} is not installed by {package}'s setup.py (add it to data_files, "
+                                  f"e.g. share/{package}/launch); `ros2 launch` would not find it. "
+                                  f"The grader used {rel}.")
+    return None, ""
+
+
+def describe_launch(path: Path, arguments: dict[str, str], env: dict[str, str]) -> list[dict[str, Any]]:
+    """Run ``grader.launch.describe`` on a launch file (student code: in a subprocess)."""
+    if path.suffix in (".xml", ".yaml", ".yml"):
+        raise GraderError(f"{path.name}: {path.suffix[1:].upper()} launch files are not supported by the "
+                          "grader's launch loader; write it as a Python launch file (*.launch.py)")
+    argv = [sys.executable, "-m", "grader.launch.describe", str(path),
+            *(f"{k}:={v}" for k, v in arguments.items())]
+    try:
+        proc = subprocess.run(argv, env=env, cwd=path.parent, capture_output=True, text=True,
+                              timeout=DESCRIBE_TIMEOUT_S, start_new_session=True, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise GraderError(f"{path.name}: loading the launch file took longer than "
+                          f"{DESCRIBE_TIMEOUT_S:.0f} s") from None
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    try:
+        doc = json.loads(lines[-1])
+    except (IndexError, json.JSONDecodeError):
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+        raise GraderError(f"{path.name}: the launch file could not be loaded: {' / '.join(tail)}") from None
+    if "error" in doc:
+        raise GraderError(doc["error"])
+    return doc["entities"]
+
+
+def node_ros_args(entity: dict[str, Any]) -> list[str]:
+    """``--ros-args`` for a launch ``Node``: name, namespace, parameters, remappings."""
+    out: list[str] = []
+    if entity.get("name"):
+        out += ["-r", f"__node:={entity['name']}"]
+    if entity.get("namespace"):
+        ns = entity["namespace"]
+        out += ["-r", f"__ns:={ns if ns.startswith('/') else '/' + ns}"]
+    for params in entity.get("parameters", []):
+        if isinstance(params, dict):
+            for key, value in params.items():
+                out += ["-p", f"{key}:={param_text(value)}"]
+        else:
+            out += ["--params-file", str(params)]
+    for old, new in entity.get("remappings", []):
+        out += ["-r", f"{old}:={new}"]
+    out += list(entity.get("ros_arguments", []))
+    return ["--ros-args", *out] if out else []
+
+
+def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> LaunchResolution:
+    """The processes ``proc``'s launch file starts (errors become a process with ``error``)."""
+    assert proc.launch and proc.package
+    path, note = find_launch_file(build, proc.package, proc.launch)
+    if path is None:
+        return LaunchResolution([LaunchedProcess(name=proc.name, process=proc.name, error=(
+            f"launch file {proc.launch} not found in package '{proc.package}' "
+            f"(installed share/{proc.package} or its sources)"))])
+    notes = [note] if note else []
+    try:
+        entities = describe_launch(path, dict(proc.launch_arguments), build.env())
+    except GraderError as exc:
+        return LaunchResolution([LaunchedProcess(name=proc.name, process=proc.name, error=str(exc))], notes=notes)
+    if system_ros_launch_available():
+        return _real_ros2_launch(proc, build, path, entities, sim_in_scenario, notes)
+    out: list[LaunchedProcess] = []
+    sim_node = None
+    used: set[str] = set()
+    for entity in entities:
+        label = entity.get("name") or entity.get("executable") or (entity.get("cmd") or ["process"])[0]
+        name = _unique(f"{proc.name}.{Path(str(label)).name}", used)
+        if entity["kind"] == "node" and (entity.get("package"), entity["executable"]) == (SIM_PACKAGE, SIM_EXECUTABLE):
+            sim_node = entity.get("name") or "turtlesim"
+            if sim_in_scenario:
+                notes.append(f"{entity['at']}: turtlesim_node '{sim_node}' is the grader's reference "
+                             "simulator (already running in this scenario)")
+                continue
+            from grader.sim import sim_argv
+            argv = sim_argv(ros_args=node_ros_args(entity)[1:])
+            out.append(LaunchedProcess(name=name, process=proc.name, argv=tuple(argv), node_name=sim_node,
+                                       start_delay=entity["delay"], env=entity.get("env", {})))
+            continue
+        if entity["kind"] == "process":
+            out.append(LaunchedProcess(name=name, process=proc.name, argv=tuple(entity["cmd"]),
+                                       start_delay=entity["delay"], env=entity.get("env", {})))
+            continue
+        try:
+            if not entity.get("package"):
+                raise GraderError(f"{entity['at']}: Node(executable={entity['executable']!r}) has no package")
+            argv = build.argv(entity["package"], entity["executable"], None) + \
+                list(entity.get("arguments", [])) + node_ros_args(entity)
+            out.append(LaunchedProcess(name=name, process=proc.name, argv=tuple(argv),
+                                       node_name=entity.get("name"), start_delay=entity["delay"],
+                                       env=entity.get("env", {})))
+        except GraderError as exc:
+            out.append(LaunchedProcess(name=name, process=proc.name, node_name=entity.get("name"),
+                                       error=f"{entity['at']}: {exc}"))
+    if not out:
+        out.append(LaunchedProcess(name=proc.name, process=proc.name,
+                                   error=f"{path.name} starts no node besides turtlesim"))
+    return LaunchResolution(out, sim_node, notes)
+
+
+def _unique(name: str, used: set[str]) -> str:
+    candidate, n = name, 2
+    while candidate in used:
+        candidate, n = f"{name}-{n}", n + 1
+    used.add(candidate)
+    return candidate
+
+
+# ----------------------------------------------------------------------- system ROS 2 launch
+def system_ros_launch_available() -> bool:
+    """A sourced ROS 2 with ``ros2 launch`` (the real thing is used then)."""
+    from grader.rosenv import ros_mode
+
+    if os.environ.get("GRADER_OWN_LAUNCH") or ros_mode() != "system" or not shutil.which("ros2"):
+        return False
+    try:
+        import launch  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _real_ros2_launch(proc: Process, build: Any, path: Path, entities: list[dict[str, Any]],
+                      sim_in_scenario: bool, notes: list[str]) -> LaunchResolution:
+    overlay = sim_overlay(build.root / "grader-sim-overlay")
+    sim_node = next((e.get("name") or "turtlesim" for e in entities if e["kind"] == "node"
+                     and (e.get("package"), e["executable"]) == (SIM_PACKAGE, SIM_EXECUTABLE)), None)
+    env = {"AMENT_PREFIX_PATH": os.pathsep.join([str(overlay), *build.env().get("AMENT_PREFIX_PATH", "").split(os.pathsep)])}
+    if sim_in_scenario:
+        env["GRADER_SIM_PROVIDED"] = "1"
+    argv = [shutil.which("ros2") or "ros2", "launch", str(path),
+            *(f"{k}:={v}" for k, v in proc.launch_arguments.items())]
+    notes = notes + ["run with the system's ros2 launch; turtlesim_node is the grader's reference simulator"]
+    return LaunchResolution([LaunchedProcess(name=proc.name, process=proc.name, argv=tuple(argv), env=env)],
+                            sim_node, notes)
+
+
+def sim_overlay(root: Path) -> Path:
+    """An install prefix whose ``turtlesim turtlesim_node`` is the reference simulator."""
+    exe = root / "lib" / SIM_PACKAGE / SIM_EXECUTABLE
+    if not exe.exists():
+        (root / "share" / "ament_index" / "resource_index" / "packages").mkdir(parents=True, exist_ok=True)
+        (root / "share" / "ament_index" / "resource_index" / "packages" / SIM_PACKAGE).write_text("")
+        (root / "share" / SIM_PACKAGE).mkdir(parents=True, exist_ok=True)
+        exe.parent.mkdir(parents=True, exist_ok=True)
+        exe.write_text(f'#!/bin/sh\nif [ -n "$GRADER_SIM_PROVIDED" ]; then exec sleep infinity; fi\n'
+                       f'exec "{sys.executable}" -m grader.sim "$@"\n')
+        exe.chmod(0o755)
+    return root

@@ -1,0 +1,10 @@
+"""``launch.actions`` subset (see grader.launch.entities)."""
+
+from grader.launch.entities import (DeclareLaunchArgument, ExecuteProcess,  # noqa: F401
+                                    IncludeLaunchDescription, LogInfo, SetEnvironmentVariable,
+                                    TimerAction)
+from grader.launch.entities import unsupported as _unsupported
+
+
+def __getattr__(name: str):
+    raise _unsupported("launch.actions", name)

@@ -1,0 +1,49 @@
+"""The driver's event names, defined once: the driver emits them on ``/grader/events``, the
+pipeline and the analyzers read them back from the bag. Pure (no rclpy), so analyzers import it.
+
+Each event is a JSON object ``{"event": <name>, "wall": <epoch s>, ...fields}``; the fields of
+each are listed beside it.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+EVENTS_TOPIC = "/grader/events"
+STDOUT_TOPIC = "/grader/stdout"
+
+
+class Event(StrEnum):
+    # scenario
+    SCENARIO_START = "scenario_start"        # scenario, domain_id, sim_node
+    SCENARIO_END = "scenario_end"            # scenario
+    SCENARIO_ABORTED = "scenario_aborted"    # step (its condition never held; on_timeout: abort)
+    SCENARIO_INTERRUPTED = "scenario_interrupted"   # (Ctrl-C / SIGTERM of the batch)
+    SCENARIO_ERROR = "scenario_error"        # error
+    # steps
+    STEP_START = "step_start"                # step, action
+    STEP_END = "step_end"                    # step, action, ended_by, duration_s
+    STEP_SKIPPED = "step_skipped"            # step, reason, exited
+    GOAL_SENT = "goal_sent"                  # step, goal [x, y], topic (None: set by a service)
+    MESSAGE_SENT = "message_sent"            # step, topic, type, msg, count
+    SERVICE_CALL = "service_call"            # step, service, type, request
+    SERVICE_RESPONSE = "service_response"    # step, service, response (None: no response in time)
+    SERVICE_MISSING = "service_missing"      # step, service
+    ACTION_SERVER_FOUND = "action_server_found"      # step, action
+    ACTION_SERVER_MISSING = "action_server_missing"  # step, action
+    ACTION_GOAL_SENT = "action_goal_sent"    # step, action, goal
+    ACTION_GOAL_RESPONSE = "action_goal_response"    # step, action, accepted
+    ACTION_RESULT = "action_result"          # step, action, status, result
+    ACTION_CANCEL_SENT = "action_cancel_sent"        # step
+    REPLAY_START = "replay_start"            # step, topics, count, rate_hz, bag
+    REPLAY_END = "replay_end"                # step, count, outputs, paced, duration_s
+    # processes
+    NODE_STARTED = "node_started"            # process, of (rubric process), argv, node_name
+    NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started)
+    NODE_STOPPED = "node_stopped"            # process, returncode
+    PROCESS_EXIT = "process_exit"            # process, returncode, stopped_by_grader, timed_out
+    STDIN_READY = "stdin_ready"              # process, nodes
+    STDIN_LINE = "stdin_line"                # process, line, delivered
+    LAUNCH_RESOLVED = "launch_resolved"      # process, notes (what the launch file declared)
+    # the ROS graph
+    GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services

@@ -1,0 +1,571 @@
+"""The scenario model: what to start, what to send, when a step is over. One model, three users.
+
+A rubric's ``scenarios:`` section is validated into these classes (``grader.rubric.load``), the
+grading pipeline hands them, as they are, to the scenario child process (serialised with
+``model_dump_json`` and read back with :func:`ScenarioRun.model_validate_json`), and the child
+dispatches every step action and every ``until`` condition on its class. So a field has one name
+everywhere, and what a rubric can say is exactly what the runner does; what it cannot say,
+validation rejects (the loader turns each rejection into ``file:line: field: message``).
+
+The classes mirror the YAML a rubric author writes (``Step.publish``, ``Step.until``...), which
+is also why ``grader rubric schema`` can hand editors a JSON Schema generated from them.
+pydantic is used because it gives typed, frozen models, strict validation with located errors,
+JSON round-trips and JSON Schema from one declaration.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, RootModel, StringConstraints,
+                      ValidationInfo, field_validator, model_validator)
+
+#: ``pattern -> what it is``: validation errors say "expected a topic name" instead of a regex
+PATTERN_WHAT: dict[str, str] = {}
+
+
+def _named(pattern: str, what: str, **field: Any) -> Any:
+    PATTERN_WHAT[pattern] = what
+    return Annotated[str, StringConstraints(pattern=pattern), Field(description=what, **field)]
+
+
+RosName = _named(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", "a ROS name like /turtle1/pose")
+PackageName = _named(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digits, _)")
+ExecutableName = _named(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "an executable name")
+EntryPoint = _named(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$",
+                    "a Python entry point 'package.module:function'")
+LaunchFile = _named(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "a launch file name like app.launch.py")
+LocalId = _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "an id (letters, digits, _ or -)")
+EnvName = _named(r"^[A-Za-z_][A-Za-z0-9_]*$", "an environment variable name")
+MsgType = _named(r"^[A-Za-z][A-Za-z0-9_]*/msg/[A-Z][A-Za-z0-9]*$", "a message type like std_msgs/msg/String")
+SrvType = _named(r"^[A-Za-z][A-Za-z0-9_]*/srv/[A-Z][A-Za-z0-9]*$", "a service type like turtlesim/srv/SetPen")
+ActionType = _named(r"^[A-Za-z][A-Za-z0-9_]*/action/[A-Z][A-Za-z0-9]*$",
+                    "an action type like turtlesim/action/RotateAbsolute")
+#: sequences and paths accept what YAML/JSON give (lists, text); their items stay strict
+LaxPath = Annotated[Path, Field(strict=False)]
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+PositiveInt = Annotated[int, Field(gt=0)]
+ParamScalar = Union[bool, int, float, str]
+ParamValue = Union[bool, int, float, str, list[bool], list[int], list[float], list[str]]
+
+#: the grader's own processes; rubric processes may not take these names
+RESERVED_PROCESSES = ("sim", "recorder", "driver")
+#: where ``goal:`` steps may publish, and how [x, y] fills each type
+GOAL_TYPES = ("std_msgs/msg/Float32MultiArray", "geometry_msgs/msg/Point", "geometry_msgs/msg/Pose2D")
+
+
+class Model(BaseModel):
+    """Frozen, no unknown keys, strict types (a quoted number is text, ``yes`` is not 1)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+
+def with_rules(cls: type, handler: Any, value: Any, own: list[tuple[tuple, str]]) -> Any:
+    """Run a wrap validator's ``handler`` and report ``own`` problems (``(loc, message)``, loc
+    relative to the model) together with the field errors, so a user sees every problem at once."""
+    from pydantic import ValidationError
+    from pydantic_core import InitErrorDetails, PydanticCustomError
+
+    errors: list[InitErrorDetails] = []
+    result = None
+    try:
+        result = handler(value)
+    except ValidationError as exc:
+        for err in exc.errors():
+            detail: dict[str, Any] = {"type": err["type"], "loc": err["loc"], "input": err.get("input")}
+            if err["type"] in ("value_error", "assertion_error", "rule"):
+                detail["type"] = PydanticCustomError("rule", _braces(err["msg"].removeprefix("Value error, ")))
+            elif "ctx" in err:
+                detail["ctx"] = err["ctx"]
+            errors.append(detail)  # type: ignore[arg-type]
+    known = {tuple(e["loc"]) for e in errors}
+    for loc, message in own:
+        if loc not in known:
+            errors.append({"type": PydanticCustomError("rule", _braces(message)), "loc": loc,
+                           "input": value.get(loc[0]) if loc and isinstance(value, dict) else value})
+    if errors:
+        raise ValidationError.from_exception_data(cls.__name__, errors)
+    return result
+
+
+def _braces(message: str) -> str:
+    """A message as a pydantic template: literal braces doubled."""
+    return message.replace("{", "{{").replace("}", "}}")
+
+
+# ---------------------------------------------------------------------------------------- leaves
+class Goal(Model):
+    """A position ``[x, y]`` or ``{x: .., y: ..}`` (m, turtlesim world frame)."""
+
+    x: Annotated[float, Field(allow_inf_nan=False)]
+    y: Annotated[float, Field(allow_inf_nan=False)]
+
+    @model_validator(mode="before")
+    @classmethod
+    def _pair(cls, value: Any) -> Any:
+        if isinstance(value, (list, tuple)):
+            if len(value) != 2:
+                raise ValueError(f"expected a position [x, y] or {{x: .., y: ..}}, got a list of {len(value)}")
+            return {"x": value[0], "y": value[1]}
+        return value
+
+    @property
+    def xy(self) -> tuple[float, float]:
+        return (self.x, self.y)
+
+
+class StdinLine(Model):
+    """A line typed into a process ``delay`` seconds after the previous one (or after the prompt)."""
+
+    line: str
+    delay: NonNegativeFloat = 0.5
+
+    @model_validator(mode="before")
+    @classmethod
+    def _plain(cls, value: Any) -> Any:
+        return {"line": value} if isinstance(value, str) else value
+
+
+class Limits(Model):
+    """Resource limits of a process or a scenario; None leaves the grader's default.
+
+    ``memory_mb`` bounds each process's address space (rclpy + Fast DDS need about 1 GiB).
+    """
+
+    wall_s: PositiveFloat | None = None
+    cpu_s: PositiveInt | None = None
+    memory_mb: PositiveInt | None = None
+
+
+class Process(Model):
+    """One student (or supplied) program: by ``executable`` (console script) and/or ``module``
+    (``pkg.module:func``, tried when the console script is missing: students name scripts freely),
+    or by ``launch`` file (every node it declares starts as a process of its own)."""
+
+    name: LocalId
+    package: PackageName | None = None
+    executable: ExecutableName | None = None
+    module: EntryPoint | None = None
+    launch: LaunchFile | None = None
+    launch_arguments: dict[str, str] = {}
+    args: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    parameters: dict[str, ParamValue] = {}
+    remappings: dict[RosName, RosName] = {}
+    env: dict[EnvName, str] = {}
+    stdin: Annotated[tuple[StdinLine, ...], Field(strict=False)] | None = Field(None, description="lines typed into the process; "
+                                                "absent: stdin is /dev/null")
+    stdin_close: bool = Field(False, description="EOF after the script (a terminal would not)")
+    start_delay: NonNegativeFloat = Field(0.0, description="s after the previous process started")
+    autostart: bool = Field(True, description="false: a `start:` step starts it")
+    limits: Limits = Limits()
+
+    @field_validator("name")
+    @classmethod
+    def _not_reserved(cls, name: str) -> str:
+        if name in RESERVED_PROCESSES:
+            raise ValueError(f"{name!r} is reserved for the grader's own processes "
+                             f"({', '.join(RESERVED_PROCESSES)})")
+        return name
+
+    @field_validator("parameters")
+    @classmethod
+    def _homogeneous_lists(cls, params: dict[str, Any]) -> dict[str, Any]:
+        for key, value in params.items():
+            if isinstance(value, list) and (not value or len({type(v) for v in value}) != 1):
+                raise ValueError(f"parameter {key!r}: a list parameter needs values of one type")
+        return params
+
+    @model_validator(mode="after")
+    def _one_way_to_start(self) -> "Process":
+        if not (self.executable or self.module or self.launch):
+            raise ValueError("say how to start the process: executable (with package), module "
+                             "('pkg.module:function') or launch (with package)")
+        if self.launch and (self.executable or self.module):
+            raise ValueError("launch cannot be combined with executable or module")
+        if (self.executable or self.launch) and not self.package:
+            raise ValueError(f"{'executable' if self.executable else 'launch'} needs a package")
+        if self.launch_arguments and not self.launch:
+            raise ValueError("launch_arguments only apply to a launch file")
+        if self.stdin_close and self.stdin is None:
+            raise ValueError("stdin_close needs a stdin script")
+        return self
+
+    def ros_args(self) -> list[str]:
+        """``--ros-args -p k:=v -r a:=b`` for ``parameters``/``remappings``, then ``args``."""
+        out: list[str] = []
+        for key, value in self.parameters.items():
+            out += ["-p", f"{key}:={param_text(value)}"]
+        for old, new in self.remappings.items():
+            out += ["-r", f"{old}:={new}"]
+        return (["--ros-args", *out] if out else []) + list(self.args)
+
+
+def param_text(value: Any) -> str:
+    """A parameter value as rcl parses it on the command line (YAML): 30.0 stays a double."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list):
+        return "[" + ", ".join(param_text(v) for v in value) + "]"
+    if isinstance(value, str):
+        return "'" + value.replace("'", "''") + "'"
+    return repr(value)
+
+
+# ---------------------------------------------------------------------------------- step actions
+class Publish(Model):
+    """Publish ``msg`` (fields as a mapping) ``count`` times, at ``rate_hz`` when count > 1."""
+
+    topic: RosName
+    type: MsgType
+    msg: dict[str, Any] = {}
+    count: PositiveInt = 1
+    rate_hz: PositiveFloat | None = None
+
+
+class ServiceCall(Model):
+    """Call a service once and wait for the response (at most ``response_timeout`` s).
+
+    Without ``type`` the type is taken from the graph: whatever the server advertises, so a
+    student's own ``pkg/srv/SetGoal`` works whatever their package is called.
+    """
+
+    name: RosName
+    type: SrvType | None = None
+    request: dict[str, Any] = {}
+    server_timeout: PositiveFloat = Field(5.0, description="s to wait for the service to appear")
+    response_timeout: PositiveFloat = Field(10.0, description="s to wait for the response")
+
+
+class ActionGoal(Model):
+    """Send one goal to an action server; the step's ``until: action_done`` waits for its end."""
+
+    name: RosName
+    type: ActionType
+    goal: dict[str, Any] = {}
+    server_timeout: PositiveFloat = Field(5.0, description="s to wait for the action server")
+
+
+class Replay(Model):
+    """Publish recorded messages of ``bag`` back into the graph.
+
+    ``topics``: which (default: every topic of the bag but the grader's own). ``rate_hz``: a
+    fixed pace; absent = the recorded timing. ``count``: the first N messages. ``lead``: never
+    more than this many messages ahead of the student's output lines (a subscriber that logs
+    one line per message is paced instead of losing messages in its QoS history; a node that
+    prints nothing per message gets the plain pace after a few messages).
+    """
+
+    bag: LaxPath
+    topics: Annotated[tuple[RosName, ...], Field(strict=False)] | None = None
+    rate_hz: PositiveFloat | None = None
+    count: PositiveInt | None = None
+    lead: PositiveInt | None = None
+
+    @field_validator("bag", mode="before")
+    @classmethod
+    def _relative_to_rubric(cls, value: Any, info: ValidationInfo) -> Any:
+        base = (info.context or {}).get("base_dir")
+        if isinstance(value, str) and base is not None:
+            return str((Path(base) / value).resolve())
+        return value
+
+
+def _names(value: Any) -> Any:
+    if isinstance(value, str):
+        return (value,)
+    return tuple(value) if isinstance(value, list) else value
+
+
+class Start(RootModel[tuple[LocalId, ...]]):
+    """Start processes declared with ``autostart: false`` (a name or a list of names)."""
+
+    model_config = ConfigDict(frozen=True, strict=True)
+    root: Annotated[tuple[LocalId, ...], BeforeValidator(_names), Field(min_length=1, strict=False)]
+
+
+class Stop(RootModel[tuple[LocalId, ...]]):
+    """Stop processes (SIGINT, then SIGTERM, then SIGKILL), a name or a list of names."""
+
+    model_config = ConfigDict(frozen=True, strict=True)
+    root: Annotated[tuple[LocalId, ...], BeforeValidator(_names), Field(min_length=1, strict=False)]
+
+
+Action = Union[Goal, Publish, ServiceCall, ActionGoal, Replay, Start, Stop]
+#: step keys that hold an action, in the order they are documented
+ACTION_KEYS = ("goal", "publish", "service", "action", "replay", "start", "stop")
+
+
+# ------------------------------------------------------------------------------------ conditions
+class GoalReached(Model):
+    """The turtle is within ``tolerance`` of ``goal`` (default: the step's ``goal:``) and stays
+    there for ``settle`` seconds."""
+
+    condition: Literal["goal_reached"]
+    goal: Goal | None = None
+    tolerance: PositiveFloat = 0.1
+    settle: NonNegativeFloat = 0.5
+    pose_topic: RosName = "/turtle1/pose"
+
+
+class ActionDone(Model):
+    """The step's action goal was rejected or returned a result."""
+
+    condition: Literal["action_done"]
+
+
+class ServiceDone(Model):
+    """The step's service call returned (or could not be made)."""
+
+    condition: Literal["service_done"]
+
+
+class ReplayDone(Model):
+    """The step's replay published its last message."""
+
+    condition: Literal["replay_done"]
+
+
+class ProcessExit(Model):
+    """Every OS process of ``process`` has exited."""
+
+    condition: Literal["process_exit"]
+    process: LocalId
+
+
+class Output(Model):
+    """A stdout/stderr line of ``process`` printed since the step began matches ``pattern``."""
+
+    condition: Literal["output"]
+    process: LocalId
+    pattern: str
+
+    @field_validator("pattern")
+    @classmethod
+    def _regex(cls, pattern: str) -> str:
+        try:
+            re.compile(pattern)
+        except re.error as exc:
+            raise ValueError(f"invalid regular expression: {exc}") from None
+        return pattern
+
+
+class Messages(Model):
+    """At least ``count`` messages on ``topic`` since the step began."""
+
+    condition: Literal["messages"]
+    topic: RosName
+    count: PositiveInt = 1
+
+
+class Advertised(Model):
+    """A student node offers the topic (and the recorder subscribes to it), service or action."""
+
+    condition: Literal["advertised"]
+    topic: RosName | None = None
+    service: RosName | None = None
+    action: RosName | None = None
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> "Advertised":
+        if sum(v is not None for v in (self.topic, self.service, self.action)) != 1:
+            raise ValueError("advertised needs exactly one of topic, service or action")
+        return self
+
+
+class Subscribed(Model):
+    """A node other than the grader's subscribes to ``topic``."""
+
+    condition: Literal["subscribed"]
+    topic: RosName
+
+
+def _condition_name(value: Any) -> Any:
+    return {"condition": value} if isinstance(value, str) else value
+
+
+Condition = Annotated[
+    Union[GoalReached, ActionDone, ServiceDone, ReplayDone, ProcessExit, Output, Messages,
+          Advertised, Subscribed],
+    Field(discriminator="condition"), BeforeValidator(_condition_name)]
+
+
+# ----------------------------------------------------------------------------------------- steps
+class Step(Model):
+    """Do at most one action, then wait until ``until`` holds, at most ``timeout`` seconds.
+
+    ``wait: N`` is a plain pause of N seconds (no action, no condition).
+    """
+
+    id: LocalId
+    goal: Goal | None = Field(None, description="publish [x, y] on the scenario's goal_topic")
+    publish: Publish | None = None
+    service: ServiceCall | None = None
+    action: ActionGoal | None = None
+    replay: Replay | None = None
+    start: Start | None = None
+    stop: Stop | None = None
+    wait: PositiveFloat | None = None
+    until: Condition | None = None
+    timeout: PositiveFloat | None = Field(None, description="s; required unless `wait`")
+    on_timeout: Literal["continue", "abort"] = Field(
+        "continue", description="abort: skip the remaining steps when the condition never held")
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _shape(cls, value: Any, handler: Any) -> Any:
+        """Which keys go together; reported with the field errors, at the offending key."""
+        if not isinstance(value, dict):
+            return handler(value)
+        own: list[tuple[tuple, str]] = []
+        actions = [k for k in ACTION_KEYS if value.get(k) is not None]
+        if len(actions) > 1:
+            own.append(((actions[1],), f"a step does one thing; it has {' and '.join(actions)}: split it"))
+        if value.get("wait") is not None:
+            extra = [k for k in ("until", "timeout", *actions) if value.get(k) is not None]
+            if extra:
+                own.append(((extra[0],), f"'wait: N' is a pause on its own; use timeout with "
+                                         f"{extra[0]!r} instead"))
+        elif value.get("timeout") is None:
+            own.append((("timeout",), "required key is missing (every step needs a time limit; "
+                                      "use 'wait: N' for a plain pause)"))
+        until = value.get("until")
+        name = until if isinstance(until, str) else until.get("condition") if isinstance(until, dict) else None
+        needs = {"action_done": "action", "service_done": "service", "replay_done": "replay"}.get(name)
+        if needs and needs not in actions:
+            own.append((("until",), f"{name!r} waits for this step's {needs}, but the step has no {needs!r}"))
+        if name == "goal_reached" and "goal" not in until and value.get("goal") is None:
+            own.append((("until", "goal"), "goal_reached needs a goal: give one here, or use it "
+                                           "on a 'goal:' step"))
+        return with_rules(cls, handler, value, own)
+
+    @property
+    def do(self) -> Action | None:
+        """The step's one action (None for a pause or a pure wait for a condition)."""
+        for key in ACTION_KEYS:
+            value = getattr(self, key)
+            if value is not None:
+                return value
+        return None
+
+    @property
+    def limit_s(self) -> float:
+        """How long the step may last."""
+        return float(self.wait if self.wait is not None else self.timeout)  # type: ignore[arg-type]
+
+    @property
+    def target(self) -> Goal | None:
+        """The position this step drives to: the condition's goal, else the step's ``goal:``."""
+        if isinstance(self.until, GoalReached) and self.until.goal is not None:
+            return self.until.goal
+        return self.goal
+
+
+class Scenario(Model):
+    """Processes to run against the reference simulator, and the steps that drive them."""
+
+    description: str = ""
+    sim: bool = Field(True, description="start the reference turtlesim")
+    record: Literal["all"] | Annotated[tuple[RosName, ...], Field(strict=False)] = Field(
+        "all", description="topics to record (the grader's /grader/* always are)")
+    goal_topic: RosName | None = Field(None, description="where `goal:` steps publish")
+    goal_type: Literal[GOAL_TYPES] | None = Field(  # type: ignore[valid-type]
+        None, description="the message `goal:` steps publish: Float32MultiArray data [x, y], "
+                          "Point or Pose2D x, y")
+    processes: Annotated[tuple[Process, ...], Field(strict=False)] = ()
+    steps: Annotated[tuple[Step, ...], Field(min_length=1, strict=False)]
+    limits: Limits = Limits()
+
+    @model_validator(mode="after")
+    def _goal_publishing(self) -> "Scenario":
+        if any(s.goal is not None for s in self.steps) and not (self.goal_topic and self.goal_type):
+            raise ValueError("steps with 'goal:' need the scenario's goal_topic and goal_type "
+                             f"(one of {', '.join(GOAL_TYPES)})")
+        return self
+
+    def process(self, name: str) -> Process:
+        return next(p for p in self.processes if p.name == name)
+
+    @property
+    def budget_s(self) -> float:
+        """Longest the scenario can run: start delays of autostarted processes + step limits."""
+        return (sum(p.start_delay for p in self.processes if p.autostart)
+                + sum(s.limit_s for s in self.steps))
+
+    @property
+    def time_limit_s(self) -> float:
+        """The scenario's wall-clock limit: ``limits.wall_s``, else its budget plus 30 s."""
+        return float(self.limits.wall_s or max(60.0, self.budget_s + 30.0))
+
+    def problems(self) -> list[tuple[str, str]]:
+        """Cross-references within the scenario, as ``(field path, message)``; [] when fine."""
+        out: list[tuple[str, str]] = []
+        names = [p.name for p in self.processes]
+        seen: set[str] = set()
+        for i, proc in enumerate(self.processes):
+            if proc.name in seen:
+                out.append((f"processes[{i}].name", f"duplicate process name {proc.name!r}"))
+            seen.add(proc.name)
+        started: set[str] = set()
+        step_ids: set[str] = set()
+        for i, step in enumerate(self.steps):
+            if step.id in step_ids:
+                out.append((f"steps[{i}].id", f"duplicate step id {step.id!r}"))
+            step_ids.add(step.id)
+            for key in ("start", "stop"):
+                value = getattr(step, key)
+                for name in (value.root if value is not None else ()):
+                    if name not in names:
+                        out.append((f"steps[{i}].{key}", f"no process {name!r} in this scenario"
+                                    + _suggest(name, names)))
+                    elif key == "start":
+                        started.add(name)
+                        if self.process(name).autostart:
+                            out.append((f"steps[{i}].start", f"process {name!r} already starts with "
+                                        "the scenario; set 'autostart: false' on it"))
+            proc_ref = getattr(step.until, "process", None)
+            if proc_ref is not None and proc_ref not in names:
+                out.append((f"steps[{i}].until.process", f"no process {proc_ref!r} in this scenario"
+                            + _suggest(proc_ref, names)))
+        for i, proc in enumerate(self.processes):
+            if not proc.autostart and proc.name not in started:
+                out.append((f"processes[{i}]", f"process {proc.name!r} has autostart: false but no "
+                            "step starts it"))
+        if self.limits.wall_s is not None and self.budget_s > self.limits.wall_s:
+            out.append(("limits.wall_s", f"the steps may take up to {self.budget_s:g} s (start delays + "
+                        f"step limits) but wall_s is {self.limits.wall_s:g}; raise it or shorten the steps"))
+        return out
+
+
+def _suggest(word: str, candidates: list[str]) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(word, candidates, n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+# ------------------------------------------------------------------ what the scenario child reads
+class LaunchedProcess(Model):
+    """One OS process the child starts for a rubric process (a launch file gives several)."""
+
+    name: str                          # unique in the scenario: "server", "app.goal_setter"
+    process: str                       # the rubric process it belongs to
+    argv: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    env: dict[str, str] = {}
+    start_delay: NonNegativeFloat = 0.0   # after its rubric process started (launch TimerAction)
+    node_name: str | None = None       # the node name a launch file gave it
+    error: str = ""                    # why it cannot run (build failed, no such executable...)
+
+
+class ScenarioRun(Model):
+    """What crosses to the scenario child: the rubric's scenario as it is, plus what the parent
+    resolved against the build (argv of every process, install prefixes, the simulator's name)."""
+
+    id: str
+    scenario: Scenario
+    launched: dict[str, Annotated[tuple[LaunchedProcess, ...], Field(strict=False)]]  # rubric process -> OS processes
+    prefixes: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    sim_node: str = "turtlesim"
+    notes: Annotated[tuple[str, ...], Field(strict=False)] = ()        # resolution remarks worth an event (e.g. launch details)
