@@ -1,0 +1,1 @@
+"""Manual scores and gradebooks (see grader.scores.store for the per-submission record)."""
