@@ -57,8 +57,11 @@ def run_merge(args: argparse.Namespace) -> int:
         print(change.describe())
     verb = "would write" if report.dry_run else "wrote"
     if report.written:
-        print(f"{verb} {len(report.written)} file(s): "
-              + ", ".join(str(p.relative_to(report.out)) for p in report.written))
+        names = [str(p.relative_to(report.out)) for p in report.written]
+        if len(names) > 10:
+            subs = {Path(n).parts[0] for n in names if len(Path(n).parts) > 1}
+            names = [f"{len(subs)} submission folder(s)"] + [n for n in names if "/" not in n]
+        print(f"{verb} {len(report.written)} file(s): " + ", ".join(names))
     else:
         print(f"{report.sheet.name}: nothing to change ({report.rows} row(s) already merged)")
     if report.pending:
