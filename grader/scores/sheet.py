@@ -122,7 +122,7 @@ def _columns(table: Table, items: Mapping[str, ItemResult], problems: list[str])
     first_seen: dict[str, int] = {}
     for j, name in enumerate(table.header):
         at = f"{where}, column {col_name(j)}"
-        if name in first_seen or (name.casefold() == KEY and j != keys[0]):
+        if (name and name in first_seen) or (name.casefold() == KEY and j != keys[0]):
             problems.append(f'{at}: column "{name}" appears twice (first in column '
                             f'{col_name(first_seen.get(name, keys[0]))})')
             columns.append(Column("ignored"))

@@ -63,7 +63,7 @@ CASES = {
         "student,q1\nreference,5\n",
         ['line 1: no "submission" column (the header has "student", "q1")']),
     "value without a header": (
-        "submission,q1,\nreference,5,oops\n",
+        "submission,q1,,\nreference,5,oops,\nbm_log10,4,,\n",      # empty columns are fine
         ["line 2, column C: a value in a column without a header"]),
 }
 
