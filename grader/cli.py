@@ -17,6 +17,7 @@ SUBSYSTEMS = (
     "grader.sim.cli",
     "grader.bag.cli",
     "grader.grading.cli",
+    "grader.scores.cli",
 )
 
 

@@ -123,7 +123,7 @@ def run_grade(args: argparse.Namespace) -> int:
                     sid = submission_id(futures[fut])
                     try:
                         graded = fut.result()
-                        progress.advance(f"{sid}: {graded.result.score:g}/{graded.result.auto_max:g}")
+                        progress.advance(f"{sid}: {graded.result.auto_score:g}/{graded.result.auto_max:g}")
                     except GraderError as exc:
                         failures[sid] = str(exc)
                         progress.advance(f"{sid}: ERROR {exc}")
@@ -180,13 +180,13 @@ def run_regrade(args: argparse.Namespace) -> int:
     path = args.path
     if (path / SCENARIOS_DIR).is_dir():
         graded = regrade_submission(path, rubric)
-        print(f"{graded.id}: {graded.result.score:g}/{graded.result.auto_max:g}")
+        print(f"{graded.id}: {graded.result.auto_score:g}/{graded.result.auto_max:g}")
         return 0
     subs = sorted(p for p in path.iterdir() if (p / SCENARIOS_DIR).is_dir()) if path.is_dir() else []
     if not subs:
         raise GraderError(f"{path} holds no graded submissions (no */{SCENARIOS_DIR}/ folders).")
     for sub in subs:
         graded = regrade_submission(sub, rubric)
-        print(f"{graded.id}: {graded.result.score:g}/{graded.result.auto_max:g}")
+        print(f"{graded.id}: {graded.result.auto_score:g}/{graded.result.auto_max:g}")
     write_batch_outputs(path, rubric)
     return 0

@@ -192,13 +192,15 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     """Build, run the needed scenarios, analyze and score one submission; writes its folder."""
     from grader.rubric.score import score
     from grader.scenario import resolve, run_scenario
+    from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
     from grader.workspace import build_workspace
 
     sid = sid or submission_id(Path(path))
     out = Path(out_root) / sid
-    if out.exists():
-        shutil.rmtree(out)
-    out.mkdir(parents=True)
+    with manual_scores_kept(out):          # a re-grade keeps the TA's merged manual scores
+        if out.exists():
+            shutil.rmtree(out)
+        out.mkdir(parents=True)
     timings: dict[str, float] = {}
     errors: list[str] = []
     say = progress or (lambda _msg: None)
@@ -229,7 +231,8 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     say(f"{sid}: analyzing")
     findings, problems = analyze_bags(rubric, items, out)
     errors += problems
-    result = score(rubric, findings)
+    result, kept = apply_saved_manual_scores(out, score(rubric, findings))
+    errors += kept
     if public_only:
         result = result.for_student()
     graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
@@ -242,6 +245,7 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
 def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:
     """Recompute a submission's grade from its recorded bags only (no build, no ROS)."""
     from grader.rubric.score import score
+    from grader.scores.store import apply_saved_manual_scores
 
     sub_out = Path(sub_out)
     if not (sub_out / SCENARIOS_DIR).is_dir():
@@ -249,7 +253,8 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
                           "written by `grader grade`.")
     items = selected_items(rubric, public_only)
     findings, problems = analyze_bags(rubric, items, sub_out)
-    result = score(rubric, findings)
+    result, kept = apply_saved_manual_scores(sub_out, score(rubric, findings))   # merged manual scores
+    problems += kept
     old = {}
     if (sub_out / "result.json").exists():
         old = json.loads((sub_out / "result.json").read_text())
