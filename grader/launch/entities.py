@@ -43,6 +43,14 @@ def caller_line() -> str:
     return "?"
 
 
+def missing(module: str, name: str) -> Exception:
+    """What a stand-in module raises for a name it lacks: AttributeError for Python's own probes
+    (``__path__``...), :class:`LaunchUnsupported` for launch API the subset does not have."""
+    if name.startswith("__"):
+        return AttributeError(name)
+    return unsupported(module, name)
+
+
 def unsupported(module: str, name: str) -> LaunchUnsupported:
     return LaunchUnsupported(f"{caller_line()}: {module}.{name} is not supported by the grader's launch "
                              f"loader (supported: {', '.join(SUPPORTED)}); list the nodes with "

@@ -3,8 +3,8 @@
 from grader.launch.entities import (DeclareLaunchArgument, ExecuteProcess,  # noqa: F401
                                     IncludeLaunchDescription, LogInfo, SetEnvironmentVariable,
                                     TimerAction)
-from grader.launch.entities import unsupported as _unsupported
+from grader.launch.entities import missing as _missing
 
 
 def __getattr__(name: str):
-    raise _unsupported("launch.actions", name)
+    raise _missing("launch.actions", name)

@@ -1,8 +1,8 @@
 """``launch.conditions`` subset (see grader.launch.entities)."""
 
 from grader.launch.entities import IfCondition, UnlessCondition  # noqa: F401
-from grader.launch.entities import unsupported as _unsupported
+from grader.launch.entities import missing as _missing
 
 
 def __getattr__(name: str):
-    raise _unsupported("launch.conditions", name)
+    raise _missing("launch.conditions", name)

@@ -2,8 +2,8 @@
 
 from grader.launch.entities import (EnvironmentVariable, LaunchConfiguration,  # noqa: F401
                                     PathJoinSubstitution, TextSubstitution, ThisLaunchFileDir)
-from grader.launch.entities import unsupported as _unsupported
+from grader.launch.entities import missing as _missing
 
 
 def __getattr__(name: str):
-    raise _unsupported("launch.substitutions", name)
+    raise _missing("launch.substitutions", name)

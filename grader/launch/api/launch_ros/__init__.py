@@ -1,9 +1,9 @@
 """The grader's stand-in for ROS 2's ``launch_ros`` package (see grader.launch.entities)."""
 
-from grader.launch.entities import unsupported as _unsupported
+from grader.launch.entities import missing as _missing
 
 from . import actions, substitutions  # noqa: F401
 
 
 def __getattr__(name: str):
-    raise _unsupported("launch_ros", name)
+    raise _missing("launch_ros", name)
