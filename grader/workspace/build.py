@@ -2,8 +2,10 @@
 
 Never builds inside the student's folder. Results are cached by the hash of the staged sources
 (plus the grader's ROS mode), so regrading an unchanged submission skips colcon entirely. One
-broken package does not stop the others (``--continue-on-error``); the result says which package
-failed and shows the relevant lines of its log.
+broken package does not stop the others (``--continue-on-error``). Each package's status is
+colcon's own result for it (``colcon_events``): built, failed, or skipped because a package it
+depends on failed. A failed package carries the one line that explains it (``diagnose``) and
+the path of its full log; a skipped one names the package that failed.
 """
 
 from __future__ import annotations
@@ -12,8 +14,8 @@ import configparser
 import fcntl
 import json
 import os
-import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -22,10 +24,13 @@ from pathlib import Path
 
 from grader.errors import GraderError
 from grader.rosenv import PY_SITE, child_env, ros_mode
-from grader.workspace.source import stage_sources, tree_digest
+from grader.workspace.colcon_events import JobOutcome, read_events
+from grader.workspace.diagnose import DETAIL_LINES, Availability, Diagnosis, diagnose
+from grader.workspace.source import PackageSource, stage_sources, tree_digest
 
 BUILD_TIMEOUT_S = 900
-CACHE_FORMAT = 2
+TIMED_OUT = -1
+CACHE_FORMAT = 3          # 3: status from colcon's events; reason, blocked_by, missing_dependencies, log
 
 
 def default_cache_dir() -> Path:
@@ -36,11 +41,23 @@ def default_cache_dir() -> Path:
 
 @dataclass
 class PackageBuild:
+    """One package's build, as colcon reported it."""
+
     name: str
     build_type: str
     status: str                        # built | failed | skipped
-    log_excerpt: str = ""              # relevant lines of the package's build log when not built
+    reason: str = ""                   # one line: why it is not built ("srv/SetGoal.srv:1: ...")
+    log_excerpt: str = ""              # indented block: reason, the log lines behind it, log path
+    log: str = ""                      # the package's full colcon log (or build.log)
+    blocked_by: list[str] = field(default_factory=list)       # skipped: the failed packages it needs
+    missing_dependencies: list[str] = field(default_factory=list)  # neither installed nor submitted
     executables: dict[str, str] = field(default_factory=dict)   # console script -> module:func
+
+    def problem(self) -> str:
+        """One line for a student: which package, and why it cannot be run."""
+        if self.status == "failed":
+            return f"package '{self.name}' failed to build: {self.reason}"
+        return f"package '{self.name}' was not built: {self.reason}"
 
 
 @dataclass
@@ -64,6 +81,7 @@ class BuildResult:
 
     @property
     def failed(self) -> list[str]:
+        """Packages that are not built: failed ones and the ones skipped because of them."""
         return [n for n, p in self.packages.items() if p.status != "built"]
 
     @property
@@ -84,8 +102,8 @@ class BuildResult:
             raise GraderError(f"package '{package}' is not in the submission "
                               f"(packages found: {', '.join(sorted(self.packages)) or 'none'}).")
         if pkg.status != "built":
-            raise GraderError(f"package '{package}' did not build ({pkg.status}); see its build log:\n"
-                              + pkg.log_excerpt)
+            details = pkg.log_excerpt.splitlines()[1:]      # its first line is the reason
+            raise GraderError("\n".join([pkg.problem(), *details]))
         return pkg
 
     def argv(self, package: str, executable: str | None = None, module: str | None = None,
@@ -135,23 +153,6 @@ def _console_scripts(prefix: Path, package: str) -> dict[str, str]:
     return scripts
 
 
-_ERROR_LINE = re.compile(r"(error|Error|ERROR|Traceback|SyntaxError|Exception|not found|No such file|"
-                         r"undefined reference|CMake Error|failed)")
-
-
-def relevant_lines(log: str, limit: int = 25) -> str:
-    """The lines of a build log that explain a failure, with a little context."""
-    lines = log.splitlines()
-    keep: set[int] = set()
-    for i, line in enumerate(lines):
-        if _ERROR_LINE.search(line):
-            keep.update(range(max(0, i - 2), min(len(lines), i + 4)))
-    picked = [lines[i] for i in sorted(keep)] if keep else lines[-limit:]
-    if len(picked) > limit:
-        picked = picked[:limit // 2] + ["    ..."] + picked[-limit // 2:]
-    return "\n".join("    " + ln.rstrip() for ln in picked)
-
-
 def _colcon_env() -> dict[str, str]:
     env = child_env()
     env.pop("ROS_DOMAIN_ID", None)
@@ -169,72 +170,106 @@ def _run_colcon(root: Path, log_file: Path) -> int:
            "--base-paths", "src", "--build-base", "build", "--install-base", "install",
            "--continue-on-error", "--parallel-workers", str(max(1, os.cpu_count() or 1)),
            "--event-handlers", "console_cohesion+", "console_direct-", "status-",
+           "event_log+", "log+",        # events.log and per-package logs: the status is read from them
            "--cmake-args", *cmake_args]
     with open(log_file, "wb") as log:
         log.write(("$ " + " ".join(cmd) + "\n").encode())
         log.flush()
+        proc = subprocess.Popen(cmd, cwd=root, env=_colcon_env(), stdin=subprocess.DEVNULL, stdout=log,
+                                stderr=subprocess.STDOUT, start_new_session=True)
         try:
-            proc = subprocess.run(cmd, cwd=root, env=_colcon_env(), stdout=log,
-                                  stderr=subprocess.STDOUT, timeout=BUILD_TIMEOUT_S,
-                                  start_new_session=True)
+            return proc.wait(timeout=BUILD_TIMEOUT_S)
         except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)      # colcon and every cmake/compiler/setup.py it ran
+            proc.wait()
             log.write(f"\ncolcon build timed out after {BUILD_TIMEOUT_S}s\n".encode())
-            return -1
-    return proc.returncode
+            return TIMED_OUT
 
 
-def _package_log(root: Path, name: str) -> str:
-    """The package's part of the build output, without colcon's own traceback frames.
+def _package_log(root: Path, name: str) -> Path:
+    log = root / "log" / "latest_build" / name / "stdout_stderr.log"
+    return log if log.is_file() else root / "build.log"
 
-    Errors raised while colcon reads a broken ``setup.py`` reach only the main log, between
-    ``Starting >>> pkg`` and ``Failed <<< pkg``, so that section is read first.
-    """
-    text = ""
+
+def _not_built_by_colcon(root: Path, name: str) -> Diagnosis:
+    """Why colcon never queued ``name``: usually a package.xml it could not read."""
+    log_dir = root / "log" / "latest_build"
+    all_log = log_dir / "logger_all.log"
+    lines = all_log.read_text(errors="replace").splitlines() if all_log.is_file() else []
+    for i, ln in enumerate(lines):
+        if "Failed to parse potential ROS package manifest" in ln and f"src/{name}'" in ln:
+            why = [x.strip() for x in lines[i + 1:i + 1 + DETAIL_LINES] if x.strip()]
+            why = why[:next((k for k, x in enumerate(why) if x.startswith("[")), len(why))]
+            return Diagnosis(f"package.xml: {why[0] if why else 'colcon could not read it'}", why[1:])
     build_log = root / "build.log"
-    if build_log.exists():
-        full = build_log.read_text(errors="replace")
-        start = full.find(f"Starting >>> {name}\n")
-        if start >= 0:
-            end = re.compile(rf"^(Finished|Failed|Aborted)\s+<<< {re.escape(name)}\b", re.M).search(full, start)
-            text = full[start:end.start()] if end else full[start:]
-    if not text:
-        for candidate in (root / "log" / "latest_build" / name / "stdout_stderr.log",):
-            if candidate.exists():
-                text = candidate.read_text(errors="replace")
-    return _strip_colcon_frames(text)
+    text = build_log.read_text(errors="replace") if build_log.exists() else ""
+    if not (log_dir / "events.log").is_file():        # colcon stopped before building anything
+        last = [ln.strip() for ln in text.splitlines() if ln.strip()][-1:] or ["no output"]
+        return Diagnosis(f"colcon did not run: {last[0][:200]}")
+    said = [ln.strip() for ln in text.splitlines() if name in ln and ("WARNING" in ln or "ERROR" in ln)]
+    return Diagnosis("colcon did not build it (see build.log)", said[:DETAIL_LINES])
 
 
-def _strip_colcon_frames(text: str) -> str:
-    out: list[str] = []
-    skip_code_line = False
-    for line in text.splitlines():
-        if skip_code_line:
-            skip_code_line = False
-            if line.startswith("    "):
-                continue
-        if 'File "' in line and ("colcon_" in line or "/subprocess.py" in line or "asyncio" in line):
-            skip_code_line = True
+def _excerpt(first: str, detail: list[str], log: Path | None) -> str:
+    lines = ["    " + first] + ["      " + d for d in detail[:DETAIL_LINES] if d.strip()]
+    if log is not None:
+        lines.append(f"    log: {log}")
+    return "\n".join(lines)
+
+
+def _failure(root: Path, pkg: PackageSource, job: JobOutcome, timed_out: bool,
+             avail: Availability, env: dict[str, str]) -> tuple[Diagnosis, Path]:
+    """Why ``pkg`` failed, and the log that shows it."""
+    log = _package_log(root, pkg.name)
+    if job.rc is not None:
+        text = log.read_text(errors="replace") if log.name != "build.log" else ""
+        if "CalledProcessError" in text and "run_setup" in text:
+            log = root / "build.log"    # colcon printed setup.py's own traceback only there
+        return diagnose(pkg.name, pkg.build_type, root / "src" / pkg.name, text, avail, env), log
+    if timed_out:
+        return Diagnosis(f"colcon build timed out after {BUILD_TIMEOUT_S}s while building it"), log
+    if not job.queued:
+        return _not_built_by_colcon(root, pkg.name), log
+    return Diagnosis("colcon stopped before it finished (see build.log)"), log
+
+
+def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool) -> dict[str, PackageBuild]:
+    """Each package's result from colcon's events: built, failed (with why) or skipped (by what)."""
+    env = _colcon_env()
+    avail = Availability([p.name for p in staged], env)
+    jobs = read_events(root / "log" / "latest_build" / "events.log", [p.name for p in staged])
+    out: dict[str, PackageBuild] = {}
+    for pkg in staged:                 # built and failed first: skipped ones name the failed ones
+        job = jobs[pkg.name]
+        missing = avail.missing_from_manifest(root / "src" / pkg.name / "package.xml")
+        if job.succeeded:
+            prefix = root / "install" / pkg.name
+            out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "built", missing_dependencies=missing,
+                                         executables=_console_scripts(prefix, pkg.name))
+        elif not job.skipped and (job.rc is not None or job.started or not job.queued):
+            d, log = _failure(root, pkg, job, timed_out, avail, env)
+            out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "failed", d.reason,
+                                         _excerpt(d.reason, d.detail, log), str(log),
+                                         missing_dependencies=sorted(set(missing) | set(d.missing)))
+    for pkg in staged:
+        if pkg.name in out:
             continue
-        if line.strip().startswith("^") or len(line) > 400 or line.startswith("Starting >>>"):
-            continue
-        out.append(line)
-    # a "Traceback" header left with no frames after stripping says nothing
-    kept = [ln for i, ln in enumerate(out)
-            if not (ln.startswith("Traceback") and (i + 1 == len(out) or not out[i + 1].startswith("  ")))]
-    return "\n".join(kept)
-
-
-def _python_syntax_error(package_dir: Path) -> str:
-    """A precise 'file:line: SyntaxError' for a package whose Python does not even compile."""
-    for f in sorted(package_dir.rglob("*.py")):
-        try:
-            compile(f.read_bytes(), str(f), "exec")
-        except SyntaxError as exc:
-            rel = f.relative_to(package_dir.parent.parent)
-            return f"    {rel}:{exc.lineno}: SyntaxError: {exc.msg}\n      {(exc.text or '').strip()}\n"
-        except ValueError:
-            continue
-    return ""
+        job = jobs[pkg.name]
+        blocked = [d for d in job.dependencies if d in out and out[d].status == "failed"]
+        if blocked:
+            first = out[blocked[0]].reason
+            why = first if len(blocked) == 1 else f"'{blocked[0]}': {first}"
+            reason = f"it depends on {', '.join(repr(b) for b in blocked)}, which failed ({why})"
+        elif timed_out:
+            reason = f"colcon build timed out after {BUILD_TIMEOUT_S}s before it started"
+        else:
+            reason = "a package it depends on was not built"
+        out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "skipped", reason,
+                                     _excerpt("not built: " + reason, [], None),
+                                     blocked_by=blocked,
+                                     missing_dependencies=avail.missing_from_manifest(
+                                         root / "src" / pkg.name / "package.xml"))
+    return {p.name: out[p.name] for p in staged}
 
 
 def build_workspace(submission: Path, *, cache_dir: Path | None = None,
@@ -260,20 +295,8 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
             root.mkdir(parents=True)
             shutil.move(str(staging / "src"), root / "src")
             t0 = time.monotonic()
-            _run_colcon(root, root / "build.log")
-            packages: dict[str, PackageBuild] = {}
-            for pkg in staged:
-                prefix = root / "install" / pkg.name
-                built = (prefix / "share" / "colcon-core" / "packages" / pkg.name).exists()
-                log = _package_log(root, pkg.name)
-                status = "built" if built else ("failed" if log else "skipped")
-                excerpt = "" if built else (relevant_lines(log) if log else
-                                            "    not built because a package it depends on failed")
-                if not built and pkg.build_type == "ament_python":
-                    excerpt = _python_syntax_error(root / "src" / pkg.name) + excerpt
-                packages[pkg.name] = PackageBuild(
-                    pkg.name, pkg.build_type, status, excerpt,
-                    _console_scripts(prefix, pkg.name) if built else {})
+            rc = _run_colcon(root, root / "build.log")
+            packages = _package_results(root, staged, timed_out=rc == TIMED_OUT)
             result = BuildResult(str(submission), digest, root, packages,
                                  duration_s=round(time.monotonic() - t0, 2))
             result_file.write_text(json.dumps(_to_json(result), indent=1))

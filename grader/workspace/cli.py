@@ -38,6 +38,13 @@ def run(args: argparse.Namespace) -> int:
             print(f"             {exe} -> {entry}")
         if pkg.status != "built":
             print(pkg.log_excerpt)
+        elif pkg.missing_dependencies:
+            print(f"    note: package.xml names {', '.join(pkg.missing_dependencies)}, which the "
+                  "grading machine lacks")
     if not result.ok:
-        print(f"build failed for: {', '.join(result.failed)} (full log: {result.build_log})")
+        failed = [n for n, p in sorted(result.packages.items()) if p.status == "failed"]
+        skipped = [n for n, p in sorted(result.packages.items()) if p.status == "skipped"]
+        print(f"build failed for: {', '.join(failed) or 'none'}"
+              + (f"; skipped: {', '.join(skipped)}" if skipped else "")
+              + f" (full log: {result.build_log})")
     return 0 if result.ok else 1

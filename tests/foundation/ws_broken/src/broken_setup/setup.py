@@ -1,0 +1,11 @@
+from setuptools import setup
+
+package_name = "broken_setup"
+setup(
+    name=package_name,
+    version="0.0.1"
+    packages=[package_name],
+    data_files=[("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+                ("share/" + package_name, ["package.xml"])],
+    entry_points={"console_scripts": ["hello = broken_setup.hello:main"]},
+)
