@@ -43,6 +43,8 @@ _MODULES = (
     "goal_publisher",
     "action_server",
     "integrity",
+    "graph",
+    "services",
 )
 
 Frames = Mapping[str, pd.DataFrame]

@@ -380,3 +380,31 @@ def sentence(s: str) -> str:
         return s
     s = s[0].upper() + s[1:]
     return s if s.endswith((".", "!", "?")) else s + "."
+
+
+# --------------------------------------------------------------------------- service calls
+def _request(df, i: int) -> dict:
+    out = {}
+    for c in df.columns:
+        if str(c).startswith("request[0]."):
+            v = df[c].iloc[i]
+            if v is not None and not (isinstance(v, float) and math.isnan(v)):
+                out[str(c).split(".", 1)[1]] = v
+    return out
+
+
+def service_calls(df: pd.DataFrame) -> list[dict]:
+    """Calls recorded on a ``<service>/_service_event`` topic (service introspection), one entry
+    ``{t, request}`` per request: the several events of one call (request received, response
+    sent, ...) share the client gid and sequence number."""
+    t = times(df)
+    seq = df["info.sequence_number"].to_numpy() if "info.sequence_number" in df.columns else np.arange(len(df))
+    gid_cols = [c for c in df.columns if str(c).startswith("info.client_gid")]
+    calls: dict = {}
+    for i in range(len(df)):
+        key = (tuple(df[c].iloc[i] for c in gid_cols), seq[i])
+        if key not in calls:
+            calls[key] = {"t": float(t[i]), "request": _request(df, i)}
+        elif not calls[key]["request"]:
+            calls[key]["request"] = _request(df, i)
+    return sorted(calls.values(), key=lambda c: c["t"])

@@ -28,6 +28,7 @@ from grader.analyze._common import (Frames, Goal, events, fmt, goals, heading_er
 from grader.scenario.events import Event
 
 _GOAL_DEFAULTS = {
+    "steps": None,                  # step ids whose goals count (None: every goal)
     "pose_topic": "/turtle1/pose",
     "goal_source": "auto",          # "auto" (events, else topic) | "events" | "topic"
     "goal_topic": "/turtle1/goal",
@@ -43,6 +44,8 @@ def _pose(frames: Frames, p: dict) -> pd.DataFrame | None:
 
 def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[Goal]:
     gl = goals(frames, p["goal_source"], p["goal_topic"])
+    if p["steps"]:
+        gl = [g for g in gl if g.extra.get("step") in set(p["steps"])]
     t_last = float(pose.index.max())
     ends = {e.get("step"): e["t"] for e in events(frames, Event.STEP_END) if e.get("step") is not None}
     scen_end = [e["t"] for e in events(frames, Event.SCENARIO_END)]
@@ -138,8 +141,8 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"All {len(gl)} goals reached and held (time to reach: {times_txt}).", ev)
     hint = ""
     if n_reached == 0:
-        hint = (" Check the signs of d_e and theta_e (eq. 2-3), that K1, K2 > 0, and that cmd_vel is "
-                "published on /turtle1/cmd_vel from the timer callback.")
+        hint = (" Check the signs of the distance and heading errors and of the gains, and that the "
+                "velocity commands reach the turtle's cmd_vel topic.")
     return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
 
 
@@ -225,15 +228,16 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     r = bad[0]
     if r["initial_turn"] == "none":
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle did not turn at all (needed "
-               f"{r['required_turn_deg']:+.0f}°): compute angular.z = K2·theta_e.")
+               f"{r['required_turn_deg']:+.0f}°): the angular command should be proportional to "
+               "the heading error.")
     else:
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle needed to turn {r['required_turn_deg']:+.0f}° "
                f"but started turning {r['initial_turn']}, the long way.")
         if r["wrap_matters"]:
-            msg += (" theta_e must be wrapped to [-π, π]: use eq. (3) with atan2 of the rotated error, "
-                    "not atan2(dy, dx) - theta.")
+            msg += (" The heading error must be wrapped to (-π, π]: atan2(dy, dx) - theta is not "
+                    "(atan2(sin e, cos e) wraps it).")
         else:
-            msg += " Check the sign of theta_e (eq. 3) and that K2 > 0."
+            msg += " Check the sign of the heading error and of the angular gain."
     return Finding(value, frac, graded(frac), msg, ev)
 
 

@@ -16,7 +16,8 @@ import math
 import numpy as np
 
 from grader.analyze import Finding, register
-from grader.analyze._common import (Frames, end_time, events, meta, publishers_of, rosout_lines, times, topic)
+from grader.analyze._common import (Frames, end_time, events, meta, publishers_of, rosout_lines,
+                                    service_calls, times, topic)
 from grader.analyze.rate import rate_stats
 from grader.scenario.events import Event
 
@@ -88,32 +89,6 @@ def _service_rows(frames: Frames, names: tuple[str, ...]) -> list[float]:
     return out
 
 
-def _request(df, i: int) -> dict:
-    out = {}
-    for c in df.columns:
-        if str(c).startswith("request[0]."):
-            v = df[c].iloc[i]
-            if v is not None and not (isinstance(v, float) and math.isnan(v)):
-                out[str(c).split(".", 1)[1]] = v
-    return out
-
-
-def _calls(df) -> list[dict]:
-    """One entry per request: the several introspection events of one call (request received,
-    response sent, ...) share the client gid and sequence number."""
-    t = times(df)
-    seq = df["info.sequence_number"].to_numpy() if "info.sequence_number" in df.columns else np.arange(len(df))
-    gid_cols = [c for c in df.columns if str(c).startswith("info.client_gid")]
-    calls: dict = {}
-    for i in range(len(df)):
-        key = (tuple(df[c].iloc[i] for c in gid_cols), seq[i])
-        if key not in calls:
-            calls[key] = {"t": float(t[i]), "request": _request(df, i)}
-        elif not calls[key]["request"]:
-            calls[key]["request"] = _request(df, i)
-    return sorted(calls.values(), key=lambda c: c["t"])
-
-
 @register("integrity_no_teleport", defaults={
     "flag_services": ["/turtle1/teleport_absolute", "/turtle1/teleport_relative", "/reset"],
     "list_services": ["/turtle1/set_pen"],
@@ -130,7 +105,7 @@ def integrity_no_teleport(frames: Frames, p: dict) -> Finding:
         df = topic(frames, f"{svc}/_service_event")
         if df is None:
             continue
-        for c in _calls(df):
+        for c in service_calls(df):
             c = {"service": svc, **c}
             k = next((i for i, e in enumerate(driver) if not used[i]
                       and str(e.get("service", "")).rstrip("/").endswith(svc.rsplit("/", 1)[-1])
@@ -143,7 +118,7 @@ def integrity_no_teleport(frames: Frames, p: dict) -> Finding:
     for svc in p["list_services"]:
         df = topic(frames, f"{svc}/_service_event")
         if df is not None:
-            listed += [{"service": svc, **c} for c in _calls(df)]
+            listed += [{"service": svc, **c} for c in service_calls(df)]
     m = meta(frames)
     ev = {"flagged_calls": flagged[:20], "driver_calls": explained[:20], "set_pen_calls": listed[:20],
           "service_event_topics_recorded": bool(m is not None and any("_service_event" in str(t) for t in m["topic"]))}

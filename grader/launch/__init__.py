@@ -37,6 +37,7 @@ class LaunchResolution:
     processes: list[LaunchedProcess]
     sim_node: str | None = None          # the node name the launch file gives turtlesim
     notes: list[str] = field(default_factory=list)
+    installed: bool = False              # found where `ros2 launch <package> <file>` looks
 
 
 def find_launch_file(build: Any, package: str, name: str) -> tuple[Path | None, str]:
@@ -52,6 +53,10 @@ def find_launch_file(build: Any, package: str, name: str) -> tuple[Path | None, 
             found = sorted(manifest.parent.rglob(name))
             if found:
                 rel = found[0].relative_to(build.root)
+                pkg = build.packages.get(package)
+                if pkg is not None and pkg.status != "built":
+                    return found[0], (f"package '{package}' was not built, so {name} is not installed; "
+                                      f"the grader read {rel}.")
                 return found[0], (f"{name} is not installed by {package}'s setup.py (add it to data_files, "
                                   f"e.g. share/{package}/launch); `ros2 launch` would not find it. "
                                   f"The grader used {rel}.")
@@ -111,12 +116,16 @@ def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> Launc
             f"launch file {proc.launch} not found in package '{proc.package}' "
             f"(installed share/{proc.package} or its sources)"))])
     notes = [note] if note else []
+    installed = not note
     try:
         entities = describe_launch(path, dict(proc.launch_arguments), build.env())
     except GraderError as exc:
-        return LaunchResolution([LaunchedProcess(name=proc.name, process=proc.name, error=str(exc))], notes=notes)
+        return LaunchResolution([LaunchedProcess(name=proc.name, process=proc.name, error=str(exc))],
+                                notes=notes, installed=installed)
     if system_ros_launch_available():
-        return _real_ros2_launch(proc, build, path, entities, sim_in_scenario, notes)
+        resolution = _real_ros2_launch(proc, build, path, entities, sim_in_scenario, notes)
+        resolution.installed = installed
+        return resolution
     out: list[LaunchedProcess] = []
     sim_node = None
     used: set[str] = set()
@@ -125,14 +134,17 @@ def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> Launc
         name = _unique(f"{proc.name}.{Path(str(label)).name}", used)
         if entity["kind"] == "node" and (entity.get("package"), entity["executable"]) == (SIM_PACKAGE, SIM_EXECUTABLE):
             sim_node = entity.get("name") or "turtlesim"
+            declared = dict(name=name, process=proc.name, node_name=sim_node, package=SIM_PACKAGE,
+                            executable=SIM_EXECUTABLE)
             if sim_in_scenario:
                 notes.append(f"{entity['at']}: turtlesim_node '{sim_node}' is the grader's reference "
                              "simulator (already running in this scenario)")
+                out.append(LaunchedProcess(**declared, stand_in=True))
                 continue
             from grader.sim import sim_argv
             argv = sim_argv(ros_args=node_ros_args(entity)[1:])
-            out.append(LaunchedProcess(name=name, process=proc.name, argv=tuple(argv), node_name=sim_node,
-                                       start_delay=entity["delay"], env=entity.get("env", {})))
+            out.append(LaunchedProcess(**declared, argv=tuple(argv), start_delay=entity["delay"],
+                                       env=entity.get("env", {})))
             continue
         if entity["kind"] == "process":
             out.append(LaunchedProcess(name=name, process=proc.name, argv=tuple(entity["cmd"]),
@@ -144,15 +156,17 @@ def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> Launc
             argv = build.argv(entity["package"], entity["executable"], None) + \
                 list(entity.get("arguments", [])) + node_ros_args(entity)
             out.append(LaunchedProcess(name=name, process=proc.name, argv=tuple(argv),
-                                       node_name=entity.get("name"), start_delay=entity["delay"],
+                                       node_name=entity.get("name"), package=entity.get("package"),
+                                       executable=entity["executable"], start_delay=entity["delay"],
                                        env=entity.get("env", {})))
         except GraderError as exc:
             out.append(LaunchedProcess(name=name, process=proc.name, node_name=entity.get("name"),
+                                       package=entity.get("package"), executable=entity["executable"],
                                        error=f"{entity['at']}: {exc}"))
-    if not out:
+    if not any(not lp.stand_in for lp in out):
         out.append(LaunchedProcess(name=proc.name, process=proc.name,
                                    error=f"{path.name} starts no node besides turtlesim"))
-    return LaunchResolution(out, sim_node, notes)
+    return LaunchResolution(out, sim_node, notes, installed)
 
 
 def _unique(name: str, used: set[str]) -> str:

@@ -54,7 +54,8 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
 
     launched: dict[str, tuple[LaunchedProcess, ...]] = {}
     sim_node = "turtlesim"
-    notes: list[str] = []
+    notes: dict[str, tuple[str, ...]] = {}
+    installed: dict[str, bool] = {}
     for proc in scenario.processes:
         if build is None:
             launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error="no build available"),)
@@ -63,7 +64,8 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
             result = resolve_launch(proc, build, sim_in_scenario=scenario.sim)
             launched[proc.name] = tuple(result.processes)
             sim_node = result.sim_node or sim_node
-            notes += result.notes
+            notes[proc.name] = tuple(result.notes)
+            installed[proc.name] = result.installed
             continue
         try:
             argv = build.argv(proc.package, proc.executable, proc.module) + proc.ros_args()
@@ -72,7 +74,7 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
             launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error=str(exc)),)
     prefixes = tuple(str(p) for p in build.prefixes()) if build is not None else ()
     return ScenarioRun(id=scenario_id, scenario=scenario, launched=launched, prefixes=prefixes,
-                       sim_node=sim_node, notes=tuple(notes))
+                       sim_node=sim_node, notes=notes, launch_installed=installed)
 
 
 def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = None) -> dict[str, Any]:

@@ -44,6 +44,6 @@ class Event(StrEnum):
     PROCESS_EXIT = "process_exit"            # process, returncode, stopped_by_grader, timed_out
     STDIN_READY = "stdin_ready"              # process, nodes
     STDIN_LINE = "stdin_line"                # process, line, delivered
-    LAUNCH_RESOLVED = "launch_resolved"      # process, notes (what the launch file declared)
+    LAUNCH_RESOLVED = "launch_resolved"      # process, launch, installed, nodes (declared), notes
     # the ROS graph
     GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services

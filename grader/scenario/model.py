@@ -556,6 +556,9 @@ class LaunchedProcess(Model):
     env: dict[str, str] = {}
     start_delay: NonNegativeFloat = 0.0   # after its rubric process started (launch TimerAction)
     node_name: str | None = None       # the node name a launch file gave it
+    package: str | None = None         # what a launch file declared (for "starts these nodes")
+    executable: str | None = None
+    stand_in: bool = False             # played by the grader's reference simulator: not started
     error: str = ""                    # why it cannot run (build failed, no such executable...)
 
 
@@ -568,4 +571,5 @@ class ScenarioRun(Model):
     launched: dict[str, Annotated[tuple[LaunchedProcess, ...], Field(strict=False)]]  # rubric process -> OS processes
     prefixes: Annotated[tuple[str, ...], Field(strict=False)] = ()
     sim_node: str = "turtlesim"
-    notes: Annotated[tuple[str, ...], Field(strict=False)] = ()        # resolution remarks worth an event (e.g. launch details)
+    notes: dict[str, Annotated[tuple[str, ...], Field(strict=False)]] = {}  # process -> remarks (launch)
+    launch_installed: dict[str, bool] = {}   # process -> its launch file is in the package's share

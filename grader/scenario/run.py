@@ -77,6 +77,7 @@ class Launcher:
             time.sleep(proc.start_delay)
         launched = self.run.launched.get(name, ())
         started: list[str] = []
+        launched = [lp for lp in launched if not lp.stand_in]   # the reference sim plays those
         delayed = [lp for lp in launched if lp.start_delay > 0]
         for lp in launched:
             if lp.start_delay <= 0 and self._start_one(proc, lp):
@@ -153,8 +154,14 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
             driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=graph.domain_id,
                          sim_node=run.sim_node)
-            for name, notes in _launch_notes(run).items():
-                driver.event(Event.LAUNCH_RESOLVED, process=name, notes=notes)
+            for proc in spec.processes:
+                if proc.launch:
+                    driver.event(Event.LAUNCH_RESOLVED, process=proc.name, launch=proc.launch,
+                                 installed=run.launch_installed.get(proc.name, False),
+                                 notes=list(run.notes.get(proc.name, ())),
+                                 nodes=[lp.model_dump(include={"name", "node_name", "package", "executable",
+                                                               "stand_in", "error", "start_delay"})
+                                        for lp in run.launched.get(proc.name, ())])
             for proc in spec.processes:
                 if proc.autostart:
                     launcher.start(proc.name)
@@ -200,18 +207,6 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
-
-
-def _launch_notes(run: ScenarioRun) -> dict[str, list[str]]:
-    notes: dict[str, list[str]] = {}
-    for proc in run.scenario.processes:
-        if proc.launch:
-            notes[proc.name] = [f"{lp.name}: node {lp.node_name or '?'} "
-                                + (" ".join(lp.argv[3:]) if lp.argv else f"not runnable: {lp.error}")
-                                for lp in run.launched.get(proc.name, ())]
-    if run.notes:
-        notes.setdefault("", []).extend(run.notes)
-    return notes
 
 
 def _interrupt_once(*_args) -> None:

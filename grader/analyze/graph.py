@@ -1,0 +1,80 @@
+"""The ROS graph a submission builds: which nodes run, and what its launch file declares.
+
+The driver snapshots the graph (node names, publishers, subscribers, services) at the end of
+every step (``graph`` events) and records what a launch file declared (``launch_resolved``), so
+"the launch file starts these three nodes with these names" is checked from the bag alone.
+"""
+
+from __future__ import annotations
+
+from grader.analyze import Finding, graded, register
+from grader.analyze._common import Frames, events
+from grader.scenario.events import Event
+
+
+def _full(name: str) -> str:
+    return "/" + str(name).strip("/")
+
+
+@register("nodes_running", defaults={
+    "nodes": [],               # required: node names, e.g. [/turtlesim, /goal_setter]
+    "launch_process": None,    # rubric process of a launch file: nodes must also be declared there
+})
+def nodes_running(frames: Frames, p: dict) -> Finding:
+    """Each expected node ran (seen in a graph snapshot) and, with ``launch_process``, was
+    declared by that launch file under that name."""
+    expected = [_full(n) for n in p["nodes"]]
+    if not expected:
+        return Finding.error("The rubric lists no nodes to look for (params: nodes).")
+    snapshots = events(frames, Event.GRAPH)
+    if not snapshots:
+        return Finding.error("The scenario recorded no graph snapshots (scenario problem).")
+    seen = sorted({_full(n) for e in snapshots for n in (e.get("nodes") or [])})
+    declared: list[str] | None = None
+    launch = None
+    if p["launch_process"]:
+        resolved = [e for e in events(frames, Event.LAUNCH_RESOLVED) if e.get("process") == p["launch_process"]]
+        if not resolved:
+            return Finding.error(f"No launch file was resolved for process {p['launch_process']!r} "
+                                 "(scenario problem).")
+        launch = resolved[-1].get("launch")
+        nodes = resolved[-1].get("nodes") or []
+        declared = [_full(n["node_name"]) for n in nodes if n.get("node_name")]
+        failed = [n.get("error") for n in nodes if n.get("error") and not n.get("node_name")]
+        if failed:
+            return Finding(f"0/{len(expected)} nodes", 0.0, "fail",
+                           f"The launch file could not be used: {failed[0]}", {"launch": launch, "nodes": nodes})
+    rows, problems = [], []
+    for name in expected:
+        running = name in seen
+        in_launch = declared is None or name in declared
+        rows.append({"node": name, "running": running, "declared": in_launch})
+        if not in_launch:
+            problems.append(f"{name} is not declared by {launch} (it declares "
+                            f"{', '.join(declared) or 'no named node'}; set name='{name.strip('/')}')")
+        elif not running:
+            problems.append(f"{name} never appeared in the ROS graph (did it crash on start-up?)")
+    ok = sum(1 for r in rows if r["running"] and r["declared"])
+    frac = ok / len(rows)
+    ev = {"nodes": rows, "seen": seen, "declared": declared, "launch": launch}
+    value = f"{ok}/{len(rows)} nodes"
+    if not problems:
+        return Finding(value, 1.0, "pass", f"All {len(rows)} nodes ran: {', '.join(expected)}.", ev)
+    return Finding(value, frac, graded(frac), "; ".join(problems) + ".", ev)
+
+
+@register("launch_installed", defaults={
+    "launch_process": None,    # required: the rubric process that runs the launch file
+})
+def launch_installed(frames: Frames, p: dict) -> Finding:
+    """The launch file is installed into the package's share folder, where ``ros2 launch
+    <package> <file>`` looks (setup.py ``data_files``)."""
+    resolved = [e for e in events(frames, Event.LAUNCH_RESOLVED) if e.get("process") == p["launch_process"]]
+    if not resolved:
+        return Finding.error(f"No launch file was resolved for process {p['launch_process']!r}.")
+    e = resolved[-1]
+    ev = {"launch": e.get("launch"), "installed": bool(e.get("installed")), "notes": e.get("notes") or []}
+    if e.get("installed"):
+        return Finding("installed", 1.0, "pass", f"{e.get('launch')} is installed with the package.", ev)
+    return Finding.fail(" ".join(ev["notes"]) or f"{e.get('launch')} is not installed with the package.", ev,
+                        value="not installed")

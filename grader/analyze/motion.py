@@ -1,0 +1,199 @@
+"""How the turtle moved: circles (radius, period, centre), staying clear of the walls, keeping
+moving. Judged on the simulator's own poses (``/turtle1/pose`` at 62.5 Hz).
+
+* ``circle_radius`` / ``circle_period``: a constant Twist (v, w) drives turtlesim's unicycle on
+  a circle of radius v / w, once round every 2 pi / w seconds. The radius and centre come from an
+  algebraic least-squares circle fit (Kasa) to the positions, the period from the slope of the
+  unwrapped heading (a line fit of theta over time), both over the poses after the turtle started
+  moving (``skip_s`` more, to leave out the first command's latency).
+* ``keeps_moving``: the commands arrive before turtlesim's 1 s command timeout stops the turtle,
+  and the turtle is moving (judged from its positions, not its commanded velocity) for (almost)
+  the whole run.
+* ``no_wall_contact``: turtlesim clamps the turtle at the walls and logs "Oh no! I hit the
+  wall!"; neither may happen. The closest approach to a wall is reported.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from grader.analyze import Finding, graded, register
+from grader.analyze._common import (WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
+                                    times, topic)
+from grader.analyze.rate import rate_stats
+
+_POSE = {"pose_topic": "/turtle1/pose", "min_speed": 0.05}
+
+
+def _moving_pose(frames: Frames, p: dict) -> tuple[pd.DataFrame | None, Finding | None]:
+    """The poses from the moment the turtle first moved (plus ``skip_s``)."""
+    df = topic(frames, p["pose_topic"])
+    if df is None or not {"x", "y", "theta", "linear_velocity"} <= set(df.columns):
+        return None, Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
+    moving = np.nonzero(np.abs(df["linear_velocity"].to_numpy(float)) > p["min_speed"])[0]
+    if len(moving) == 0:
+        return None, Finding.fail("The turtle never moved: no velocity command reached it (publish "
+                                  "geometry_msgs/msg/Twist on /turtle1/cmd_vel).", {"poses": len(df)})
+    t = times(df)
+    df = df[t >= t[moving[0]] + p["skip_s"]]
+    if len(df) < 20:
+        return None, Finding.fail("The turtle moved too briefly to measure its path.", {"poses": len(df)})
+    return df, None
+
+
+def fit_circle(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float]:
+    """Kasa fit: centre (cx, cy), radius, and the RMS distance of the points from the circle."""
+    a = np.column_stack([x, y, np.ones_like(x)])
+    b = x * x + y * y
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    cx, cy = sol[0] / 2, sol[1] / 2
+    r = math.sqrt(max(sol[2] + cx * cx + cy * cy, 0.0))
+    rms = float(np.sqrt(np.mean((np.hypot(x - cx, y - cy) - r) ** 2)))
+    return float(cx), float(cy), r, rms
+
+
+def _within(value: float, expected: float, rel_tol: float) -> bool:
+    return math.isfinite(value) and abs(value / expected - 1.0) <= rel_tol
+
+
+@register("circle_radius", defaults={
+    **_POSE,
+    "expected_m": None,      # required: v / w of the commanded Twist, e.g. 2.0
+    "rel_tol": 0.05,         # |radius / expected - 1| <= rel_tol passes
+    "skip_s": 0.5,           # s after the turtle started moving left out
+})
+def circle_radius(frames: Frames, p: dict) -> Finding:
+    df, problem = _moving_pose(frames, p)
+    if problem:
+        return problem
+    x, y = df["x"].to_numpy(float), df["y"].to_numpy(float)
+    cx, cy, r, rms = fit_circle(x, y)
+    ev = {"radius_m": r, "centre": [cx, cy], "rms_m": rms, "expected_m": p["expected_m"],
+          "rel_error": r / p["expected_m"] - 1.0, "poses": len(df),
+          "path": {"x": np.round(x[:: max(1, len(x) // 400)], 3).tolist(),
+                   "y": np.round(y[:: max(1, len(y) // 400)], 3).tolist()}}
+    value = f"r = {r:.3f} m"
+    if rms > 0.1 * max(r, 0.1):
+        return Finding(value, 0.0, "fail", f"The path is not a circle (points deviate {rms:.2f} m on average "
+                       f"from the best circle, r = {r:.2f} m): the velocity command must stay constant.", ev)
+    if _within(r, p["expected_m"], p["rel_tol"]):
+        return Finding(value, 1.0, "pass", f"Circle of radius {r:.3f} m around ({cx:.2f}, {cy:.2f}) "
+                       f"(expected {p['expected_m']:g} m ± {p['rel_tol']:.0%}).", ev)
+    return Finding(value, 0.0, "fail", f"The circle's radius is {r:.2f} m, expected {p['expected_m']:g} m "
+                   f"± {p['rel_tol']:.0%} (radius = linear.x / angular.z).", ev)
+
+
+@register("circle_period", defaults={
+    **_POSE,
+    "expected_s": None,      # required: 2 pi / w of the commanded Twist, e.g. 6.2832
+    "rel_tol": 0.05,
+    "skip_s": 0.5,
+})
+def circle_period(frames: Frames, p: dict) -> Finding:
+    df, problem = _moving_pose(frames, p)
+    if problem:
+        return problem
+    t = times(df)
+    theta = np.unwrap(df["theta"].to_numpy(float))
+    slope, _ = np.polyfit(t - t[0], theta, 1)
+    period = 2 * math.pi / abs(slope) if abs(slope) > 1e-6 else float("inf")
+    turns = abs(theta[-1] - theta[0]) / (2 * math.pi)
+    ev = {"period_s": period, "angular_velocity_rad_s": float(slope), "turns": turns,
+          "expected_s": p["expected_s"], "rel_error": period / p["expected_s"] - 1.0 if math.isfinite(period) else None,
+          "direction": "counter-clockwise" if slope > 0 else "clockwise"}
+    value = f"T = {fmt(period, 3)} s"
+    if turns < 1.0:
+        return Finding(value, 0.0, "fail", f"The turtle went only {turns:.2f} times round; a period needs at "
+                       "least one full circle.", ev)
+    if _within(period, p["expected_s"], p["rel_tol"]):
+        return Finding(value, 1.0, "pass", f"One circle every {period:.3f} s (expected {p['expected_s']:g} s "
+                       f"± {p['rel_tol']:.0%}), {turns:.1f} circles recorded.", ev)
+    return Finding(value, 0.0, "fail", f"One circle takes {period:.2f} s, expected {p['expected_s']:g} s ± "
+                   f"{p['rel_tol']:.0%} (period = 2π / angular.z; pauses between commands lengthen it).", ev)
+
+
+@register("keeps_moving", defaults={
+    **_POSE,
+    "cmd_topic": "/turtle1/cmd_vel",
+    "max_gap_s": 1.0,          # turtlesim stops the turtle 1 s after the last command
+    "min_moving_share": 0.95,  # share of the time after the first move with speed > min_speed
+})
+def keeps_moving(frames: Frames, p: dict) -> Finding:
+    """Commands arrive before the simulator's command timeout and the turtle never stalls."""
+    pose = topic(frames, p["pose_topic"])
+    cmd = topic(frames, p["cmd_topic"])
+    if pose is None or "linear_velocity" not in pose.columns:
+        return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
+    if cmd is None:
+        return Finding.fail(missing_topic_feedback(frames, p["cmd_topic"], "velocity commands"))
+    ct = times(cmd)
+    gaps = np.diff(ct)
+    stats = rate_stats(ct, gap_factor=None)
+    pt = times(pose)
+    # speed from the positions (a turtle pushing against a wall has a velocity but goes nowhere)
+    x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
+    dt = np.maximum(np.diff(pt), 1e-3)
+    speed = np.concatenate([[0.0], np.hypot(np.diff(x), np.diff(y)) / dt])
+    after = pt >= ct[0] + 0.1
+    share = float(np.mean(speed[after] > p["min_speed"])) if after.any() else 0.0
+    stalls = _stalls(pt[after], speed[after] > p["min_speed"])
+    ev = {"commands": len(ct), "rate_hz": stats["rate_hz"], "max_gap_s": float(gaps.max()) if len(gaps) else None,
+          "moving_share": share, "stalls": stalls[:10], "limit_gap_s": p["max_gap_s"]}
+    value = f"{share:.0%} of the time moving"
+    problems = []
+    if len(gaps) and gaps.max() >= p["max_gap_s"]:
+        problems.append(f"commands were {gaps.max():.2f} s apart at the longest, so the simulator's "
+                        f"{p['max_gap_s']:g} s command timeout stopped the turtle")
+    if share < p["min_moving_share"]:
+        problems.append(f"the turtle moved only {share:.0%} of the time (needs {p['min_moving_share']:.0%})")
+    if not problems:
+        return Finding(value, 1.0, "pass", f"Commands every {fmt(1 / stats['rate_hz'] if stats['rate_hz'] else float('nan'))} s "
+                       f"on average (at most {gaps.max() if len(gaps) else 0:.2f} s apart): the turtle never stopped.", ev)
+    return Finding(value, 0.0, "fail", "; ".join(problems).capitalize() + ": publish faster than once a second "
+                   "(a timer period below 1 s).", ev)
+
+
+def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
+    """Intervals where the turtle stood still, as {start, duration_s}."""
+    out, start = [], None
+    for ti, m in zip(t, moving):
+        if not m and start is None:
+            start = ti
+        elif m and start is not None:
+            out.append({"start": float(start), "duration_s": float(ti - start)})
+            start = None
+    if start is not None and len(t):
+        out.append({"start": float(start), "duration_s": float(t[-1] - start)})
+    return out
+
+
+@register("no_wall_contact", defaults={
+    "pose_topic": "/turtle1/pose",
+    "sim_logger": "turtlesim",        # the simulator's logger (its "hit the wall" warning)
+    "world_max": WORLD_MAX,           # m: the world is [0, world_max] in x and y
+    "min_clearance": 0.0,             # m: closer than this to a wall also counts as contact
+})
+def no_wall_contact(frames: Frames, p: dict) -> Finding:
+    pose = topic(frames, p["pose_topic"])
+    if pose is None or not {"x", "y"} <= set(pose.columns):
+        return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
+    x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
+    clearance = np.minimum.reduce([x, y, p["world_max"] - x, p["world_max"] - y])
+    i = int(np.argmin(clearance))
+    logs = rosout_lines(frames)
+    hits = logs[(logs["logger"] == p["sim_logger"]) & logs["text"].str.contains("hit the wall", case=False)]
+    t0 = float(times(pose)[0])
+    touched = np.nonzero(clearance <= max(p["min_clearance"], 1e-3))[0]
+    ev = {"min_clearance_m": float(clearance[i]), "closest_at": [float(x[i]), float(y[i])],
+          "closest_t": float(times(pose)[i] - t0), "wall_warnings": int(len(hits)),
+          "contacts": int(len(touched))}
+    value = f"closest {clearance[i]:.2f} m"
+    if len(hits) or len(touched):
+        where = f"({x[touched[0]]:.2f}, {y[touched[0]]:.2f})" if len(touched) else f"({x[i]:.2f}, {y[i]:.2f})"
+        return Finding(value, 0.0, "fail", f"The turtle hit the wall at {where} "
+                       f"({len(hits)} 'hit the wall' warning(s) from the simulator): turn away earlier.", ev)
+    return Finding(value, 1.0, "pass", f"No wall contact; the closest approach was {clearance[i]:.2f} m at "
+                   f"({x[i]:.2f}, {y[i]:.2f}).", ev)

@@ -1,0 +1,135 @@
+"""The pen: ``set_pen`` calls where the turtle crosses a line, and the colours on the canvas.
+
+* ``pen_on_crossings``: the simulator runs its services with introspection, so every
+  ``/turtle1/set_pen`` request is in the bag (``_service_event``). Crossings of ``x = split_x``
+  are read off the simulator's poses; each crossing must be followed, within ``max_delay_s`` (a
+  few 16 ms pose periods), by exactly one call with that direction's colour, and there must be
+  no other calls.
+* ``canvas_colours``: the canvas the simulator saved at the end (``canvas.png`` beside the bag,
+  loaded as the ``__canvas__`` frame: one row per drawn pixel) shows each colour on its side.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from grader.analyze import Finding, graded, register
+from grader.analyze._common import Frames, missing_topic_feedback, service_calls, times, topic
+
+CANVAS = "__canvas__"
+_PEN = {
+    "pose_topic": "/turtle1/pose",
+    "split_x": 5.5,                  # m: the line the pen colour changes at
+    "right_color": [0, 0, 255],      # r, g, b set when crossing to the right (x grows)
+    "left_color": [0, 255, 0],       # r, g, b set when crossing to the left
+}
+
+
+def crossings(t: np.ndarray, x: np.ndarray, split: float) -> list[dict[str, Any]]:
+    """Times and directions at which ``x`` crosses ``split``."""
+    out = []
+    for i in np.nonzero((x[:-1] <= split) != (x[1:] <= split))[0]:
+        out.append({"t": float(t[i + 1]), "direction": "right" if x[i + 1] > split else "left"})
+    return out
+
+
+def _color(request: dict) -> list[int] | None:
+    try:
+        return [int(request["r"]), int(request["g"]), int(request["b"])]
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+@register("pen_on_crossings", defaults={
+    **_PEN,
+    "service": "/turtle1/set_pen",
+    "width": 3,                      # pen width the calls must set (None: any)
+    "max_delay_s": 0.1,              # s from the crossing pose to the call reaching the simulator
+})
+def pen_on_crossings(frames: Frames, p: dict) -> Finding:
+    pose = topic(frames, p["pose_topic"])
+    if pose is None or "x" not in pose.columns:
+        return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
+    t0 = float(times(pose)[0])
+    cross = crossings(times(pose), pose["x"].to_numpy(float), p["split_x"])
+    df = topic(frames, f"{p['service']}/_service_event")
+    calls = [{"t": c["t"], "color": _color(c["request"]), "width": c["request"].get("width"),
+              "off": c["request"].get("off")} for c in (service_calls(df) if df is not None else [])]
+    want = {"right": list(p["right_color"]), "left": list(p["left_color"])}
+    used = [False] * len(calls)
+    rows = []
+    for c in cross:
+        k = next((i for i, call in enumerate(calls) if not used[i]
+                  and c["t"] - 0.05 <= call["t"] <= c["t"] + p["max_delay_s"]), None)
+        row = {"t": c["t"] - t0, "direction": c["direction"], "wanted": want[c["direction"]]}
+        if k is None:
+            late = next((call for i, call in enumerate(calls) if not used[i] and call["t"] > c["t"]), None)
+            row.update(ok=False, why="no set_pen call within "
+                       f"{p['max_delay_s']:g} s" + (f" (next call {late['t'] - c['t']:.2f} s later)" if late else ""))
+        else:
+            used[k] = True
+            call = calls[k]
+            good = call["color"] == want[c["direction"]] and (p["width"] is None or call["width"] == p["width"]) \
+                and not call["off"]
+            row.update(ok=good, delay_s=call["t"] - c["t"], color=call["color"], width=call["width"],
+                       why=None if good else f"set {call['color']} width {call['width']}")
+        rows.append(row)
+    extra = [{"t": call["t"] - t0, "color": call["color"]} for i, call in enumerate(calls) if not used[i]]
+    matched = sum(1 for r in rows if r["ok"])
+    denominator = len(rows) + len(extra)
+    ev = {"crossings": rows[:40], "extra_calls": extra[:20], "calls": len(calls), "split_x": p["split_x"]}
+    if not cross:
+        return Finding.fail(f"The turtle never crossed x = {p['split_x']:g}, so the pen colour change could not "
+                            "be checked.", ev, value="no crossings")
+    frac = matched / denominator if denominator else 0.0
+    value = f"{matched}/{len(rows)} crossings" + (f", {len(extra)} extra call(s)" if extra else "")
+    if frac >= 1.0:
+        return Finding(value, 1.0, "pass", f"set_pen was called with the right colour at each of the "
+                       f"{len(rows)} crossings of x = {p['split_x']:g}, and only then.", ev)
+    problems = []
+    bad = [r for r in rows if not r["ok"]]
+    if bad:
+        r = bad[0]
+        problems.append(f"{len(bad)} of {len(rows)} crossings went wrong (first at t = {r['t']:.1f} s going "
+                        f"{r['direction']}: {r['why']}, wanted {r['wanted']})")
+    if extra:
+        problems.append(f"{len(extra)} set_pen call(s) not at a crossing (first at t = {extra[0]['t']:.1f} s, "
+                        f"colour {extra[0]['color']})")
+    return Finding(value, frac, graded(frac), "; ".join(problems) + ".", ev)
+
+
+@register("canvas_colours", defaults={
+    **_PEN,
+    "min_pixels": 50,                # each colour must cover at least this many pixels
+    "min_share": 0.95,               # share of each colour's pixels on its own side
+})
+def canvas_colours(frames: Frames, p: dict) -> Finding:
+    canvas = frames.get(CANVAS)
+    if not isinstance(canvas, pd.DataFrame) or not {"x_m", "r", "g", "b"} <= set(canvas.columns):
+        return Finding.error("The simulator's canvas was not saved with this scenario (scenario problem).")
+    rgb = canvas[["r", "g", "b"]].to_numpy(int)
+    x = canvas["x_m"].to_numpy(float)
+    rows, ok = {}, True
+    for side, key in (("right", "right_color"), ("left", "left_color")):
+        mask = np.all(rgb == np.asarray(p[key], int), axis=1)
+        n = int(mask.sum())
+        on_side = int(((x > p["split_x"]) if side == "right" else (x <= p["split_x"]))[mask].sum())
+        share = on_side / n if n else 0.0
+        rows[side] = {"color": list(p[key]), "pixels": n, "on_its_side": on_side, "share": share}
+        ok = ok and n >= p["min_pixels"] and share >= p["min_share"]
+    ev = {"sides": rows, "split_x": p["split_x"], "drawn_pixels": int(len(canvas))}
+    value = ", ".join(f"{s}: {r['pixels']} px ({r['share']:.0%} on its side)" for s, r in rows.items())
+    if ok:
+        return Finding(value, 1.0, "pass", f"The canvas shows {p['right_color']} right of x = {p['split_x']:g} "
+                       f"and {p['left_color']} left of it.", ev)
+    problems = []
+    for side, r in rows.items():
+        if r["pixels"] < p["min_pixels"]:
+            problems.append(f"almost no {r['color']} on the canvas ({r['pixels']} px)")
+        elif r["share"] < p["min_share"]:
+            problems.append(f"only {r['share']:.0%} of the {r['color']} trail is on the {side} of x = {p['split_x']:g}")
+    frac = sum(1 for r in rows.values() if r["pixels"] >= p["min_pixels"] and r["share"] >= p["min_share"]) / 2
+    return Finding(value, frac, graded(frac), "The canvas: " + "; ".join(problems) + ".", ev)

@@ -1,0 +1,131 @@
+"""Services a student node offers, judged from the driver's calls and what followed them.
+
+The driver records every call it makes (``service_call``: request and type) and the answer
+(``service_response``; None when none came in time), so both "the service answers success"
+and "each request is republished as a message" are checked from the bag.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from grader.analyze import Finding, graded, register
+from grader.analyze._common import Frames, events, missing_topic_feedback, times, topic
+from grader.scenario.events import Event
+
+
+def _calls(frames: Frames, service: str) -> list[dict[str, Any]]:
+    """Calls to ``service`` in order, each with its response (None: no response in time)."""
+    out: list[dict[str, Any]] = []
+    for e in events(frames, (Event.SERVICE_CALL, Event.SERVICE_RESPONSE)):
+        if e.get("service") != service:
+            continue
+        if e["event"] == Event.SERVICE_CALL:
+            out.append({"t": e["t"], "step": e.get("step"), "type": e.get("type"),
+                        "request": e.get("request") or {}, "response": None, "answered": False})
+        elif out and not out[-1]["answered"]:
+            out[-1].update(response=e.get("response"), answered=e.get("response") is not None)
+    return out
+
+
+def _no_calls(frames: Frames, service: str) -> Finding:
+    missing = [e for e in events(frames, Event.SERVICE_MISSING) if e.get("service") == service]
+    if missing:
+        return Finding.fail(f"The service {service} never appeared: create it with "
+                            f"create_service(<type>, '{service.lstrip('/')}', callback) and keep spinning.",
+                            {"service_missing": len(missing)})
+    return Finding.error(f"The scenario made no calls to {service}, so this item could not be tested.")
+
+
+@register("service_answers", defaults={
+    "service": None,           # required: e.g. /set_goal
+    "field": "success",        # response field to check
+    "expected": True,          # value it must have
+})
+def service_answers(frames: Frames, p: dict) -> Finding:
+    """Every call got a response, with ``field`` equal to ``expected``."""
+    calls = _calls(frames, p["service"])
+    if not calls:
+        return _no_calls(frames, p["service"])
+    rows, ok = [], 0
+    for k, c in enumerate(calls, 1):
+        got = (c["response"] or {}).get(p["field"]) if c["answered"] else None
+        good = c["answered"] and got == p["expected"]
+        ok += good
+        rows.append({"call": k, "request": c["request"], "answered": c["answered"], p["field"]: got, "ok": good})
+    frac = ok / len(calls)
+    ev = {"calls": rows, "service_type": calls[0]["type"]}
+    value = f"{ok}/{len(calls)} answered {p['field']}={p['expected']}"
+    if ok == len(calls):
+        return Finding(value, 1.0, "pass", f"All {len(calls)} calls to {p['service']} answered "
+                                           f"{p['field']} = {p['expected']}.", ev)
+    bad = next(r for r in rows if not r["ok"])
+    why = ("no response arrived" if not bad["answered"]
+           else f"the response had {p['field']} = {bad[p['field']]!r}")
+    return Finding(value, frac, graded(frac), f"Call {bad['call']} to {p['service']} "
+                   f"({bad['request']}): {why}; set response.{p['field']} = {p['expected']} before "
+                   "returning the response.", ev)
+
+
+@register("request_echoed", defaults={
+    "service": None,           # required: e.g. /set_goal
+    "topic": None,             # required: where each request must be published, e.g. /goal
+    "fields": {},              # required: message field -> request field, e.g. {x: x, y: y}
+    "window_s": 2.0,           # s after the call in which the message must arrive
+    "tol": 1e-6,               # allowed difference of numeric fields
+})
+def request_echoed(frames: Frames, p: dict) -> Finding:
+    """Each call is followed by exactly one message on ``topic`` carrying the request's values."""
+    calls = _calls(frames, p["service"])
+    if not calls:
+        return _no_calls(frames, p["service"])
+    df = topic(frames, p["topic"])
+    t = times(df) if df is not None else np.array([])
+    rows, score = [], 0.0
+    for k, c in enumerate(calls, 1):
+        t_next = calls[k]["t"] if k < len(calls) else math.inf
+        lo, hi = c["t"] - 0.2, min(c["t"] + p["window_s"], t_next)
+        idx = np.nonzero((t >= lo) & (t < hi))[0]
+        row: dict[str, Any] = {"call": k, "request": c["request"], "messages": int(len(idx))}
+        if len(idx):
+            msg = df.iloc[idx[0]]
+            got = {f: _value(msg.get(f)) for f in p["fields"]}
+            want = {f: _value(c["request"].get(r)) for f, r in p["fields"].items()}
+            match = all(_same(got[f], want[f], p["tol"]) for f in p["fields"])
+            row.update(got=got, wanted=want, match=match)
+            score += (1.0 if len(idx) == 1 else 0.5) if match else 0.0
+        rows.append(row)
+    frac = score / len(calls)
+    ev = {"calls": rows, "topic": p["topic"]}
+    n_ok = sum(1 for r in rows if r.get("match") and r["messages"] == 1)
+    value = f"{n_ok}/{len(calls)} echoed"
+    if n_ok == len(calls):
+        return Finding(value, 1.0, "pass", f"Each of the {len(calls)} requests was published once on "
+                                           f"{p['topic']} with the requested values.", ev)
+    if df is None:
+        return Finding(value, 0.0, "fail", missing_topic_feedback(frames, p["topic"], "one message per request")
+                       + f" Publish each {p['service']} request there.", ev)
+    bad = next(r for r in rows if not (r.get("match") and r["messages"] == 1))
+    if bad["messages"] == 0:
+        why = f"no message on {p['topic']} within {p['window_s']:g} s"
+    elif not bad.get("match"):
+        why = f"the message had {bad['got']} instead of {bad['wanted']}"
+    else:
+        why = f"{bad['messages']} messages instead of one"
+    return Finding(value, frac, graded(frac), f"Request {bad['call']} ({bad['request']}): {why}.", ev)
+
+
+def _value(v: Any) -> Any:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return v
+
+
+def _same(a: Any, b: Any, tol: float) -> bool:
+    if isinstance(a, float) and isinstance(b, float):
+        return math.isfinite(a) and math.isfinite(b) and abs(a - b) <= tol
+    return a == b
