@@ -161,7 +161,7 @@ def _timeline(frames: Frames, pose_topic: str, max_points: int = 150) -> dict:
         if df is not None and g["x"] is not None and g["accepted"]:
             t = times(df)
             end = g["t_result"] if g["t_result"] is not None else float(t[-1])
-            m = (t >= g["t_sent"]) & (t <= end + 0.5)
+            m = (t >= g["t_sent"]) & (t <= end)
             keep = thin(int(m.sum()), max_points)
             d = np.hypot(df["x"].to_numpy(float)[m] - g["x"], df["y"].to_numpy(float)[m] - g["y"])
             row["distance"] = {"t": since_start(frames, t[m][keep]).tolist(), "d": np.round(d[keep], 3).tolist()}

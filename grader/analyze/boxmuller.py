@@ -483,7 +483,7 @@ def _examples(sel: Selection, pairing: Pairing, k: int = 5, only_unmatched: bool
     return out
 
 
-def _pair_series(sel: Selection, pairing: Pairing, max_points: int = 400) -> dict:
+def _pair_series(sel: Selection, pairing: Pairing, max_points: int = 300) -> dict:
     """Printed value against the correct z of the input it answers (the report's scatter plot);
     ``formula``: the formula the pairing followed (a named mistake, or "correct")."""
     inp = sel.inputs

@@ -317,7 +317,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
 
 
 def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,
-                    g: Goal, max_points: int = 200) -> dict:
+                    g: Goal, max_points: int = 120) -> dict:
     """theta_e over time while goal ``k`` was active (the report's heading-error figure)."""
     keep = thin(len(t), max_points)
     err = np.degrees(heading_error(x[keep], y[keep], th[keep], g.x, g.y))
@@ -392,7 +392,7 @@ def control_law(frames: Frames, p: dict) -> Finding:
                           for a, b, cv, cw in list(zip(d_e, th_e, v, w))[:: max(1, len(v) // 8)][:8]]})
     missing_wrap = wrap_rows >= p["min_wrap_rows"] and np.isfinite(r2n) and r2n > r2w + p["wrap_margin"]
     ev["wrap"] = ("missing" if missing_wrap else "ok") if wrap_rows >= p["min_wrap_rows"] else "not testable"
-    keep = thin(len(v), 400)
+    keep = thin(len(v), 300)
     ev["fit_rows"] = {"t": since_start(frames, j["t"].to_numpy()[keep]).tolist(),
                       "d_e": np.round(d_e[keep], 4).tolist(), "theta_e": np.round(th_e[keep], 4).tolist(),
                       "theta_e_unwrapped": np.round(th_naive[keep], 4).tolist(),

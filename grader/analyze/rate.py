@@ -108,7 +108,7 @@ def publish_rate(frames: Frames, p: dict) -> Finding:
     ev = {"topic": name, "expected_hz": float(expected), **st}
     ts = np.sort(t[np.isfinite(t)])
     if len(ts) >= 2:
-        keep = thin(len(ts) - 1, 600)
+        keep = thin(len(ts) - 1, 400)
         ev["intervals"] = {"t": since_start(frames, ts[1:][keep]).tolist(),
                            "dt": np.round(np.diff(ts)[keep], 5).tolist()}
     if st["n"] < p["min_messages"] or not np.isfinite(st["rate_hz"]):

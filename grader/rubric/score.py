@@ -45,6 +45,7 @@ class ItemResult:
     value: Any = None
     fraction: float | None = None
     evidence: Mapping[str, Any] = field(default_factory=dict)
+    analyzer: str | None = None  # the report looks up evidence labels and figures by analyzer
 
 
 @dataclass(frozen=True)
@@ -167,12 +168,33 @@ class Result:
         return tuple(out)
 
     def for_student(self) -> "Result":
-        """The self-check view: hidden (``public: false``) items and their points removed."""
-        visible = tuple(i for i in self.items if i.public)
+        """The self-check view: hidden (``public: false``) items and their points removed, and
+        thresholds the rubric marks hidden (``hidden_params``) removed from each item's params
+        and evidence."""
+        visible = tuple(_without_hidden(i) for i in self.items if i.public)
         hidden = [i for i in self.items if not i.public]
         return replace(self, items=visible, student_view=True,
                        hidden_items=self.hidden_items + len(hidden),
                        hidden_points=_sum([self.hidden_points, *(i.max_points for i in hidden)]))
+
+
+def _without_hidden(item: ItemResult) -> ItemResult:
+    hidden = {str(n) for n in (getattr(item, "hidden_params", None) or ())}
+    if not hidden:
+        return item
+    changes: dict[str, Any] = {"evidence": strip_keys(item.evidence, hidden)}
+    if isinstance(getattr(item, "params", None), Mapping):
+        changes["params"] = {k: v for k, v in item.params.items() if k not in hidden}  # type: ignore[attr-defined]
+    return replace(item, **changes)
+
+
+def strip_keys(value: Any, hidden: set[str]) -> Any:
+    """``value`` without mapping keys named in ``hidden``, at any depth."""
+    if isinstance(value, Mapping):
+        return {k: strip_keys(v, hidden) for k, v in value.items() if str(k) not in hidden}
+    if isinstance(value, list):
+        return [strip_keys(v, hidden) for v in value]
+    return value
 
 
 def _sum(values: Iterable[float | None]) -> float:
@@ -278,7 +300,7 @@ def _result(item: Item, points: float | None, status: str, feedback: str, fracti
     return ItemResult(id=item.id, title=item.title, section=item.section, kind=item.kind,
                       public=item.public, points=points, max_points=item.points, status=status,
                       feedback=feedback, hint=item.hint, value=value, fraction=fraction,
-                      evidence=dict(evidence or {}))
+                      evidence=dict(evidence or {}), analyzer=item.analyzer)
 
 
 def _feedback(item: Item, status: str, finding: FindingLike, fraction: float,

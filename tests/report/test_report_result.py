@@ -29,7 +29,7 @@ def test_result_json_shape(tmp_path, lab3, lab3_result):
     item = {i["id"]: i for i in doc["items"]}
     assert set(item["ex1.pub_rate"]) == {"id", "title", "section", "kind", "public", "points",
                                          "max_points", "status", "feedback", "hint", "value",
-                                         "fraction", "evidence"}
+                                         "fraction", "evidence", "analyzer"}
     assert item["ex1.pub_rate"]["section"] == {"exercise": 1}
     assert (item["ex1.pub_rate"]["points"], item["ex1.pub_rate"]["max_points"]) == (1.5, 3)
     assert item["ex1.pub_rate"]["status"] == "partial"
