@@ -42,7 +42,7 @@ EVIDENCE = {
 
 
 @register("integrity_pose_publisher", evidence={**EVIDENCE, "value": ("pose publishers", "")},
-          expect="only {allowed} publishing {pose_topic}", defaults={
+          expect="only the simulator publishing {pose_topic}", defaults={
     "pose_topic": "/turtle1/pose",
     "allowed": ["turtlesim"],     # node names allowed to publish the pose
     "jump_tol": 0.05,             # m beyond v*dt*ticks counted as a jump

@@ -39,7 +39,7 @@ EVIDENCE = {
 
 
 @register("topic_type", evidence={**EVIDENCE, "value": ("message type", "")},
-          expect="{expected_type} messages on {topic}", defaults={
+          expect="{type} messages on {topic}", defaults={
     "topic": "/random_numbers",
     "type": "std_msgs/msg/Float32MultiArray",
     "min_count": 1,

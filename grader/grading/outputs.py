@@ -69,13 +69,18 @@ def print_check_table(graded, rubric) -> bool:
     print(f"\n{rubric.title}: self-check ({result.auto_score:g}/{result.auto_max:g} points on public items)\n")
     ok = True
     marks = {"pass": "PASS", "partial": "PART", "fail": "FAIL", "error": "ERR "}
+    from grader.report.readable import item_params, measured_sentence
+
+    params = effective_params(rubric)
     for item in rows:
         mark = marks.get(item.status, item.status.upper()[:4])
         pts = "" if item.kind in ("advisory", "integrity") else f"{(item.points or 0):g}/{item.max_points:g}"
         label = "warn" if item.kind == "advisory" and item.status != "pass" else mark
         print(f"  {label:4}  {item.id:<{width}}  {pts:>7}  {item.title}")
         if item.status != "pass":
-            text = item.feedback or ""
+            # what was measured against what was expected, then the feedback and the hint
+            lead = measured_sentence(item, item_params(item, params.get(item.id)), student_view=True)
+            text = (lead + " " + (item.feedback or "")).strip()
             if item.hint:
                 text = (text + " Hint: " + item.hint).strip()
             for line in _wrap(text, 92):

@@ -125,10 +125,11 @@ def _item_table(subs: Sequence[Submission]) -> str:
         if not n:
             continue
         share = {k: len(v) / n for k, v in got.items()}
-        rows.append((-(share["fail"] + share["error"]), -share["partial"], item, got, share, n))
-    rows.sort(key=lambda r: (r[0], r[1]))
+        # most not passed first; among equals, real failures before analyses that could not run
+        rows.append(((-(share["fail"] + share["error"]), -share["fail"], -share["partial"]), item, got, share))
+    rows.sort(key=lambda r: r[0])
     body = []
-    for _, _, item, got, share, n in rows:
+    for _, item, got, share in rows:
         bar = "".join(f'<span class="b-{k}" style="width:{100 * share[k]:.1f}%" title="{words}: '
                       f'{len(got[k])}"></span>' for k, words in CATEGORIES if got[k])
         counts = " · ".join(f"{words} {len(got[k])}" for k, words in CATEGORIES if got[k])

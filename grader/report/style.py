@@ -81,7 +81,9 @@ th button.sort::after{content:" ↕";color:var(--muted)}
 th[aria-sort=ascending] button.sort::after{content:" ▲"}th[aria-sort=descending] button.sort::after{content:" ▼"}
 .delta-up{color:var(--pass)}.delta-down{color:var(--fail)}
 .scroll{overflow-x:auto}
-@media (max-width:700px){.scores .score{flex:1 1 100%}}
+@media (max-width:700px){.scores .score{flex:1 1 100%}body{padding:.6rem}
+table.summary th:last-child,table.summary td:last-child{display:none}th,td{padding:.3rem .3rem}
+table.summary th,table.summary td{overflow-wrap:anywhere}}
 @media print{@page{size:auto;margin:12mm}body{font-size:10pt;max-width:none;padding:0}
 th{background:none}table{page-break-inside:auto}tr,figure,.card h3,svg.plot{break-inside:avoid}
 h2,h3{break-after:avoid}.controls,th button.sort::after{display:none}.scroll{overflow:visible}

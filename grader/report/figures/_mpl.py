@@ -22,6 +22,7 @@ matplotlib.use("Agg", force=False)   # no display; must precede any pyplot impor
 from cycler import cycler  # noqa: E402  (a matplotlib dependency)
 from matplotlib import rc_context  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 if TYPE_CHECKING:
     from grader.report.figures import FigureContext, Plot, RenderedFigure
@@ -61,6 +62,9 @@ def new_figure(title: str, size: tuple[float, float], nrows: int = 1, ncols: int
                         bottom=0.55 / height, top=1 - top / height,
                         wspace=0.35 if ncols > 1 else None, hspace=0.35 if nrows > 1 else None)
     axes = fig.subplots(nrows, ncols, squeeze=True, **kwargs)
+    for ax in fig.axes:          # ~6 ticks per axis: enough to read values, and each tick costs
+        ax.xaxis.set_major_locator(MaxNLocator(6))
+        ax.yaxis.set_major_locator(MaxNLocator(6))
     return fig, axes
 
 

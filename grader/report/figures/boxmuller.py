@@ -48,7 +48,7 @@ def printed_vs_expected(ctx: FigureContext) -> Plot | None:
         ax.plot(*zip(*good), "o", color=BLUE, ms=3.5, alpha=0.7, label=f"matches z ({len(good)})")
     if bad:
         ax.plot(*zip(*bad), "x", color=VERMILION, ms=4, alpha=0.8, label=f"does not match ({len(bad)})")
-    ax.set(xlabel="correct z = sqrt(−2 ln u1)·cos(2π u2)", ylabel="value you printed",
+    ax.set(xlabel="correct z = sqrt(−2 ln u1)·cos(2π u2) (unitless)", ylabel="value you printed (unitless)",
            xlim=(lo - 0.2, hi + 0.2), ylim=(lo - 0.2, hi + 0.2), aspect="equal")
     ax.legend(loc="upper left")
     text = str(ctx.evidence.get("best_formula_text") or "")
@@ -83,7 +83,7 @@ def histogram(ctx: FigureContext) -> Plot | None:
     if mean is not None and std:
         ax.plot(xs, [_normal_pdf((x - mean) / std) / std for x in xs], color="black", lw=1.2, ls="--",
                 label=f"normal with your mean {mean:.2f}, std {std:.2f}")
-    ax.set(xlabel="printed value z", ylabel="density (1 / unit of z)")
+    ax.set(xlabel="printed value z (unitless)", ylabel="density (per unit of z)")
     ax.legend(loc="upper left", fontsize=7)
     alt = (f"Histogram of {int(total)} printed values from {edges[0]:g} to {edges[-1]:g} with the standard "
            f"normal density. Mean {fmt(mean)}, standard deviation {fmt(std)} (N(0, 1): 0 and 1); "
@@ -104,7 +104,7 @@ def qq(ctx: FigureContext) -> Plot | None:
     lo, hi = min(th), max(th)
     ax.plot([lo, hi], [lo, hi], color=VERMILION, lw=2, label="N(0, 1): sample = theory")
     ax.plot(th, sample, "o", color=BLUE, ms=3, alpha=0.7, label="your values (sorted)")
-    ax.set(xlabel="N(0, 1) quantile", ylabel="quantile of your values")
+    ax.set(xlabel="N(0, 1) quantile (unitless)", ylabel="quantile of your values (unitless)")
     ax.legend(loc="upper left")
     slope = _slope(th, sample)
     alt = (f"QQ plot of {len(th)} quantiles of the printed values against the standard normal. "

@@ -26,7 +26,7 @@ def score_histogram(scores: Sequence[float], max_score: float, uid: str = "dist"
         counts, _, _ = ax.hist(list(scores), bins=edges, color="#9ecae1", edgecolor=BLUE, lw=0.8,
                                label=f"submissions ({len(scores)})")
         ax.axvline(median, color=VERMILION, lw=2, ls="--", label=f"median {median:g}")
-        ax.set(xlabel=f"automatic score (points out of {max_score:g})", ylabel="submissions",
+        ax.set(xlabel=f"automatic score (points out of {max_score:g})", ylabel="submissions (count)",
                xlim=(0, max_score))
         ax.yaxis.get_major_locator().set_params(integer=True)
         ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
