@@ -18,7 +18,7 @@ from grader.analyze._common import (Frames, meta, meta_row, missing_topic_feedba
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
-    "type": ("message type seen", ""),
+    "type": ("message type", ""),
     "expected_type": ("message type expected", ""),
     "count": ("messages recorded", ""),
     "publishers": ("publishing nodes", ""),

@@ -136,9 +136,11 @@ class _Page:
 
 
 def _to_fix(result: Result) -> list[ItemResult]:
-    """Failing items, biggest loss first: auto items by points lost, then advisory warnings."""
+    """Items that did not pass, in the order to work on them: failed or partly passed auto items
+    by points lost, then those that could not be checked (their cause is usually a problem above
+    them, e.g. a node that did not build), then advisory warnings (no points)."""
     auto = [i for i in result.items if i.kind == "auto" and i.status in ("fail", "partial", "error")]
-    auto.sort(key=lambda i: -(i.max_points - (i.points or 0)))
+    auto.sort(key=lambda i: (i.status == "error", -(i.max_points - (i.points or 0))))
     advisory = [i for i in result.items if i.kind == "advisory" and i.status != "pass"]
     return auto + advisory
 

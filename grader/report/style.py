@@ -49,7 +49,7 @@ details.more{margin:.4rem 0}details.more>summary{cursor:pointer;color:#0b4f9c}
 .tables{display:flex;flex-wrap:wrap;gap:.3rem 1.5rem;align-items:flex-start}
 table.ev{width:auto;max-width:100%;font-size:.82rem;margin:.2rem 0}
 table.ev th,table.ev td{padding:.1rem .45rem;border-bottom:1px solid #e3e3e3;overflow-wrap:anywhere}
-table.ev th{background:#eee}.unit{font-weight:400;color:var(--muted)}
+table.ev th{background:#eee}table.ev th[scope=row]{min-width:9rem}.unit{font-weight:400;color:var(--muted)}
 pre.raw{white-space:pre-wrap;overflow-wrap:anywhere;font-size:.75rem;max-height:22rem;overflow:auto;
 background:var(--bg2);padding:.4rem}
 .figs{display:flex;flex-wrap:wrap;gap:1rem;margin:.5rem 0}
