@@ -79,8 +79,12 @@ class _Page:
 
     def details(self, item: ItemResult) -> str:
         """Measurements in words, thresholds, and the raw evidence (collapsed)."""
-        rows = readable.evidence_rows(item, hidden=self._hidden(item))
         thresholds = readable.threshold_rows(item, self._params(item), student_view=self.student)
+        # a parameter the evidence echoes is shown once, with the thresholds
+        ev = item.evidence or {}
+        shown = ({k for k, v in self._params(item).items() if v is not None and ev.get(k) == v}
+                 if thresholds else set())
+        rows = readable.evidence_rows(item, hidden=self._hidden(item) | shown)
         parts = []
         tables = []
         if rows:
