@@ -12,6 +12,12 @@ registered callable merges the caller's ``params`` over those defaults and rejec
 registered callable, ``names()`` lists them, ``defaults(name)`` shows the accepted parameters (the
 rubric loader can validate YAML against it), and ``run(name, frames, params)`` never raises: an
 analyzer crash becomes a ``Finding`` with status ``"error"``.
+
+``register`` also records what the evidence means (``evidence=`` labels and units, ``expect=``
+the expected result in words; see ``grader.analyze.evidence``); ``evidence_labels(name)`` and
+``expected_text(name)`` give them to the report. Every finding's evidence gets
+``scenario_start`` (epoch seconds of the scenario's ``scenario_start`` event, when recorded), so
+the times in it can be shown as seconds since the scenario started.
 """
 
 from __future__ import annotations
@@ -29,7 +35,21 @@ import pandas as pd
 
 from grader.errors import GraderError
 
-__all__ = ["Finding", "register", "get", "names", "defaults", "run", "jsonable", "STATUSES"]
+__all__ = ["Finding", "register", "get", "names", "defaults", "required", "run", "jsonable", "STATUSES",
+           "evidence_labels", "expected_text", "REQUIRED"]
+
+
+class _Required:
+    """Default of a parameter the rubric must give (the loader rejects an item without it)."""
+
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+    def __deepcopy__(self, memo: dict) -> "_Required":
+        return self
+
+
+REQUIRED = _Required()
 
 STATUSES = ("pass", "partial", "fail", "error")
 
@@ -45,6 +65,9 @@ _MODULES = (
     "integrity",
     "graph",
     "services",
+    "motion",
+    "logs",
+    "pen",
 )
 
 Frames = Mapping[str, pd.DataFrame]
@@ -52,6 +75,8 @@ AnalyzerFn = Callable[[Frames, dict], "Finding"]
 
 _REGISTRY: dict[str, AnalyzerFn] = {}
 _DEFAULTS: dict[str, dict[str, Any]] = {}
+_LABELS: dict[str, dict[str, Any]] = {}
+_EXPECT: dict[str, str] = {}
 _loaded = False
 
 
@@ -137,8 +162,11 @@ def graded(fraction: float, *, pass_at: float = 1.0 - 1e-9) -> str:
     return "fail"
 
 
-def register(name: str, defaults: Mapping[str, Any] | None = None) -> Callable[[AnalyzerFn], AnalyzerFn]:
-    """Register an analyzer under ``name`` with the parameters it accepts and their defaults."""
+def register(name: str, defaults: Mapping[str, Any] | None = None, *,
+             evidence: Mapping[str, Any] | None = None,
+             expect: str | None = None) -> Callable[[AnalyzerFn], AnalyzerFn]:
+    """Register an analyzer under ``name`` with the parameters it accepts and their defaults,
+    the labels and units of its evidence and what it expects, in words (both for the report)."""
     dflt = dict(defaults or {})
 
     def deco(fn: AnalyzerFn) -> AnalyzerFn:
@@ -154,15 +182,27 @@ def register(name: str, defaults: Mapping[str, Any] | None = None) -> Callable[[
                     f"analyzer {name!r}: unknown parameter(s) {', '.join(unknown)}; "
                     f"accepted: {', '.join(sorted(dflt)) or '(none)'}"
                 )
+            missing = sorted(k for k, v in dflt.items() if v is REQUIRED and k not in given)
+            if missing:
+                raise GraderError(f"analyzer {name!r} needs the parameter(s) {', '.join(missing)}")
             merged = {**copy.deepcopy(dflt), **given}   # analyzers may not mutate shared defaults
             finding = fn(frames, copy.deepcopy(merged))
             finding.params = jsonable(merged)            # every threshold that decided it
+            if isinstance(finding, Finding) and "scenario_start" not in finding.evidence:
+                from grader.analyze._common import scenario_start
+
+                t0 = scenario_start(frames)
+                if t0 is not None:
+                    finding.evidence["scenario_start"] = t0
             return finding
 
         wrapper.analyzer_name = name  # type: ignore[attr-defined]
         wrapper.defaults = dict(dflt)  # type: ignore[attr-defined]
         _REGISTRY[name] = wrapper
         _DEFAULTS[name] = dict(dflt)
+        _LABELS[name] = dict(evidence or {})
+        if expect:
+            _EXPECT[name] = expect
         return wrapper
 
     return deco
@@ -195,6 +235,29 @@ def defaults(name: str) -> dict[str, Any]:
     """Accepted parameters of analyzer ``name`` with their default values."""
     get(name)
     return copy.deepcopy(_DEFAULTS[name])
+
+
+def evidence_labels(name: str | None) -> dict[str, Any]:
+    """``{key: (label, unit) | None}`` for analyzer ``name``'s evidence (common keys included);
+    only the common table for an unknown or missing analyzer (e.g. a result of an older grader)."""
+    from grader.analyze.evidence import merged
+
+    if name:
+        _load_all()
+    return merged(_LABELS.get(name or "", {}))
+
+
+def expected_text(name: str | None) -> str | None:
+    """Analyzer ``name``'s expected result in words (a template over params and evidence)."""
+    if name:
+        _load_all()
+    return _EXPECT.get(name or "")
+
+
+def required(name: str) -> list[str]:
+    """Parameters of analyzer ``name`` that have no default (a rubric must give them)."""
+    get(name)
+    return sorted(k for k, v in _DEFAULTS[name].items() if v is REQUIRED)
 
 
 def run(name: str, frames: Frames, params: Mapping[str, Any] | None = None) -> Finding:

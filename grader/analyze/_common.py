@@ -191,6 +191,32 @@ def has_events(frames: Frames) -> bool:
     return topic(frames, EVENTS) is not None
 
 
+def scenario_start(frames: Frames) -> float | None:
+    """Receive time of the driver's ``scenario_start`` event: the origin of the times a report
+    shows ("12.3 s after the scenario started"). None when the bag has no such event."""
+    ev = events(frames, "scenario_start")
+    return float(ev[0]["t"]) if ev else None
+
+
+def since_start(frames: Frames, t: Any) -> np.ndarray:
+    """Times ``t`` (epoch seconds) as seconds since the scenario started (since the first
+    recorded message when there is no ``scenario_start`` event), rounded to milliseconds."""
+    t0 = scenario_start(frames)
+    if t0 is None:
+        starts = [float(df.index.min()) for k, df in frames.items()
+                  if k != META and isinstance(df, pd.DataFrame) and len(df)]
+        t0 = min(starts) if starts else 0.0
+    return np.round(np.asarray(t, float) - t0, 3)
+
+
+def thin(n: int, max_points: int = 400) -> np.ndarray:
+    """Indices of at most ``max_points`` evenly spread rows of ``n`` (first and last kept): plot
+    series in evidence stay small (result.json is read by people and tools)."""
+    if n <= max_points:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, max_points).round().astype(int))
+
+
 def scenario_end_time(frames: Frames) -> float:
     ev = events(frames, Event.SCENARIO_END)
     return ev[-1]["t"] if ev else end_time(frames)

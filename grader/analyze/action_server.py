@@ -20,8 +20,35 @@ import numpy as np
 
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import (WORLD_MAX, Frames, events, goal_xy, meta, parse_xy_line,
-                                    rosout_lines, stdout_lines, times, topic)
+                                    rosout_lines, since_start, stdout_lines, thin, times, topic)
 from grader.scenario.events import Event
+
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "action": ("action name", ""),
+    "events": None, "action_topics": None, "action_server_missing": ("goals sent without a server", ""),
+    "goals": ("goals", ""),
+    "goal": ("goal (x, y)", "m"),
+    "goal_tol": ("goal tolerance", "m"),
+    "accepted": ("accepted", ""),
+    "success": ("result success", ""),
+    "status": ("final status", ""),
+    "duration_s": ("time from goal to result", "s"),
+    "distance_at_result": ("turtle's distance from the goal at the result", "m"),
+    "ok": ("as expected", ""),
+    "problem": ("problem", ""),
+    "outer_bound": ("world edge: goals beyond must be rejected", "m"),
+    "inner_bound": ("goals inside this bound must succeed", "m"),
+    "time_out": ("goal's time_out", "s"),
+    "grace_s": ("time allowed after the time_out", "s"),
+    "oob_line": ("out-of-bounds line typed", ""),
+    "reject_lines": ("client's rejection messages", ""),
+    "exit_events": ("client exits", ""),
+    "returncode": ("exit code", ""),
+    "responsive_after": ("client reacted to the next goal", ""),
+    "output_after_next_line": ("client output after the next goal", ""),
+    "timeline": None,
+}
 
 _STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
 _ID_KEYS = ("step",)      # the driver tags each goal's events with its step
@@ -120,6 +147,32 @@ def _pose_at(frames: Frames, pose_topic: str, t: float) -> tuple[float, float] |
     return float(df["x"].iloc[i]), float(df["y"].iloc[i])
 
 
+def _timeline(frames: Frames, pose_topic: str, max_points: int = 150) -> dict:
+    """Every action goal over time (s since the scenario start): sent, answered, result, and the
+    turtle's distance to it while it ran, plus feedback messages (the report's timeline figure)."""
+    gs = action_goals(frames)
+    df = topic(frames, pose_topic)
+    rows = []
+    for k, g in enumerate(gs, 1):
+        row = {"goal": k, "label": g["label"] or g["id"] or f"goal {k}", "x": g["x"], "y": g["y"],
+               "accepted": g["accepted"], "success": g["success"], "status": g["status"],
+               "time_out": g["time_out"]}
+        for key in ("t_sent", "t_response", "t_result"):
+            row[key] = float(since_start(frames, g[key])) if g[key] is not None else None
+        if df is not None and g["x"] is not None and g["accepted"]:
+            t = times(df)
+            end = g["t_result"] if g["t_result"] is not None else float(t[-1])
+            m = (t >= g["t_sent"]) & (t <= end)
+            keep = thin(int(m.sum()), max_points)
+            d = np.hypot(df["x"].to_numpy(float)[m] - g["x"], df["y"].to_numpy(float)[m] - g["y"])
+            row["distance"] = {"t": since_start(frames, t[m][keep]).tolist(), "d": np.round(d[keep], 3).tolist()}
+        rows.append(row)
+    feedback = [since_start(frames, times(f)) for name, f in frames.items()
+                if name.endswith("/_action/feedback") and not name.startswith("/turtle1/") and len(f)]
+    fb = np.sort(np.concatenate(feedback)) if feedback else np.array([])
+    return {"goals": rows, "feedback_t": fb[thin(len(fb), 200)].tolist()}
+
+
 def _no_action_events(frames: Frames) -> Finding:
     if topic(frames, "/grader/events") is None:
         return Finding.error("/grader/events was not recorded: the action scenario did not run (scenario problem).")
@@ -132,7 +185,9 @@ def _no_action_events(frames: Frames) -> Finding:
     return Finding.error("The scenario sent no action goals of this kind, so this item could not be tested.")
 
 
-@register("action_advertised", defaults={"action_name": "/turtle_goal"})
+@register("action_advertised", evidence={**EVIDENCE, "value": ("action server", "")},
+          expect="an action server named {action_name}",
+          defaults={"action_name": "/turtle_goal"})
 def action_advertised(frames: Frames, p: dict) -> Finding:
     """The action server is advertised under the expected name (``ros2 action list`` shows it)."""
     name = "/" + str(p["action_name"]).lstrip("/")
@@ -171,7 +226,9 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
                         f"\"{name.lstrip('/')}\", ...) and keep the node spinning.{hint}", ev)
 
 
-@register("action_goals_succeed", defaults={
+@register("action_goals_succeed", evidence={**EVIDENCE, "value": ("reachable goals", "")},
+          expect="every goal inside [0, {inner_bound:g}] m accepted and ending with success=True",
+          defaults={
     "inner_bound": INNER,
     "short_timeout_s": SHORT_TIMEOUT,
     "pose_topic": "/turtle1/pose",
@@ -211,7 +268,7 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
         ok_n += problem is None
         rows.append(row)
     frac = ok_n / len(gs)
-    ev = {"goals": rows}
+    ev = {"goals": rows, "timeline": _timeline(frames, p["pose_topic"])}
     value = f"{ok_n}/{len(gs)} succeeded"
     if ok_n == len(gs):
         return Finding(value, 1.0, "pass", f"All {len(gs)} reachable goals were accepted and reached.", ev)
@@ -225,7 +282,9 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
                    f"Goal ({bad['goal'][0]:g}, {bad['goal'][1]:g}): {bad['problem']}.{hint}", ev)
 
 
-@register("action_rejects_out_of_bounds", defaults={"outer_bound": OUTER})
+@register("action_rejects_out_of_bounds", evidence={**EVIDENCE, "value": ("out-of-bounds goals", "")},
+          expect="every goal outside [0, {outer_bound:.2f}] m rejected",
+          defaults={"outer_bound": OUTER})
 def action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
     """Goals outside the world are rejected in goal_callback (GoalResponse.REJECT)."""
     gs = [g for g in action_goals(frames) if g["x"] is not None and not _in_box(g, p["outer_bound"])]
@@ -233,7 +292,7 @@ def action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
         return _no_action_events(frames)
     rows = [{"goal": [g["x"], g["y"]], "accepted": g["accepted"], "success": g["success"]} for g in gs]
     ok_n = sum(1 for g in gs if g["accepted"] is False)
-    ev = {"goals": rows, "outer_bound": p["outer_bound"]}
+    ev = {"goals": rows, "outer_bound": p["outer_bound"], "timeline": _timeline(frames, "/turtle1/pose")}
     frac = ok_n / len(gs)
     value = f"{ok_n}/{len(gs)} rejected"
     if ok_n == len(gs):
@@ -245,7 +304,9 @@ def action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
                    "in goal_callback return GoalResponse.REJECT when x or y is outside the world.", ev)
 
 
-@register("action_timeout", defaults={
+@register("action_timeout", evidence={**EVIDENCE, "value": ("short-timeout goal", "")},
+          expect="success=False within {grace_s:g} s after the goal's time_out",
+          defaults={
     "outer_bound": OUTER,
     "short_timeout_s": SHORT_TIMEOUT,
     "pose_topic": "/turtle1/pose",
@@ -265,7 +326,8 @@ def action_timeout(frames: Frames, p: dict) -> Finding:
     g = gs[0]
     to = g["time_out"] or p["short_timeout_s"]
     ev = {"goal": [g["x"], g["y"]], "time_out": g["time_out"], "accepted": g["accepted"], "success": g["success"],
-          "status": g["status"], "duration_s": (g["t_result"] - g["t_sent"]) if g["t_result"] else None}
+          "status": g["status"], "duration_s": (g["t_result"] - g["t_sent"]) if g["t_result"] else None,
+          "timeline": _timeline(frames, p["pose_topic"])}
     if g["accepted"] is not True:
         return Finding("not accepted", 0.0, "fail",
                        f"The short-timeout goal ({g['x']:g}, {g['y']:g}) was {'rejected' if g['accepted'] is False else 'not answered'}; "
@@ -293,7 +355,9 @@ def action_timeout(frames: Frames, p: dict) -> Finding:
                    f"The goal timed out after {dur:.1f} s (time_out {to:g} s) with success=False.", ev)
 
 
-@register("action_client_rejected", defaults={
+@register("action_client_rejected", evidence={**EVIDENCE, "value": ("client after a rejected goal", "")},
+          expect="the client reports the rejection and keeps working",
+          defaults={
     "outer_bound": OUTER,
     "process": None,                              # runner process name of the given client
     "client_logger": "turtle_controller_client_node",

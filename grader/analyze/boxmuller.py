@@ -33,7 +33,48 @@ from scipy import stats
 
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import (ROSOUT, STDOUT, Frames, end_time, meta_row, rosout_lines, stdout_lines,
-                                    times, topic)
+                                    thin, times, topic)
+from grader.analyze.evidence import SHARE
+
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "n_inputs": ("(u1, u2) pairs published", ""),
+    "source": ("output read", ""),
+    "source.kind": ("where the values were found (rosout = ROS logger, stdout = print)", ""),
+    "source.name": ("logger or process", ""),
+    "number_position": None,
+    "n_numeric_lines": ("printed lines with a number", ""),
+    "matched": ("values matching the correct z", ""),
+    "expected": ("values expected", ""),
+    "raw_ratio": ("share matched", SHARE),
+    "chance": ("share a random input would match", SHARE),
+    "ratio": ("share matched, corrected for chance", SHARE),
+    "lag_window_s": None,
+    "matches_per_formula": None,
+    "best_formula": None,
+    "best_formula_text": ("formula that explains the values best", ""),
+    "best_ratio": ("share explained by that formula", SHARE),
+    "bug": None,
+    "examples": ("examples", ""),
+    "u1": ("u1", ""), "u2": ("u2", ""), "printed": ("printed", ""),
+    "expected_z": ("correct z", ""), "line": ("printed line", ""),
+    "pairs": None,
+    "pass_ratio": ("share needed", SHARE),
+    "min_outputs": ("printed values needed", ""),
+    # boxmuller_logging
+    "rosout_loggers": ("ROS loggers seen", ""),
+    "stdout_processes": ("processes that printed", ""),
+    "logger": ("logger", ""),
+    "matched_correct": ("logged values matching the correct z", ""),
+    # normality
+    "mean": ("mean", ""), "std": ("standard deviation", ""),
+    "shapiro_W": ("Shapiro-Wilk W", ""), "shapiro_p": ("Shapiro-Wilk p-value", ""),
+    "anderson_stat": ("Anderson-Darling statistic", ""), "anderson_p": ("Anderson-Darling p-value", ""),
+    "mean_bound": ("largest |mean| accepted", ""), "std_bound": ("largest |std − 1| accepted", ""),
+    "alpha": ("significance level", ""), "z_bound": ("standard errors allowed", ""),
+    "min_samples": ("values needed", ""),
+    "histogram": None, "qq": None,
+}
 
 TWO_PI = 2.0 * math.pi
 
@@ -442,6 +483,23 @@ def _examples(sel: Selection, pairing: Pairing, k: int = 5, only_unmatched: bool
     return out
 
 
+def _pair_series(sel: Selection, pairing: Pairing, max_points: int = 300) -> dict:
+    """Printed value against the correct z of the input it answers (the report's scatter plot);
+    ``formula``: the formula the pairing followed (a named mistake, or "correct")."""
+    inp = sel.inputs
+    assert inp is not None
+    v, _ = pairing.source.column(pairing.pos)
+    pairs = pairing.pairs
+    keep = thin(len(pairs), max_points)
+    j = np.array([pairs[k][0] for k in keep], dtype=int)
+    i = np.array([pairs[k][1] for k in keep], dtype=int)
+    with np.errstate(all="ignore"):
+        z = FORMULAS["correct"][1](inp.u1[i], inp.u2[i]) if len(i) else np.array([])
+    return {"formula": pairing.formula, "expected_z": np.round(z, 5).tolist(),
+            "printed": np.round(v[j], 6).tolist() if len(j) else [],
+            "matched": [bool(pairs[k][2]) for k in keep]}
+
+
 def _no_output_finding(frames: Frames, p: dict, sel: Selection) -> Finding | None:
     if sel.inputs is None or len(sel.inputs) == 0:
         row = meta_row(frames, p["topic"])
@@ -459,7 +517,9 @@ def _no_output_finding(frames: Frames, p: dict, sel: Selection) -> Finding | Non
     return None
 
 
-@register("boxmuller", defaults={
+@register("boxmuller", evidence={**EVIDENCE, "value": ("printed values", "")},
+          expect="z = sqrt(−2 ln u1)·cos(2π u2) printed for at least {pass_ratio:.0%} of the published pairs",
+          defaults={
     **COMMON_DEFAULTS,
     "min_outputs": 10,       # fewer numeric lines -> not enough evidence
     "pass_ratio": 0.9,       # matched / expected at or above this -> full credit
@@ -488,6 +548,8 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
         "best_formula_text": FORMULAS[best.formula][0],
         "best_ratio": best.ratio,
     }
+    shown = best if best.formula != "correct" and best.ratio >= p["bug_min_ratio"] else cp
+    ev["pairs"] = _pair_series(sel, shown)
     if best.source.n_numeric < p["min_outputs"]:
         ev["examples"] = _examples(sel, best)
         return Finding(f"{best.source.n_numeric} lines", 0.0, "fail",
@@ -525,7 +587,9 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
                    + detail, ev)
 
 
-@register("boxmuller_logging", defaults={
+@register("boxmuller_logging", evidence={**EVIDENCE, "value": ("values written by", "")},
+          expect="values logged with self.get_logger().info (at least {min_outputs} lines on /rosout)",
+          defaults={
     **COMMON_DEFAULTS,
     "tail_grace_s": 2.0,
     "min_outputs": 10,       # numeric lines a logger needs to count as "logs its values"
@@ -568,7 +632,10 @@ def boxmuller_logging(frames: Frames, p: dict) -> Finding:
     return Finding.fail("No logged values were found: log z in sub_callback with self.get_logger().info(...).", ev)
 
 
-@register("normality", defaults={
+@register("normality", evidence={**EVIDENCE, "value": ("printed values", "")},
+          expect=("standard normal values: Shapiro-Wilk and Anderson-Darling p ≥ {alpha:g}, mean 0 and "
+                  "standard deviation 1 within {z_bound:g} standard errors"),
+          defaults={
     **COMMON_DEFAULTS,
     "tail_grace_s": 2.0,
     "min_samples": 20,
@@ -613,6 +680,10 @@ def normality(frames: Frames, p: dict) -> Finding:
     counts, edges = np.histogram(np.clip(x, -4.0, 4.0), bins=np.linspace(-4.0, 4.0, 33))
     ev["histogram"] = {"bins": edges.round(3).tolist(), "counts": counts.tolist(),
                        "reference": "normal", "xlabel": "z"}
+    xs = np.sort(x)
+    keep = thin(n, 300)
+    ev["qq"] = {"theoretical": np.round(stats.norm.ppf((keep + 1 - 0.375) / (n + 0.25)), 4).tolist(),
+                "sample": np.round(xs[keep], 4).tolist()}
     shape_ok = sw.pvalue >= p["alpha"] and ad_p >= p["alpha"]
     std_ok = abs(mean) <= p["z_bound"] * se_mean and abs(std - 1.0) <= p["z_bound"] * se_std
     frac = 0.5 * shape_ok + 0.5 * std_ok

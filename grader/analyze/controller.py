@@ -23,9 +23,65 @@ import numpy as np
 import pandas as pd
 
 from grader.analyze import Finding, graded, register
-from grader.analyze._common import (Frames, Goal, events, fmt, goals, heading_error, sentence,
-                                    missing_topic_feedback, fit_gain, times, topic)
+from grader.analyze._common import (WORLD_MAX, Frames, Goal, events, fmt, goals, heading_error, sentence,
+                                    missing_topic_feedback, fit_gain, since_start, thin, times, topic)
+from grader.analyze.evidence import SHARE, TIME
 from grader.scenario.events import Event
+
+#: labels and units of the evidence (see grader.analyze.evidence); shared by the three analyzers
+EVIDENCE = {
+    "goals": ("goals", ""),
+    "goal": ("goal", ""),
+    "x": ("goal x", "m"), "y": ("goal y", "m"),
+    "t_sent": ("goal sent at", TIME),
+    "window_s": ("time the goal was active", "s"),
+    "start_distance": ("distance when the goal was sent", "m"),
+    "min_distance": ("closest approach", "m"),
+    "final_error": ("distance at the end", "m"),
+    "reached": ("reached", ""),
+    "time_to_reach": ("time to reach", "s"),
+    "reached_at": None,
+    "settle_displacement": ("movement in the last second", "m"),
+    "settle_max_speed": ("top speed in the last second", "m/s"),
+    "stopped": ("stopped", ""), "held": ("stayed at the goal", ""),
+    "tol_reached": ("goal tolerance", "m"),
+    "tol_final": ("tolerance at the end", "m"),
+    "time_limit_s": ("time limit per goal", "s"),
+    "settle_s": ("time examined for stopping", "s"),
+    "v_stop": ("speed counted as stopped", "m/s"),
+    "steady_tol": ("movement counted as steady", "m"),
+    "stop_weight": ("share of credit for stopping", SHARE),
+    "goal_source": None,
+    "trajectory": None,
+    "wall_contacts": ("times the turtle hit a wall", ""),
+    "wall_points": None,
+    # turn_direction
+    "start": None,
+    "required_turn_deg": ("turn needed (left +, right −)", "deg"),
+    "naive_turn_deg": ("turn without wrapping the angle", "deg"),
+    "wrap_matters": ("wrapping changes the turn", ""),
+    "evaluated": ("judged", ""),
+    "initial_turn": ("first turned", ""),
+    "first_cmd_angular_z": ("first angular.z sent", "rad/s"),
+    "ambiguous": ("either way is fine (near 180°)", ""),
+    "short_way": ("turned the short way", ""),
+    "min_turn_deg": ("goals judged from a turn of", "deg"),
+    "heading_error": None,
+    # control_law
+    "rows": ("cmd_vel messages paired with a pose and a goal", ""),
+    "K1": ("fitted K1 (linear.x = K1·d_e)", "1/s"),
+    "R2_linear": ("R² of the linear fit", ""),
+    "K2": ("fitted K2 (angular.z = K2·theta_e)", "1/s"),
+    "R2_angular": ("R² of the angular fit", ""),
+    "K2_unwrapped": ("K2 if theta_e is not wrapped", "1/s"),
+    "R2_angular_unwrapped": ("R² if theta_e is not wrapped", ""),
+    "rows_where_wrap_matters": ("messages where wrapping changes theta_e", ""),
+    "wrap": ("theta_e wrapped to [−π, π]", ""),
+    "r2_min": ("R² needed", ""),
+    "min_d": ("closest distance used in the angular fit", "m"),
+    "sample": None,
+    "fit_rows": None,
+}
 
 _GOAL_DEFAULTS = {
     "steps": None,                  # step ids whose goals count (None: every goal)
@@ -75,7 +131,9 @@ def _no_pose(frames: Frames, p: dict) -> Finding:
                          + " Without poses the controller cannot be evaluated (scenario problem).")
 
 
-@register("goals_reached", defaults={
+@register("goals_reached", evidence={**EVIDENCE, "value": ("goals reached", "")},
+          expect="every goal within {tol_reached:g} m, then held within {tol_final:g} m and stopped",
+          defaults={
     **_GOAL_DEFAULTS,
     "tol_reached": 0.1,      # m: distance below which a goal counts as reached
     "tol_final": 0.15,       # m: distance at the end of the goal's time window (held, not left)
@@ -111,6 +169,8 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         reached = len(hit) > 0
         row.update(start_distance=float(d[0]), min_distance=float(d.min()), final_error=float(d[-1]),
                    reached=reached, time_to_reach=float(tt[hit[0]] - g.t) if reached else None)
+        if reached:
+            row["reached_at"] = [round(float(x[m][hit[0]]), 3), round(float(y[m][hit[0]]), 3)]
         settle = tt >= tt[-1] - p["settle_s"]
         disp = float(np.max(np.hypot(x[m][settle] - x[m][-1], y[m][settle] - y[m][-1])))
         vmax = float(np.max(np.abs(v[m][settle]))) if v is not None else None
@@ -122,7 +182,8 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     frac = score / len(gl)
     n_reached = sum(1 for r in rows if r.get("reached"))
     ev = {"goals": rows, "tol_reached": p["tol_reached"], "goal_source": gl[0].source,
-          "trajectory": _trajectory(t, x, y, gl)}
+          "trajectory": _trajectory(t, x, y, gl, pose["theta"].to_numpy(float))}
+    ev.update(_wall_contacts(frames, t, x, y))
     value = f"{n_reached}/{len(gl)} reached"
     problems = []
     for r in rows:
@@ -146,20 +207,37 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
 
 
-def _trajectory(t: np.ndarray, x: np.ndarray, y: np.ndarray, gl: list, max_points: int = 400) -> list[dict]:
-    """The path driven towards each goal, thinned for the report's SVG plot."""
+def _trajectory(t: np.ndarray, x: np.ndarray, y: np.ndarray, gl: list, theta: np.ndarray | None = None,
+                max_points: int = 400) -> list[dict]:
+    """The path driven towards each goal, thinned for the report's figure (``theta0``: heading
+    when the goal was sent)."""
     paths = []
     for k, g in enumerate(gl, 1):
         m = (t >= g.t) & (t <= g.t_end)
         if m.sum() < 2:
             continue
         step = max(1, int(m.sum()) // max_points)
-        paths.append({"x": np.round(x[m][::step], 3).tolist(), "y": np.round(y[m][::step], 3).tolist(),
-                      "goal": [g.x, g.y], "label": f"goal {k} ({g.x:g}, {g.y:g})"})
+        path = {"x": np.round(x[m][::step], 3).tolist(), "y": np.round(y[m][::step], 3).tolist(),
+                "goal": [g.x, g.y], "label": f"goal {k} ({g.x:g}, {g.y:g})"}
+        if theta is not None:
+            path["theta0"] = round(float(theta[m][0]), 4)
+        paths.append(path)
     return paths
 
 
-@register("turn_direction", defaults={
+def _wall_contacts(frames: Frames, t: np.ndarray, x: np.ndarray, y: np.ndarray, eps: float = 1e-3) -> dict:
+    """How often the turtle ran into a wall (turtlesim clamps the pose to [0, WORLD_MAX]): the
+    number of contact episodes and where the first ones were (s since the scenario start, x, y)."""
+    at = (x <= eps) | (y <= eps) | (x >= WORLD_MAX - eps) | (y >= WORLD_MAX - eps)
+    starts = np.nonzero(at & ~np.concatenate(([False], at[:-1])))[0]
+    pts = [[float(s), round(float(x[i]), 3), round(float(y[i]), 3)]
+           for s, i in zip(since_start(frames, t[starts[:20]]), starts[:20])]
+    return {"wall_contacts": int(len(starts)), "wall_points": pts}
+
+
+@register("turn_direction", evidence={**EVIDENCE, "value": ("goals turned the short way", "")},
+          expect="the short way (at most 180°) for every goal that needs a turn of {min_turn_deg:g}° or more",
+          defaults={
     **_GOAL_DEFAULTS,
     "min_turn_deg": 90.0,     # goals whose required turn is at least this are evaluated
     "wrap_turn_deg": 10.0,    # ... and goals where wrapping changes the turn, if at least this
@@ -182,6 +260,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
     cmd = topic(frames, p["cmd_topic"])
     rows, judged, good = [], 0, 0
+    series: list[dict] = []
     for k, g in enumerate(gl, 1):
         i0 = int(np.searchsorted(t, g.t, side="right")) - 1
         if i0 < 0:
@@ -195,6 +274,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         row = {"goal": k, "x": g.x, "y": g.y, "start": [float(x[i0]), float(y[i0]), float(th[i0])],
                "required_turn_deg": math.degrees(req), "naive_turn_deg": math.degrees(naive),
                "wrap_matters": bool(wrap_matters)}
+        series.append(_heading_series(frames, k, t[m], x[m], y[m], th[m], g))
         if not (abs(req) >= math.radians(p["min_turn_deg"]) or
                 (wrap_matters and abs(req) >= math.radians(p["wrap_turn_deg"]))):
             row["evaluated"] = False
@@ -216,7 +296,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         judged += 1
         good += ok
         rows.append(row)
-    ev = {"goals": rows}
+    ev = {"goals": rows, "heading_error": series}
     if judged == 0:
         return Finding.error("No goal in this scenario required a large turn from where the turtle was, "
                              "so the turn direction could not be judged.", ev)
@@ -241,7 +321,18 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     return Finding(value, frac, graded(frac), msg, ev)
 
 
-@register("control_law", defaults={
+def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,
+                    g: Goal, max_points: int = 120) -> dict:
+    """theta_e over time while goal ``k`` was active (the report's heading-error figure)."""
+    keep = thin(len(t), max_points)
+    err = np.degrees(heading_error(x[keep], y[keep], th[keep], g.x, g.y))
+    return {"goal": k, "label": f"goal {k} ({g.x:g}, {g.y:g})", "t": since_start(frames, t[keep]).tolist(),
+            "theta_e_deg": np.round(err, 2).tolist()}
+
+
+@register("control_law", evidence={**EVIDENCE, "value": ("fitted control law", "")},
+          expect="linear.x = K1·d_e and angular.z = K2·theta_e (wrapped) with K1, K2 > 0 and R² ≥ {r2_min:g}",
+          defaults={
     **_GOAL_DEFAULTS,
     "cmd_topic": "/turtle1/cmd_vel",
     "r2_min": 0.9,            # both fits need at least this R^2 for full credit
@@ -306,6 +397,11 @@ def control_law(frames: Frames, p: dict) -> Finding:
                           for a, b, cv, cw in list(zip(d_e, th_e, v, w))[:: max(1, len(v) // 8)][:8]]})
     missing_wrap = wrap_rows >= p["min_wrap_rows"] and np.isfinite(r2n) and r2n > r2w + p["wrap_margin"]
     ev["wrap"] = ("missing" if missing_wrap else "ok") if wrap_rows >= p["min_wrap_rows"] else "not testable"
+    keep = thin(len(v), 300)
+    ev["fit_rows"] = {"t": since_start(frames, j["t"].to_numpy()[keep]).tolist(),
+                      "d_e": np.round(d_e[keep], 4).tolist(), "theta_e": np.round(th_e[keep], 4).tolist(),
+                      "theta_e_unwrapped": np.round(th_naive[keep], 4).tolist(),
+                      "linear_x": np.round(v[keep], 4).tolist(), "angular_z": np.round(w[keep], 4).tolist()}
     notes = []
     lin = 0.0
     if not np.isfinite(k1) or k1 <= 0:

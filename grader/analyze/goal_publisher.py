@@ -13,6 +13,7 @@ import re
 import numpy as np
 
 from grader.analyze import Finding, register
+from grader.analyze.evidence import TIME
 from grader.analyze._common import (Frames, events, missing_topic_feedback, parse_xy_line, stdout_lines,
                                     times, topic)
 from grader.scenario.events import Event
@@ -41,7 +42,26 @@ def _goal_msgs(frames: Frames, name: str) -> tuple[np.ndarray, np.ndarray, np.nd
     return times(df), x, y, n
 
 
-@register("goal_publisher", defaults={
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "expected": ("goals typed [x, y]", "m"),
+    "published": ("goals published [x, y]", "m"),
+    "n_published": ("messages published", ""),
+    "found_in_order": ("typed goals published in order", ""),
+    "latency_s": ("delay from typing to publishing", "s"),
+    "lengths_seen": ("numbers of values per message seen", ""),
+    "malformed_line": ("malformed line typed", ""),
+    "t_malformed": ("typed at", TIME),
+    "exit_events": ("process exits", ""),
+    "returncode": ("exit code", ""),
+    "traceback_lines": ("error output", ""),
+    "undelivered_lines": ("lines that could not be typed (process gone)", ""),
+    "later_goal_published": ("a later goal was still published", ""),
+}
+
+
+@register("goal_publisher", evidence={**EVIDENCE, "value": ("typed goals published", "")},
+          expect="each typed line x,y published as [x, y] on {goal_topic}", defaults={
     "goal_topic": "/turtle1/goal",
     "process": None,               # runner process name of the goal publisher; None = detect
     "expected": [[2.0, 7.0], [8.0, 3.0]],   # used only when no stdin_line events were recorded
@@ -100,7 +120,8 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
 _TRACEBACK = re.compile(r"^\s*(Traceback \(most recent call last\)|\w+(Error|Exception)\b.*)")
 
 
-@register("goal_publisher_robust", defaults={
+@register("goal_publisher_robust", evidence={**EVIDENCE, "value": ("after a malformed line", "")},
+          expect="the node prints an error and keeps reading goals", defaults={
     "goal_topic": "/turtle1/goal",
     "process": None,
     "tol": 1e-3,

@@ -7,17 +7,27 @@ every step (``graph`` events) and records what a launch file declared (``launch_
 
 from __future__ import annotations
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze._common import Frames, events
 from grader.scenario.events import Event
+
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "nodes": ("nodes", ""), "node": ("node", ""), "running": ("ran", ""), "declared": ("declared by the launch file", ""),
+    "seen": ("nodes seen in the ROS graph", ""), "launch": ("launch file", ""), "launch_process": None,
+    "installed": ("installed with the package", ""), "notes": ("notes", ""),
+    "node_name": ("node name", ""), "package": ("package", ""), "executable": ("executable", ""),
+    "stand_in": ("played by the reference simulator", ""), "error": ("error", ""), "start_delay": ("start delay", "s"),
+}
 
 
 def _full(name: str) -> str:
     return "/" + str(name).strip("/")
 
 
-@register("nodes_running", defaults={
-    "nodes": [],               # required: node names, e.g. [/turtlesim, /goal_setter]
+@register("nodes_running", evidence={**EVIDENCE, "value": ('nodes running', '')},
+          expect='{nodes}', defaults={
+    "nodes": REQUIRED,         # required: node names, e.g. [/turtlesim, /goal_setter]
     "launch_process": None,    # rubric process of a launch file: nodes must also be declared there
 })
 def nodes_running(frames: Frames, p: dict) -> Finding:
@@ -63,8 +73,9 @@ def nodes_running(frames: Frames, p: dict) -> Finding:
     return Finding(value, frac, graded(frac), "; ".join(problems) + ".", ev)
 
 
-@register("launch_installed", defaults={
-    "launch_process": None,    # required: the rubric process that runs the launch file
+@register("launch_installed", evidence={**EVIDENCE, "value": ('launch file', '')},
+          expect='installed in share/<package>', defaults={
+    "launch_process": REQUIRED,    # required: the rubric process that runs the launch file
 })
 def launch_installed(frames: Frames, p: dict) -> Finding:
     """The launch file is installed into the package's share folder, where ``ros2 launch

@@ -24,7 +24,27 @@ from grader.scenario.events import Event
 DT = 0.016
 
 
-@register("integrity_pose_publisher", defaults={
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "publishers": ("nodes publishing the pose", ""),
+    "rosout_loggers": ("ROS loggers seen", ""),
+    "rate_hz": ("pose rate", "Hz"),
+    "jumps": ("jumps of the pose", ""),
+    "from": ("from (x, y)", "m"), "to": ("to (x, y)", "m"), "distance": ("distance", "m"),
+    "n_jumps": ("jumps of the pose", ""),
+    "basis": ("judged from", ""),
+    "flagged_calls": ("teleport or reset calls by student code", ""),
+    "driver_calls": ("calls made by the grader", ""),
+    "set_pen_calls": ("set_pen calls", ""),
+    "service": ("service", ""),
+    "request": ("request", ""),
+    "service_event_topics_recorded": ("service calls were recorded", ""),
+    "allowed": ("nodes allowed to publish the pose", ""),
+}
+
+
+@register("integrity_pose_publisher", evidence={**EVIDENCE, "value": ("pose publishers", "")},
+          expect="only the simulator publishing {pose_topic}", defaults={
     "pose_topic": "/turtle1/pose",
     "allowed": ["turtlesim"],     # node names allowed to publish the pose
     "jump_tol": 0.05,             # m beyond v*dt*ticks counted as a jump
@@ -89,7 +109,8 @@ def _service_rows(frames: Frames, names: tuple[str, ...]) -> list[float]:
     return out
 
 
-@register("integrity_no_teleport", defaults={
+@register("integrity_no_teleport", evidence={**EVIDENCE, "value": ("teleport calls", "")},
+          expect="no teleport or reset call by student code", defaults={
     "flag_services": ["/turtle1/teleport_absolute", "/turtle1/teleport_relative", "/reset"],
     "list_services": ["/turtle1/set_pen"],
     "driver_match_s": 2.0,   # a call within this of a driver service_call event is the driver's

@@ -14,9 +14,21 @@ import re
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import REQUIRED, Finding, graded, register
+from grader.analyze.evidence import SHARE
 from grader.analyze._common import (Frames, missing_topic_feedback, rosout_lines, stdout_lines,
                                     times, topic)
+
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "logger": ("logger", ""), "matching": ("matching lines", ""), "lines_from_logger": ("lines logged by it", ""),
+    "pattern": ("pattern", ""), "printed": ("lines printed instead of logged", ""), "min_count": ("lines needed", ""),
+    "messages": ("messages", ""), "first": ("first messages", ""), "not_matching": ("messages not matching", ""),
+    "counter": ("counter values", ""), "counting": ("counts up", ""), "published": ("messages published", ""),
+    "heard": ("lines logged as heard", ""), "first_heard": ("first heard", ""), "share": ("share heard", SHARE),
+    "foreign": ("logged but never published", ""), "published_while_listening": ("published while it listened", ""),
+    "min_share": ("share needed", SHARE),
+}
 
 
 def _logger_lines(frames: Frames, logger: str) -> pd.DataFrame:
@@ -24,9 +36,10 @@ def _logger_lines(frames: Frames, logger: str) -> pd.DataFrame:
     return logs[logs["logger"].astype(str).str.strip("/") == logger.strip("/")]
 
 
-@register("logged", defaults={
-    "logger": None,            # required: the node's logger name, e.g. my_first_node
-    "pattern": None,           # required: regular expression the line must match
+@register("logged", evidence={**EVIDENCE, "value": ('logged line', '')},
+          expect='a line matching {pattern!r} logged by {logger}', defaults={
+    "logger": REQUIRED,            # required: the node's logger name, e.g. my_first_node
+    "pattern": REQUIRED,           # required: regular expression the line must match
     "min_count": 1,
 })
 def logged(frames: Frames, p: dict) -> Finding:
@@ -49,9 +62,10 @@ def logged(frames: Frames, p: dict) -> Finding:
                         "log with get_logger().info?).", ev)
 
 
-@register("text_messages", defaults={
-    "topic": None,             # required: e.g. /robot_news
-    "pattern": None,           # required: regex every message must match; group 1 = the counter
+@register("text_messages", evidence={**EVIDENCE, "value": ('messages matching', '')},
+          expect='at least {min_count} messages matching {pattern!r}', defaults={
+    "topic": REQUIRED,             # required: e.g. /robot_news
+    "pattern": REQUIRED,           # required: regex every message must match; group 1 = the counter
     "min_count": 3,            # messages needed
     "counting": False,         # the counter (group 1) goes up by one per message
 })
@@ -86,9 +100,10 @@ def text_messages(frames: Frames, p: dict) -> Finding:
                    "; ".join(problems).capitalize() + ".", ev)
 
 
-@register("heard_messages", defaults={
-    "topic": None,             # required: the topic the subscriber listens to
-    "logger": None,            # required: the subscriber's logger name
+@register("heard_messages", evidence={**EVIDENCE, "value": ('messages heard', '')},
+          expect='{min_share:.0%} of the published messages logged', defaults={
+    "topic": REQUIRED,             # required: the topic the subscriber listens to
+    "logger": REQUIRED,            # required: the subscriber's logger name
     "pattern": r"I heard: (.*)",   # group 1 = the text it heard
     "min_share": 0.9,          # share of messages published while it listened that it logged
 })

@@ -20,10 +20,28 @@ import math
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import REQUIRED, Finding, graded, register
+from grader.analyze.evidence import SHARE, SINCE_START, TIME
 from grader.analyze._common import (WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
                                     times, topic)
 from grader.analyze.rate import rate_stats
+
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "radius_m": ("fitted radius", "m"), "centre": ("circle centre (x, y)", "m"), "rms_m": ("RMS distance from the circle", "m"),
+    "expected_m": ("expected radius", "m"), "rel_error": ("relative error", SHARE), "poses": ("poses used", ""),
+    "path": None, "period_s": ("time for one circle", "s"), "angular_velocity_rad_s": ("turning rate", "rad/s"),
+    "turns": ("circles recorded", ""), "expected_s": ("expected period", "s"), "direction": ("direction", ""),
+    "rel_tol": ("allowed relative error", SHARE), "skip_s": ("time left out after the start", "s"),
+    "commands": ("velocity commands", ""), "rate_hz": ("command rate", "Hz"), "max_gap_s": ("longest gap between commands", "s"),
+    "moving_share": ("share of the time moving", SHARE), "stalls": ("stops", ""), "start": ("stopped at", TIME),
+    "duration_s": ("for", "s"), "limit_gap_s": ("simulator's command timeout", "s"),
+    "min_moving_share": ("share of the time that must be moving", SHARE), "min_speed": ("speed counted as moving", "m/s"),
+    "min_clearance_m": ("closest approach to a wall", "m"), "closest_at": ("closest point (x, y)", "m"),
+    "closest_t": ("closest at", SINCE_START), "wall_warnings": ("'hit the wall' warnings", ""),
+    "contacts": ("poses touching a wall", ""), "world_max": ("world size", "m"), "min_clearance": ("clearance required", "m"),
+    "pose_topic": ("pose topic", ""), "cmd_topic": ("command topic", ""), "sim_logger": None,
+}
 
 _POSE = {"pose_topic": "/turtle1/pose", "min_speed": 0.05}
 
@@ -59,9 +77,10 @@ def _within(value: float, expected: float, rel_tol: float) -> bool:
     return math.isfinite(value) and abs(value / expected - 1.0) <= rel_tol
 
 
-@register("circle_radius", defaults={
+@register("circle_radius", evidence={**EVIDENCE, "value": ('circle radius', '')},
+          expect='{expected_m:g} m ± {rel_tol:.0%}', defaults={
     **_POSE,
-    "expected_m": None,      # required: v / w of the commanded Twist, e.g. 2.0
+    "expected_m": REQUIRED,      # required: v / w of the commanded Twist, e.g. 2.0
     "rel_tol": 0.05,         # |radius / expected - 1| <= rel_tol passes
     "skip_s": 0.5,           # s after the turtle started moving left out
 })
@@ -86,9 +105,10 @@ def circle_radius(frames: Frames, p: dict) -> Finding:
                    f"± {p['rel_tol']:.0%} (radius = linear.x / angular.z).", ev)
 
 
-@register("circle_period", defaults={
+@register("circle_period", evidence={**EVIDENCE, "value": ('time for one circle', '')},
+          expect='{expected_s:.3g} s ± {rel_tol:.0%}', defaults={
     **_POSE,
-    "expected_s": None,      # required: 2 pi / w of the commanded Twist, e.g. 6.2832
+    "expected_s": REQUIRED,      # required: 2 pi / w of the commanded Twist, e.g. 6.2832
     "rel_tol": 0.05,
     "skip_s": 0.5,
 })
@@ -115,7 +135,8 @@ def circle_period(frames: Frames, p: dict) -> Finding:
                    f"{p['rel_tol']:.0%} (period = 2π / angular.z; pauses between commands lengthen it).", ev)
 
 
-@register("keeps_moving", defaults={
+@register("keeps_moving", evidence={**EVIDENCE, "value": ('time moving', '')},
+          expect='commands less than {max_gap_s:g} s apart, moving {min_moving_share:.0%} of the time', defaults={
     **_POSE,
     "cmd_topic": "/turtle1/cmd_vel",
     "max_gap_s": 1.0,          # turtlesim stops the turtle 1 s after the last command
@@ -170,7 +191,8 @@ def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
     return out
 
 
-@register("no_wall_contact", defaults={
+@register("no_wall_contact", evidence={**EVIDENCE, "value": ('closest approach to a wall', '')},
+          expect='no wall contact', defaults={
     "pose_topic": "/turtle1/pose",
     "sim_logger": "turtlesim",        # the simulator's logger (its "hit the wall" warning)
     "world_max": WORLD_MAX,           # m: the world is [0, world_max] in x and y

@@ -16,8 +16,22 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import REQUIRED, Finding, graded, register
+from grader.analyze.evidence import SHARE, SINCE_START, TIME
 from grader.analyze._common import Frames, missing_topic_feedback, service_calls, times, topic
+
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "crossings": ("crossings of the line", ""), "direction": ("direction", ""), "wanted": ("colour wanted (r, g, b)", ""),
+    "ok": ("as expected", ""), "why": ("problem", ""), "delay_s": ("call after the crossing", "s"),
+    "color": ("colour set (r, g, b)", ""), "width": ("pen width", ""), "extra_calls": ("calls not at a crossing", ""),
+    "calls": ("set_pen calls", ""), "split_x": ("line x", "m"), "sides": ("colours by side", ""),
+    "pixels": ("pixels", ""), "on_its_side": ("pixels on its side", ""), "share": ("share on its side", SHARE),
+    "drawn_pixels": ("pixels drawn", ""), "right_color": ("colour right of the line", ""),
+    "left_color": ("colour left of the line", ""), "max_delay_s": ("time allowed after a crossing", "s"),
+    "min_pixels": ("pixels needed per colour", ""), "min_share": ("share needed on its side", SHARE),
+    "t": ("time", SINCE_START), "service": ("service", ""), "pose_topic": ("pose topic", ""),
+}
 
 CANVAS = "__canvas__"
 _PEN = {
@@ -43,7 +57,8 @@ def _color(request: dict) -> list[int] | None:
         return None
 
 
-@register("pen_on_crossings", defaults={
+@register("pen_on_crossings", evidence={**EVIDENCE, "value": ('crossings with the right call', '')},
+          expect="one set_pen call per crossing of x = {split_x:g}, with that side's colour, and no other", defaults={
     **_PEN,
     "service": "/turtle1/set_pen",
     "width": 3,                      # pen width the calls must set (None: any)
@@ -101,7 +116,8 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
     return Finding(value, frac, graded(frac), "; ".join(problems) + ".", ev)
 
 
-@register("canvas_colours", defaults={
+@register("canvas_colours", evidence={**EVIDENCE, "value": ('colours on the canvas', '')},
+          expect='{right_color} right and {left_color} left of x = {split_x:g}', defaults={
     **_PEN,
     "min_pixels": 50,                # each colour must cover at least this many pixels
     "min_share": 0.95,               # share of each colour's pixels on its own side

@@ -16,7 +16,30 @@ from grader.analyze._common import (Frames, meta, meta_row, missing_topic_feedba
                                     publishers_of, topic)
 
 
-@register("topic_type", defaults={
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "type": ("message type", ""),
+    "expected_type": ("message type expected", ""),
+    "count": ("messages recorded", ""),
+    "publishers": ("publishing nodes", ""),
+    "n_len_not_2": ("messages without exactly 2 values", ""),
+    "n_out_of_range": ("messages with a value outside (0, 1)", ""),
+    "lengths_seen": ("numbers of values per message seen", ""),
+    "first": ("first messages [u1, u2]", ""),
+    "n_u1_equals_u2": ("messages with u1 = u2", ""),
+    "ks": ("uniformity test", ""),
+    "ks.u1_stat": ("uniformity test (Kolmogorov-Smirnov) of u1: statistic", ""),
+    "ks.u1_p": ("uniformity test of u1: p-value", ""),
+    "ks.u2_stat": ("uniformity test (Kolmogorov-Smirnov) of u2: statistic", ""),
+    "ks.u2_p": ("uniformity test of u2: p-value", ""),
+    "ks_alpha": ("p-value below which values are not uniform", ""),
+    "min_messages": ("messages needed", ""),
+    "columns": None,
+}
+
+
+@register("topic_type", evidence={**EVIDENCE, "value": ("message type", "")},
+          expect="{type} messages on {topic}", defaults={
     "topic": "/random_numbers",
     "type": "std_msgs/msg/Float32MultiArray",
     "min_count": 1,
@@ -52,7 +75,8 @@ def topic_type(frames: Frames, p: dict) -> Finding:
     return Finding(got, 1.0, "pass", f"{name} is published with type {want} ({count} messages).", ev)
 
 
-@register("random_numbers_values", defaults={
+@register("random_numbers_values", evidence={**EVIDENCE, "value": ("valid messages", "")},
+          expect="every message [u1, u2] with both values in (0, 1), uniformly distributed", defaults={
     "topic": "/random_numbers",
     "min_messages": 3,
     "ks_min_samples": 20,   # run the uniformity test only with at least this many messages

@@ -11,8 +11,29 @@ from __future__ import annotations
 
 import numpy as np
 
-from grader.analyze import Finding, register
-from grader.analyze._common import Frames, missing_topic_feedback, times, topic, topic_or_student_topic
+from grader.analyze import REQUIRED, Finding, register
+from grader.analyze._common import (Frames, missing_topic_feedback, since_start, thin, times, topic,
+                                    topic_or_student_topic)
+from grader.analyze.evidence import SHARE
+
+EVIDENCE = {
+    "value": ("publish rate", "Hz"),
+    "expected_hz": ("expected rate", "Hz"),
+    "rate_hz": ("measured rate (1 / mean interval)", "Hz"),
+    "n": ("messages recorded", ""),
+    "mean_s": ("mean interval between messages", "s"),
+    "min_s": ("shortest interval", "s"),
+    "max_s": ("longest interval (pauses left out)", "s"),
+    "std_s": ("standard deviation of the intervals", "s"),
+    "gaps_excluded": ("pauses left out of the rate", ""),
+    "span_s": ("time from first to last message", "s"),
+    "rel_error": ("difference from the expected rate", SHARE),
+    "rel_tol": ("tolerance for full credit", SHARE),
+    "partial_rel_tol": ("tolerance for partial credit", SHARE),
+    "min_messages": ("messages needed to measure", ""),
+    "gap_factor": ("an interval longer than this many median intervals is a pause", ""),
+    "intervals": None,            # {t, dt}: the figure's series (t in s since the scenario start)
+}
 
 
 def rate_stats(t: np.ndarray, gap_factor: float | None = 5.0) -> dict:
@@ -50,9 +71,9 @@ def rate_stats(t: np.ndarray, gap_factor: float | None = 5.0) -> dict:
     }
 
 
-@register("publish_rate", defaults={
-    "topic": None,          # required: topic to measure, e.g. "/random_numbers"
-    "expected_hz": None,    # required: nominal rate, e.g. 1.0, 33.33 (0.03 s timer), 62.5
+@register("publish_rate", evidence=EVIDENCE, expect="{expected_hz:g} Hz ± {rel_tol:.0%}", defaults={
+    "topic": REQUIRED,          # required: topic to measure, e.g. "/random_numbers"
+    "expected_hz": REQUIRED,    # required: nominal rate, e.g. 1.0, 33.33 (0.03 s timer), 62.5
     "rel_tol": 0.10,        # |rate/expected - 1| <= rel_tol -> full credit
     "partial_rel_tol": 0.30,  # <= this -> partial_credit
     "partial_credit": 0.5,
@@ -85,6 +106,11 @@ def publish_rate(frames: Frames, p: dict) -> Finding:
             t = pt
     st = rate_stats(t, p["gap_factor"])
     ev = {"topic": name, "expected_hz": float(expected), **st}
+    ts = np.sort(t[np.isfinite(t)])
+    if len(ts) >= 2:
+        keep = thin(len(ts) - 1, 400)
+        ev["intervals"] = {"t": since_start(frames, ts[1:][keep]).tolist(),
+                           "dt": np.round(np.diff(ts)[keep], 5).tolist()}
     if st["n"] < p["min_messages"] or not np.isfinite(st["rate_hz"]):
         return Finding(st["rate_hz"], 0.0, "fail",
                        f"Only {st['n']} message(s) on {name}: not enough to measure a rate "

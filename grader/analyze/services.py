@@ -12,9 +12,20 @@ from typing import Any
 
 import numpy as np
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze._common import Frames, events, missing_topic_feedback, times, topic
 from grader.scenario.events import Event
+
+#: labels and units of the evidence (see grader.analyze.evidence)
+EVIDENCE = {
+    "calls": ("calls", ""), "call": ("call", ""), "request": ("request", ""), "answered": ("answered", ""),
+    "ok": ("as expected", ""), "service_type": ("service type", ""), "service_missing": ("calls without a server", ""),
+    "messages": ("messages after the call", ""), "got": ("message values", ""), "wanted": ("requested values", ""),
+    "match": ("values match", ""), "service": ("service", ""), "field": ("response field", ""),
+    "expected": ("expected value", ""), "fields": ("message field: request field", ""),
+    "window_s": ("time allowed for the message", "s"), "tol": ("allowed difference", ""),
+    "success": ("success", ""),
+}
 
 
 def _calls(frames: Frames, service: str) -> list[dict[str, Any]]:
@@ -40,8 +51,9 @@ def _no_calls(frames: Frames, service: str) -> Finding:
     return Finding.error(f"The scenario made no calls to {service}, so this item could not be tested.")
 
 
-@register("service_answers", defaults={
-    "service": None,           # required: e.g. /set_goal
+@register("service_answers", evidence={**EVIDENCE, "value": ('calls answered as expected', '')},
+          expect='{field} = {expected} in every response', defaults={
+    "service": REQUIRED,           # required: e.g. /set_goal
     "field": "success",        # response field to check
     "expected": True,          # value it must have
 })
@@ -70,10 +82,11 @@ def service_answers(frames: Frames, p: dict) -> Finding:
                    "returning the response.", ev)
 
 
-@register("request_echoed", defaults={
-    "service": None,           # required: e.g. /set_goal
-    "topic": None,             # required: where each request must be published, e.g. /goal
-    "fields": {},              # required: message field -> request field, e.g. {x: x, y: y}
+@register("request_echoed", evidence={**EVIDENCE, "value": ('requests republished', '')},
+          expect='one message on {topic} per request, with its values', defaults={
+    "service": REQUIRED,           # required: e.g. /set_goal
+    "topic": REQUIRED,             # required: where each request must be published, e.g. /goal
+    "fields": REQUIRED,        # required: message field -> request field, e.g. {x: x, y: y}
     "window_s": 2.0,           # s after the call in which the message must arrive
     "tol": 1e-6,               # allowed difference of numeric fields
 })

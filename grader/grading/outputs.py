@@ -20,8 +20,23 @@ def _canvases(sub_out: Path) -> dict[str, str]:
     return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
 
 
+def effective_params(rubric) -> dict[str, dict]:
+    """item id -> the analyzer's parameters as run (defaults merged with the rubric's), for the
+    report's thresholds when a result does not record its own."""
+    from grader import analyze
+
+    out = {}
+    for item in rubric.items:
+        if item.analyzer:
+            try:
+                out[item.id] = {**analyze.defaults(item.analyzer), **dict(item.params)}
+            except Exception:  # noqa: BLE001 - an unknown analyzer is reported by the item itself
+                out[item.id] = dict(item.params)
+    return out
+
+
 def write_submission_outputs(graded, rubric, *, public_only: bool) -> None:
-    """result.json (+ build, errors, timings) and report.html for one submission."""
+    """result.json (+ build, errors, timings, previous grading) and report.html for one submission."""
     from grader.report.html import write_html
     from grader.report.result import write_result
 
@@ -29,10 +44,12 @@ def write_submission_outputs(graded, rubric, *, public_only: bool) -> None:
     extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
              "errors": graded.errors, "timings": graded.timings,
              "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir())}
+    if getattr(graded, "previous", None):
+        extra["previous"] = graded.previous
     out_dir, sid = graded.out.parent, graded.out.name
     write_result(out_dir, sid, graded.result, versions=ver, extra=extra)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
-               problems=graded.errors)
+               problems=graded.errors, params=effective_params(rubric))
 
 
 def write_batch_outputs(out: Path, rubric) -> None:
@@ -52,13 +69,18 @@ def print_check_table(graded, rubric) -> bool:
     print(f"\n{rubric.title}: self-check ({result.auto_score:g}/{result.auto_max:g} points on public items)\n")
     ok = True
     marks = {"pass": "PASS", "partial": "PART", "fail": "FAIL", "error": "ERR "}
+    from grader.report.readable import item_params, measured_sentence
+
+    params = effective_params(rubric)
     for item in rows:
         mark = marks.get(item.status, item.status.upper()[:4])
         pts = "" if item.kind in ("advisory", "integrity") else f"{(item.points or 0):g}/{item.max_points:g}"
         label = "warn" if item.kind == "advisory" and item.status != "pass" else mark
         print(f"  {label:4}  {item.id:<{width}}  {pts:>7}  {item.title}")
         if item.status != "pass":
-            text = item.feedback or ""
+            # what was measured against what was expected, then the feedback and the hint
+            lead = measured_sentence(item, item_params(item, params.get(item.id)), student_view=True)
+            text = (lead + " " + (item.feedback or "")).strip()
             if item.hint:
                 text = (text + " Hint: " + item.hint).strip()
             for line in _wrap(text, 92):

@@ -56,6 +56,7 @@ class GradedSubmission:
     build_failed: list[str] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+    previous: dict | None = None      # a regrade's summary of the result it replaced (class view diff)
 
 
 def selected_items(rubric, public_only: bool) -> list:
@@ -258,8 +259,13 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
     old = {}
     if (sub_out / "result.json").exists():
         old = json.loads((sub_out / "result.json").read_text())
+    from grader.report.result import previous_summary
+
+    # the run's build/scenario problems and timings still describe the bags; keep them
     graded = GradedSubmission(sub_out.name, sub_out, result, build_ok=old.get("build", {}).get("ok", True),
-                              build_failed=old.get("build", {}).get("failed", []), errors=problems)
+                              build_failed=old.get("build", {}).get("failed", []),
+                              errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
+                              timings=old.get("timings", {}), previous=previous_summary(old))
     write_outputs(graded, rubric, public_only=public_only)
     return graded
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from grader.report.html import write_index
+from grader.report.index import read_docs, write_index
 from grader.report.result import read_result, write_grades_csv
 from grader.rubric.schema import Rubric
 from grader.rubric.score import Result
@@ -28,6 +28,7 @@ def load_results(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) 
 
 
 def write_batch(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> tuple[Path, Path]:
-    """(Re)write ``out_dir/grades.csv`` and ``out_dir/index.html``; returns both paths."""
+    """(Re)write ``out_dir/grades.csv`` and ``out_dir/index.html`` (the class view); returns both."""
     results = load_results(out_dir, rubric)
-    return write_grades_csv(out_dir, results, rubric=rubric), write_index(out_dir, results)
+    return (write_grades_csv(out_dir, results, rubric=rubric),
+            write_index(out_dir, results, docs=read_docs(out_dir, list(results))))

@@ -75,6 +75,7 @@ def item_to_dict(item: ItemResult) -> dict[str, Any]:
         "params": jsonable(item.params),
         "hidden_params": list(item.hidden_params),
         "requires": list(item.requires),
+        "analyzer": item.analyzer,
     }
 
 
@@ -135,13 +136,28 @@ def result_from_dict(doc: Mapping[str, Any]) -> Result:
         public=i["public"], points=i["points"], max_points=i["max_points"], status=i["status"],
         feedback=i["feedback"], hint=i.get("hint"), value=i.get("value"),
         fraction=i.get("fraction"), evidence=i.get("evidence") or {}, params=i.get("params") or {},
-        hidden_params=tuple(i.get("hidden_params") or ()), requires=tuple(i.get("requires") or ()))
-        for i in doc["items"])
+        hidden_params=tuple(i.get("hidden_params") or ()), requires=tuple(i.get("requires") or ()),
+        analyzer=i.get("analyzer")) for i in doc["items"])
     specs = tuple(SectionSpec(section=section(s["section"]), title=s.get("name")) for s in doc.get("sections", []))
     hidden = doc.get("hidden") or {}
     return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
                   student_view=doc.get("view") == "student",
                   hidden_items=int(hidden.get("items", 0)), hidden_points=float(hidden.get("points", 0)))
+
+
+def previous_summary(doc: Mapping[str, Any]) -> dict[str, Any] | None:
+    """What a regrade keeps of the result.json it replaces (stored as its ``previous`` key), so
+    the class view can show who changed and by how much: totals and each item's points and
+    status. None when ``doc`` is not a result."""
+    items = doc.get("items") if isinstance(doc, Mapping) else None
+    if not isinstance(items, list):
+        return None
+    return jsonable({
+        "auto_score": doc.get("auto_score"), "score": doc.get("score"), "total": doc.get("total"),
+        "versions": doc.get("versions") or {},
+        "items": {str(i.get("id")): {"points": i.get("points"), "status": i.get("status")}
+                  for i in items if isinstance(i, Mapping) and i.get("id") is not None},
+    })
 
 
 def read_result(path: str | os.PathLike[str]) -> tuple[str, Result]:
@@ -176,8 +192,24 @@ def write_result(out_dir: str | os.PathLike[str], submission: str, result: Resul
     check_submission_id(submission)
     path = Path(out_dir) / submission / plain_file_name(filename)
     doc = result_to_dict(result, submission, versions=versions, extra=extra)
-    atomic_write(path, json.dumps(doc, indent=2, allow_nan=False, ensure_ascii=False) + "\n")
+    atomic_write(path, dumps(doc))
     return path
+
+
+_SCALAR = r"(?:-?[0-9][0-9.eE+-]*|null|true|false)"
+_NUMBER_LIST = re.compile(rf"\[\n\s+({_SCALAR}(?:,\n\s+{_SCALAR})*)\n\s*\]")
+
+
+def dumps(doc: Any) -> str:
+    """Indented JSON with lists of numbers on one line each (plot series in the evidence would
+    otherwise take a line per number). Only structural newlines are touched: JSON strings cannot
+    hold a raw newline."""
+    return compact_number_lists(json.dumps(doc, indent=2, allow_nan=False, ensure_ascii=False)) + "\n"
+
+
+def compact_number_lists(text: str) -> str:
+    """Indented JSON ``text`` with each list of scalars (numbers, null, booleans) on one line."""
+    return _NUMBER_LIST.sub(lambda m: "[" + re.sub(r",\n\s+", ", ", m.group(1)) + "]", text)
 
 
 def plain_file_name(filename: str) -> str:

@@ -43,13 +43,14 @@ class _Registry:
 REGISTRY = _Registry()
 
 
-def registered_analyzers() -> dict[str, list[str]] | None:
-    """``{analyzer: accepted parameter names}`` from grader.analyze, or None without it."""
+def registered_analyzers() -> dict[str, dict[str, bool]] | None:
+    """``{analyzer: {parameter: required?}}`` from grader.analyze, or None without it."""
     try:
         from grader import analyze
     except ImportError:
         return None
-    return {name: sorted(analyze.defaults(name)) for name in analyze.names()}
+    return {name: {k: k in analyze.required(name) for k in sorted(analyze.defaults(name))}
+            for name in analyze.names()}
 
 
 def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,

@@ -388,6 +388,10 @@ class Rubric(Model):
                             out.append((f"{at}.params.{key}", f"analyzer {item.analyzer!r} takes no parameter "
                                         f"{key!r}" + (_suggest(key, sorted(accepted)) or
                                                       f" (accepted: {', '.join(sorted(accepted)) or 'none'})")))
+                    needed = accepted if not isinstance(analyzers[item.analyzer], Mapping) else \
+                        {k for k, req in analyzers[item.analyzer].items() if req is True}
+                    for key in sorted(needed - set(item.params)) if isinstance(analyzers[item.analyzer], Mapping) else ():
+                        out.append((f"{at}.params", f"analyzer {item.analyzer!r} needs the parameter {key!r}"))
                     for key in item.hidden_params:
                         if key not in accepted:
                             out.append((f"{at}.hidden_params", f"analyzer {item.analyzer!r} has no "

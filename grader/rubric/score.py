@@ -48,6 +48,7 @@ class ItemResult:
     params: Mapping[str, Any] = field(default_factory=dict)       # thresholds that decided it
     hidden_params: tuple[str, ...] = ()                           # not shown to students
     requires: tuple[str, ...] = ()                                # items gating its points
+    analyzer: str | None = None  # the report looks up evidence labels and figures by analyzer
 
 
 @dataclass(frozen=True)
@@ -171,13 +172,33 @@ class Result:
 
     def for_student(self) -> "Result":
         """The self-check view: hidden (``public: false``) items and their points removed, and
-        the thresholds an item marks hidden (``hidden_params``) left out."""
-        visible = tuple(replace(i, params={k: v for k, v in i.params.items() if k not in i.hidden_params})
-                        for i in self.items if i.public)
+        thresholds the rubric marks hidden (``hidden_params``) removed from each item's params
+        and evidence."""
+        visible = tuple(_without_hidden(i) for i in self.items if i.public)
         hidden = [i for i in self.items if not i.public]
         return replace(self, items=visible, student_view=True,
                        hidden_items=self.hidden_items + len(hidden),
                        hidden_points=_sum([self.hidden_points, *(i.max_points for i in hidden)]))
+
+
+def _without_hidden(item: ItemResult) -> ItemResult:
+    hidden = {str(n) for n in (getattr(item, "hidden_params", None) or ())}
+    if not hidden:
+        return item
+    changes: dict[str, Any] = {"evidence": strip_keys(item.evidence, hidden)}
+    if isinstance(getattr(item, "params", None), Mapping):
+        changes["params"] = {k: v for k, v in item.params.items() if k not in hidden}  # type: ignore[attr-defined]
+    return replace(item, **changes)
+
+
+def strip_keys(value: Any, hidden: set[str]) -> Any:
+    """``value`` without mapping keys named in ``hidden``, at any depth."""
+    if isinstance(value, Mapping):
+        return {k: strip_keys(v, hidden) for k, v in value.items() if str(k) not in hidden}
+    if isinstance(value, list):
+        return [strip_keys(v, hidden) for v in value]
+    return value
+
 
 def _sum(values: Iterable[float | None]) -> float:
     return round(sum(v for v in values if v is not None), 2)
@@ -303,7 +324,8 @@ def _result(item: Item, points: float | None, status: str, feedback: str, fracti
                       public=item.public, points=points, max_points=item.points, status=status,
                       feedback=feedback, hint=item.hint, value=value, fraction=fraction,
                       evidence=dict(evidence or {}), params=dict(params if params is not None else item.params),
-                      hidden_params=tuple(item.hidden_params), requires=tuple(item.requires))
+                      hidden_params=tuple(item.hidden_params), requires=tuple(item.requires),
+                      analyzer=item.analyzer)
 
 
 def _feedback(item: Item, status: str, finding: FindingLike, fraction: float,

@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from grader.errors import GraderError
-from grader.report.html import write_html, write_index
+from grader.report.html import write_html
+from grader.report.index import read_docs, write_index
 from grader.report.result import read_result, result_to_dict, write_grades_csv, write_result
 from grader.rubric.score import Result
 from grader.scores import transaction
@@ -139,7 +140,7 @@ def merge_manual_scores(out: str | os.PathLike[str], sheet: str | os.PathLike[st
             for sid, scores in new_scores.items():
                 _stage_submission(stage, out, graded[sid], results[sid], scores)
             write_grades_csv(stage, results)
-            write_index(stage, results)
+            write_index(stage, results, docs=read_docs(out, list(results)))
             files = sorted(transaction.changed_files(stage, out),
                            key=lambda rel: (_ORDER.get(rel.name, 9), str(rel)))
             report.written = ([out / rel for rel in files] if dry_run

@@ -29,7 +29,8 @@ def test_result_json_shape(tmp_path, lab3, lab3_result):
     item = {i["id"]: i for i in doc["items"]}
     assert set(item["ex1.pub_rate"]) == {"id", "title", "section", "kind", "public", "points",
                                          "max_points", "status", "feedback", "hint", "value",
-                                         "fraction", "evidence", "params", "hidden_params", "requires"}
+                                         "fraction", "evidence", "params", "hidden_params", "requires",
+                                         "analyzer"}
     assert item["ex1.pub_rate"]["section"] == {"exercise": 1}
     assert (item["ex1.pub_rate"]["points"], item["ex1.pub_rate"]["max_points"]) == (1.5, 3)
     assert item["ex1.pub_rate"]["status"] == "partial"
@@ -98,3 +99,24 @@ def test_grades_csv_refuses_mixed_labs_and_student_views(lab3, lab3_result):
     from dataclasses import replace
     with pytest.raises(ValueError, match="not 'enee467-lab3'"):
         grades_csv_text({"a": replace(lab3_result, lab="other")}, lab3)
+
+
+def test_result_json_keeps_number_lists_on_one_line(tmp_path, lab3, make_finding):
+    from grader.report.result import dumps
+
+    evidence = {"series": {"t": [0.5, 1.0, None], "ok": [True, False]}, "text": "a [\n 1,\n 2\n] b",
+                "rows": [{"x": 1}, {"x": 2}]}
+    text = dumps({"evidence": evidence})
+    assert '"t": [0.5, 1.0, null]' in text and '"ok": [true, false]' in text
+    assert json.loads(text) == {"evidence": evidence}          # strings untouched, rows still indented
+    result = score(lab3, {"ex1.pub_rate": make_finding(evidence=evidence)})
+    assert json.loads(write_result(tmp_path, "x", result).read_text())["items"][8]["evidence"] == evidence
+
+
+def test_previous_summary_is_what_a_regrade_keeps(lab3_result):
+    from grader.report import previous_summary, result_to_dict
+
+    prev = previous_summary(result_to_dict(lab3_result, "alice", versions={"grader": "0.1.0"}))
+    assert prev["auto_score"] == 47 and prev["versions"] == {"grader": "0.1.0"}
+    assert prev["items"]["ex1.pub_rate"] == {"points": 1.5, "status": "partial"}
+    assert previous_summary({"schema": 1}) is None

@@ -56,7 +56,7 @@ def test_merge_updates_result_report_store_and_grades_csv(batch: Path, tmp_path:
 
     html = (batch / "reference" / "report.html").read_text(encoding="utf-8")
     q1_row = html[html.index('data-item="q1"'):]
-    q1_row = q1_row[: q1_row.index("</tr>")]
+    q1_row = q1_row[: q1_row.index("</li>")]
     assert "8 / 8" in q1_row and "Right rate, &lt;b&gt;and&lt;/b&gt; units." in q1_row
     assert "88.5 / 100" in html
 
