@@ -11,7 +11,7 @@ directory of its own.
 Inside, the filesystem is an empty tmpfs root with read-only binds of the system (``/usr``,
 ``/etc``, the ``/bin``-style links), the Python interpreter and venv, and the paths the caller
 names (a build's ``install``/``src``); one writable, size-capped scratch tmpfs at ``/sandbox``
-(cwd, ``HOME``, ``TMPDIR``, ``ROS_LOG_DIR``; ``/tmp`` points into it); a private ``/dev`` and
+(cwd, ``HOME``, ``TMPDIR``, ``ROS_LOG_DIR``; ``/tmp`` is a second one); a private ``/dev`` and
 ``/proc``. Nothing else of the host exists there: not the outputs, the bags, the rubric, the
 fixtures, other submissions, the build cache or the grader's sources.
 """
@@ -59,6 +59,7 @@ class Jail:
     signal_reset: bool = True             # `env --default-signal` is available
     cgroup_procs: tuple[str, ...] = ()    # cgroup.procs files the process joins
     dds_profile: bool = True              # hand in the UDP-only Fast DDS profile
+    python_path: tuple[str, ...] = ()     # put first on PYTHONPATH (their contents must be in ``ro``)
 
     def to_json(self) -> dict:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
@@ -135,13 +136,15 @@ def _entry(argv: Sequence[str]) -> tuple[list[str], dict[str, str]]:
     return argv, {}
 
 
-def _ancestors(paths: Sequence[str]) -> list[str]:
+def _ancestors(paths: Sequence[str], bound: Sequence[str]) -> list[str]:
+    """Directories to create (0755) so that ``paths`` can be reached: their parents, except
+    those inside a bound tree. bwrap would make missing parents 0700, closed to the sandbox user."""
     seen: dict[str, None] = {}
     for p in paths:
         parts = Path(p).parts[1:-1]
         for i in range(1, len(parts) + 1):
             seen["/" + "/".join(parts[:i])] = None
-    return [d for d in sorted(seen, key=lambda d: d.count("/")) if not _under(d, paths)]
+    return [d for d in sorted(seen, key=lambda d: d.count("/")) if not _under(d, bound)]
 
 
 def bwrap_argv(jail: Jail, argv: Sequence[str], *, cwd: str, files: Mapping[str, str]) -> list[str]:
@@ -161,13 +164,15 @@ def bwrap_argv(jail: Jail, argv: Sequence[str], *, cwd: str, files: Mapping[str,
     out += ["--proc", "/proc", "--dev", "/dev",
             "--perms", "01777", "--size", str(jail.scratch_mb * 2**20), "--tmpfs", SCRATCH,
             "--perms", "01777", "--dir", f"{SCRATCH}/tmp", "--perms", "01777", "--dir", f"{SCRATCH}/ros_log",
-            "--symlink", f"{SCRATCH}/tmp", "/tmp"]
+            # /tmp: a tmpfs of its own (not a link into the scratch), so host paths under /tmp can
+            # still be bound (a build area in a temporary cache)
+            "--perms", "01777", "--size", str(jail.scratch_mb * 2**20), "--tmpfs", "/tmp"]
     ro = [p for p in _dedupe(visible_roots(jail)) if p not in SYSTEM_DIRS and p not in jail.rw
           and not _under(p, SYSTEM_DIRS) and os.path.exists(p)]
     rw = [p for p in _dedupe(jail.rw) if os.path.exists(p)]
-    targets = ro + rw + list(files) + [cwd]
-    for d in _ancestors(targets):
-        if not _under(d, SYSTEM_DIRS):
+    bound = [*SYSTEM_DIRS, *ro, *rw, *files]
+    for d in _ancestors([*ro, *rw, *files, cwd + "/."], bound):
+        if d not in ("/tmp", SCRATCH):           # the tmpfs mounts above
             out += ["--perms", "0755", "--dir", d]
     for p in ro:
         out += ["--ro-bind", p, p]
@@ -211,6 +216,9 @@ def prepare(jail: Jail | None, argv: Sequence[str], env: Mapping[str, str], *,
         child_env = minimal_env(env, extra_env, visible=visible_roots(jail), home=SCRATCH,
                                 profile=files.get(f"{GRADER_DIR}/fastdds_profile.xml") and
                                 f"{GRADER_DIR}/fastdds_profile.xml")
+        if jail.python_path:
+            child_env["PYTHONPATH"] = os.pathsep.join(
+                [*jail.python_path, *filter(None, child_env.get("PYTHONPATH", "").split(os.pathsep))])
         command = bwrap_argv(jail, argv, cwd=run_cwd, files=files)
         ignore = jail.signal_reset
 

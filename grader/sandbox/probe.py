@@ -153,5 +153,6 @@ def protections(caps: Capabilities | None = None, *, enabled: bool = True) -> li
 
 def python_roots() -> list[Path]:
     """The interpreter's own trees: the venv and the Python it was made from."""
-    roots = {Path(sys.prefix), Path(sys.base_prefix), Path(sys.executable).resolve().parent.parent}
+    roots = {Path(sys.prefix), Path(sys.base_prefix), Path(sys.executable).resolve().parent.parent,
+             Path(sys.prefix).resolve(), Path(sys.base_prefix).resolve()}   # a venv reached by a link
     return sorted(roots)
