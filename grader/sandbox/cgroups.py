@@ -40,7 +40,7 @@ class CgroupSupport:
         tree = "v2" if self.v2.get(what) else "v1"
         text = {"memory": "per scenario (all its student processes together)",
                 "pids": "processes and threads per scenario (stops fork bombs)",
-                "cpu": "CPU share and quota per scenario",
+                "cpu": "CPU quota per scenario (all its student processes together)",
                 "kill": "every process of a scenario is killed at its end, detached ones too"}[what]
         return f"cgroup {tree}: {text}"
 

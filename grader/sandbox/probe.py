@@ -55,9 +55,10 @@ def sandbox_uid() -> int:
 
 
 def _probe_bwrap(root: bool, why: dict[str, str]) -> tuple[str | None, str, bool, bool]:
-    bwrap = shutil.which("bwrap")
+    bwrap = shutil.which(os.environ.get("GRADER_BWRAP") or "bwrap")
     if bwrap is None:
         why["filesystem"] = "bubblewrap is not installed (Debian/Ubuntu package `bubblewrap`)"
+        why["unprivileged user"] = why["graceful stop"] = "needs bubblewrap"
         return None, "", False, False
     version = subprocess.run([bwrap, "--version"], capture_output=True, text=True).stdout.strip()
     base = [bwrap, "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--unshare-pid",
@@ -65,6 +66,7 @@ def _probe_bwrap(root: bool, why: dict[str, str]) -> tuple[str | None, str, bool
     ok, err = _try(base + ["--", "true"])
     if not ok:
         why["filesystem"] = f"bubblewrap cannot create namespaces here: {err}"
+        why["unprivileged user"] = why["graceful stop"] = "needs bubblewrap"
         return None, version, False, False
     signal_reset, err = _try(base + ["--", "env", "--default-signal=INT,TERM", "true"])
     if not signal_reset:
@@ -103,7 +105,7 @@ def probe() -> Capabilities:
     why: dict[str, str] = {}
     bwrap, version, uid_drop, signal_reset = _probe_bwrap(root, why)
     if not root:
-        why["unprivileged user"] = "the grader itself runs unprivileged"
+        why.setdefault("unprivileged user", "the grader itself runs unprivileged")
     netns = _probe_netns(root, why)
     cgroups = find_cgroup_support()
     if cgroups.problem:

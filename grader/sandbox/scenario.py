@@ -229,3 +229,29 @@ def child_config(env: Mapping[str, str] | None = None) -> ChildConfig | None:
     students = cgroups.CgroupSet.from_json(data["students"]) if data.get("students") else None
     return ChildConfig(jail=Jail.from_json(data["jail"]), netns=bool(data.get("netns")),
                        policy=SandboxPolicy(**data["policy"]), students=students)
+
+
+def recorded_summary(scenario_dirs: Sequence[Path]) -> dict[str, Any] | None:
+    """The protections student code actually ran under, from the scenarios' records (so
+    ``grader regrade`` on another machine reports the grading run, not itself). None when no
+    scenario recorded it (a batch graded before the sandbox existed)."""
+    seen = []
+    for d in scenario_dirs:
+        try:
+            record = json.loads((Path(d) / "scenario.json").read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(record.get("sandbox"), dict):
+            seen.append(record["sandbox"])
+    if not seen:
+        return None
+    missing = sorted({m for s in seen for m in s.get("missing", [])})
+    out: dict[str, Any] = {"mode": seen[0].get("mode", "auto"),
+                           "active": sorted(set.intersection(*(set(s.get("active", [])) for s in seen))),
+                           "missing": missing,
+                           "limits_hit": [h.get("detail", "") for s in seen for h in s.get("limits_hit", [])],
+                           "left_running": sum(int(s.get("left_running", 0)) for s in seen)}
+    warnings = sorted({s["warning"] for s in seen if s.get("warning")})
+    if warnings:
+        out["warning"] = warnings[0]
+    return out
