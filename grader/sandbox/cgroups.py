@@ -258,6 +258,22 @@ class CgroupSet:
                         time.sleep(0.02)
 
 
+def sweep_stale(support: CgroupSupport) -> int:
+    """Remove the groups of grader processes that died without cleaning up (SIGKILL, a crash):
+    ``grader-<pid>-...`` whose pid is gone. Whatever still runs in them is killed first."""
+    removed = 0
+    for key, base in support.bases.items():
+        for d in Path(base).glob("grader-*-*"):
+            pid = d.name.split("-")[1]
+            if not pid.isdigit() or Path(f"/proc/{pid}").exists():
+                continue
+            group = CgroupSet(support, {key: d})
+            group.kill(timeout_s=1.0)
+            group.remove(timeout_s=0.5)
+            removed += not d.exists()
+    return removed
+
+
 def join(procs_files: list[str]) -> None:
     """Move the calling process into a group (between fork and exec; async-signal-light)."""
     pid = str(os.getpid()).encode()

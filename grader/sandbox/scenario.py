@@ -112,6 +112,16 @@ def student_jail(caps: Capabilities, policy: SandboxPolicy, *, ro: Sequence[str]
                 cgroup_procs=tuple(cgroup.procs_files()) if cgroup is not None else ())
 
 
+_SWEPT = False
+
+
+def _sweep_once(support: cgroups.CgroupSupport) -> None:
+    global _SWEPT
+    if not _SWEPT:
+        _SWEPT = True
+        cgroups.sweep_stale(support)
+
+
 class ScenarioSandbox:
     """Namespaces, cgroups and the student jail of one scenario run (a context manager)."""
 
@@ -137,6 +147,7 @@ class ScenarioSandbox:
         if not self.enabled:
             return self
         if self.caps.cgroups.bases:
+            _sweep_once(self.caps.cgroups)
             self.group = cgroups.CgroupSet.create(self.caps.cgroups, self._name)
             self.runner = self.group.child("grader")
             self.students = self.group.child("students")
