@@ -11,6 +11,12 @@
    identical.
 
     .venv/bin/python benchmarks/bench_sandbox.py [--scenario-runs 6] [--grade-runs 3] [--skip-grade]
+
+Measured on the shared 2-core development machine (bubblewrap 0.8, cgroup v1 + v2 hybrid):
+probe 40-70 ms once per process; bubblewrap + setpriv + env +1 to +12 ms per student process;
+unshare + enter.py +17 to +27 ms per scenario; one scenario +0.09 s (median of 6 alternating
+runs; first student message 0.43 s after its start with, 0.88 s without); Lab 3 reference
+103.3 s with, 103.1 s without (ratio 1.002, 3 alternating runs), identical item results.
 """
 
 from __future__ import annotations

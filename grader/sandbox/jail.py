@@ -23,7 +23,7 @@ import shutil
 import signal
 import sys
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -210,6 +210,11 @@ def prepare(jail: Jail | None, argv: Sequence[str], env: Mapping[str, str], *,
     procs = list(jail.cgroup_procs)
     if jail.bwrap:
         argv, files = _entry(argv)
+        if len(argv) >= 3 and argv[1] == "-m" and argv[2].startswith("grader."):
+            # the grader's own program run as student code (the simulator a launch file starts
+            # when the scenario has none): it needs the grader package, read-only, still jailed
+            package = Path(__file__).resolve().parents[1]
+            jail = replace(jail, ro=(*jail.ro, str(package)), python_path=(str(package.parent), *jail.python_path))
         if jail.dds_profile and SANDBOX_DDS_PROFILE.exists():
             files[f"{GRADER_DIR}/fastdds_profile.xml"] = str(SANDBOX_DDS_PROFILE)
         run_cwd = cwd or SCRATCH

@@ -61,8 +61,11 @@ def _probe_bwrap(root: bool, why: dict[str, str]) -> tuple[str | None, str, bool
         why["unprivileged user"] = why["graceful stop"] = "needs bubblewrap"
         return None, "", False, False
     version = subprocess.run([bwrap, "--version"], capture_output=True, text=True).stdout.strip()
+    # every option the jail uses (bubblewrap < 0.8 lacks --size)
     base = [bwrap, "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--unshare-pid",
-            "--unshare-ipc", "--unshare-net", "--die-with-parent"]
+            "--unshare-ipc", "--unshare-net", "--unshare-uts", "--hostname", "sandbox", "--unshare-cgroup-try",
+            "--die-with-parent", "--perms", "01777", "--size", "1048576", "--tmpfs", "/tmp",
+            "--perms", "0755", "--dir", "/tmp/probe", "--symlink", "/tmp/probe", "/tmp/link", "--chdir", "/tmp"]
     ok, err = _try(base + ["--", "true"])
     if not ok:
         why["filesystem"] = f"bubblewrap cannot create namespaces here: {err}"

@@ -100,3 +100,18 @@ def test_off_mode_warns_and_require_mode_refuses_a_missing_protection(monkeypatc
     finally:
         monkeypatch.delenv("GRADER_BWRAP")
         probe.cache_clear()
+
+
+def test_grader_program_started_as_student_code_stays_jailed_with_the_package_read_only(tmp_path: Path) -> None:
+    """A launch file's turtlesim_node is the grader's simulator started like a student node: it
+    sees the grader package read-only, and still nothing else."""
+    require_protections("filesystem")
+    jail = Jail(bwrap=probe().bwrap, uid=65534 if probe().uid_drop else None)
+    code = "import grader.sandbox.enter as e, os, sys; print(os.path.exists(sys.argv[1])); open(e.__file__, 'a')"
+    p = prepare(jail, [sys.executable, "-c", code, str(tmp_path)], {})
+    assert "-m" not in p.argv                                         # plain student code: no package
+    p = prepare(jail, [sys.executable, "-m", "grader.sandbox.enter", "--", sys.executable, "-c", code,
+                       str(tmp_path)], {})
+    done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
+    assert done.stdout.split() == ["False"], done.stderr
+    assert "Read-only file system" in done.stderr or "Permission denied" in done.stderr, done.stderr
