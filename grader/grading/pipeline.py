@@ -90,6 +90,10 @@ def scenario_frames(scenario_dir: Path) -> dict:
     frames["__meta__"] = pd.DataFrame(
         [{"topic": n, "type": t.type, "count": t.count, "publishers": sorted(publishers.get(n, set()))}
          for n, t in meta.topics.items()], columns=["topic", "type", "count", "publishers"])
+    canvas = scenario_dir / "canvas.png"
+    if canvas.exists():
+        from grader.bag.frames import canvas_frame
+        frames["__canvas__"] = canvas_frame(canvas)
     record_file = scenario_dir / "scenario.json"
     if record_file.exists():
         frames["__meta__"].attrs["scenario"] = json.loads(record_file.read_text())
