@@ -323,8 +323,9 @@ def setup_here(*, force_wheels: bool = False) -> str:
             f"{sys.version_info.major}.{sys.version_info.minor}: reinstall it with "
             "`pipx install --python python3.11 ...` (or a python3.11 venv), or source ROS 2 Jazzy "
             "(`source /opt/ros/jazzy/setup.bash`) and rerun `grader setup`.")
+    cfg = t.prefix / "pyvenv.cfg"
     if mode == "system" and "include-system-site-packages = true" not in \
-            (t.prefix / "pyvenv.cfg").read_text(errors="replace"):
+            (cfg.read_text(errors="replace") if cfg.exists() else ""):
         raise BootstrapError(
             "ROS 2 Jazzy is sourced, but this environment cannot see the system's Python packages "
             "that ROS's rclpy and interface generators import: reinstall with "

@@ -4,6 +4,7 @@ and `grader check --lab` when no checkout is around."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import pytest
@@ -102,3 +103,24 @@ def test_reference_outside_the_root_cannot_be_packaged(tmp_path: Path) -> None:
     rubric = _rubric_with_bag(tmp_path / "course" / "rubrics", "../../elsewhere/random_numbers")
     with pytest.raises(GraderError, match="outside"):
         stage_rubrics([rubric], tmp_path / "out", root=tmp_path / "course")
+
+
+def test_setup_in_a_checkout_points_to_make_bootstrap(capsys) -> None:
+    assert grader_main(["setup"]) == 2
+    assert "make bootstrap" in capsys.readouterr().err
+
+
+def test_setup_refuses_what_it_must_not_touch(tmp_path: Path, monkeypatch) -> None:
+    from grader import bootstrap
+
+    monkeypatch.setattr(bootstrap, "ensure_tools", lambda: pytest.fail("got past the checks"))
+    monkeypatch.setattr(sys, "prefix", sys.base_prefix)                 # grader in the system Python
+    with pytest.raises(bootstrap.BootstrapError, match="not a virtual environment"):
+        bootstrap.setup_here()
+    venv = tmp_path / "venv"
+    venv.mkdir()
+    (venv / "pyvenv.cfg").write_text("include-system-site-packages = false\n")
+    monkeypatch.setattr(sys, "prefix", str(venv))
+    monkeypatch.setattr(bootstrap, "system_ros_available", lambda exclude=None: True)
+    with pytest.raises(bootstrap.BootstrapError, match="--system-site-packages"):
+        bootstrap.setup_here()
