@@ -10,8 +10,6 @@ from pathlib import Path
 
 from grader.errors import GraderError
 
-REPO_RUBRICS = Path(__file__).resolve().parents[2] / "rubrics"
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     g = sub.add_parser("grade", help="grade a folder of submissions against a rubric",
@@ -31,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Runs the lab's public auto-graded items on your workspace, prints a table "
                                    "with a hint per item and writes a report. Exit 0 only when all pass.")
     c.add_argument("workspace", type=Path, nargs="?", default=Path("."), help="your workspace (default: .)")
-    c.add_argument("--lab", default=None, help="lab id, e.g. enee467-lab3 (see rubrics/)")
+    c.add_argument("--lab", default=None, help="lab id, e.g. enee467-lab3 (see `grader labs`)")
     c.add_argument("--rubric", type=Path, default=None, help="rubric YAML instead of --lab")
     c.add_argument("-o", "--out", type=Path, default=None, help="report folder (default: WORKSPACE/.grader-check)")
     c.add_argument("--cache-dir", type=Path, default=None)
@@ -43,22 +41,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("path", type=Path, help="OUT folder of a batch, or OUT/<id> of one submission")
     r.add_argument("--rubric", type=Path, required=True)
     r.set_defaults(func=run_regrade)
-
-
-def rubric_for_lab(lab: str) -> Path:
-    from grader.rubric.load import load_rubric
-
-    known = []
-    for path in sorted(REPO_RUBRICS.glob("*.yaml")):
-        try:
-            rub = load_rubric(path)
-        except GraderError:
-            continue
-        known.append(rub.lab)
-        if rub.lab == lab:
-            return path
-    raise GraderError(f"no rubric for lab {lab!r}; known labs: {', '.join(known) or 'none'} "
-                      f"(rubrics live in {REPO_RUBRICS}).")
 
 
 class Progress:
@@ -155,6 +137,7 @@ def run_grade(args: argparse.Namespace) -> int:
 def run_check(args: argparse.Namespace) -> int:
     from grader.grading.outputs import print_check_table
     from grader.grading.pipeline import grade_submission
+    from grader.labs import rubric_for_lab
     from grader.rubric.load import load_rubric
 
     if args.rubric is None and args.lab is None:
