@@ -6,7 +6,7 @@ those files are copied keeping their layout relative to a common root: the relat
 resolve inside the copy exactly as in the source tree, so the rubric is copied byte for byte and
 ``rubrics/`` stays the single source (nothing is rewritten).
 
-Used at wheel build time (``setup.py``, only PyYAML available: this module must not import
+Used at wheel build time (``setup.py``, only PyYAML and pydantic available: this module must not import
 pandas, rclpy or the analyzers) and by ``grader gradescope``.
 """
 
@@ -19,7 +19,6 @@ from typing import Iterable
 
 from grader.errors import GraderError
 from grader.rubric.load import load_rubric
-from grader.rubric.scenarios import Replay
 from grader.rubric.schema import Rubric
 
 #: never copied from a support package: build products, VCS data, caches
@@ -34,8 +33,8 @@ def referenced_paths(rubric: Rubric) -> list[Path]:
         found.setdefault(Path(path), None)
     for scenario in rubric.scenarios.values():
         for step in scenario.steps:
-            if isinstance(step.action, Replay):
-                found.setdefault(Path(step.action.bag), None)
+            if step.replay is not None:
+                found.setdefault(Path(step.replay.bag), None)
     return list(found)
 
 
