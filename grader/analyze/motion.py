@@ -165,16 +165,21 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
           "moving_share": share, "stalls": stalls[:10], "limit_gap_s": p["max_gap_s"]}
     value = f"{share:.0%} of the time moving"
     problems = []
-    if len(gaps) and gaps.max() >= p["max_gap_s"]:
+    slow = bool(len(gaps)) and gaps.max() >= p["max_gap_s"]
+    if slow:
         problems.append(f"commands were {gaps.max():.2f} s apart at the longest, so the simulator's "
                         f"{p['max_gap_s']:g} s command timeout stopped the turtle")
     if share < p["min_moving_share"]:
-        problems.append(f"the turtle moved only {share:.0%} of the time (needs {p['min_moving_share']:.0%})")
+        longest = max(stalls, key=lambda s: s["duration_s"]) if stalls else None
+        problems.append(f"the turtle moved only {share:.0%} of the time (needs {p['min_moving_share']:.0%})"
+                        + (f"; it stood still for {longest['duration_s']:.1f} s from t = "
+                           f"{longest['start'] - pt[0]:.1f} s" if longest else ""))
     if not problems:
         return Finding(value, 1.0, "pass", f"Commands every {fmt(1 / stats['rate_hz'] if stats['rate_hz'] else float('nan'))} s "
                        f"on average (at most {gaps.max() if len(gaps) else 0:.2f} s apart): the turtle never stopped.", ev)
-    return Finding(value, 0.0, "fail", "; ".join(problems).capitalize() + ": publish faster than once a second "
-                   "(a timer period below 1 s).", ev)
+    advice = (": publish faster than once a second (a timer period below 1 s)" if slow else
+              ": it stopped going anywhere (check for turning on the spot or pushing against a wall)")
+    return Finding(value, 0.0, "fail", "; ".join(problems)[0].upper() + "; ".join(problems)[1:] + advice + ".", ev)
 
 
 def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:

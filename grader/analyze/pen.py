@@ -18,7 +18,8 @@ import pandas as pd
 
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import Frames, missing_topic_feedback, service_calls, times, topic
+from grader.analyze._common import (Frames, missing_topic_feedback, scenario_end_time, service_calls,
+                                    times, topic)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -70,6 +71,10 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
     t0 = float(times(pose)[0])
     cross = crossings(times(pose), pose["x"].to_numpy(float), p["split_x"])
+    # after the scenario's end the student's node is being stopped while the turtle coasts on:
+    # crossings then cannot be answered and do not count
+    end = scenario_end_time(frames)
+    cross = [c for c in cross if not (end == end and c["t"] > end - p["max_delay_s"])]
     df = topic(frames, f"{p['service']}/_service_event")
     calls = [{"t": c["t"], "color": _color(c["request"]), "width": c["request"].get("width"),
               "off": c["request"].get("off")} for c in (service_calls(df) if df is not None else [])]
