@@ -88,6 +88,29 @@ def test_writer_output_conforms(tmp_path: Path) -> None:
     assert res.counts == {"rosbags": counts, "mcap": counts, "grader": counts}
 
 
+def test_qos_has_one_source_of_truth(tmp_path: Path) -> None:
+    """Offers known when a channel is written go to both places; later ones to custom_data."""
+    from grader.bag.reader import open_bag
+
+    late = [dict(QOS[0], reliability="best_effort")]
+    with BagWriter(tmp_path / "q") as w:
+        w.add_topic("/early", POSE, SRC.full_text(POSE))
+        w.update_qos("/early", QOS)                       # before the first message
+        w.add_topic("/late", POSE, SRC.full_text(POSE))
+        for i in range(3):
+            w.write("/early", T0 + i, pose(i))
+            w.write("/late", T0 + i, pose(i))
+        w.update_qos("/late", late)                       # the channel already holds []
+        w.update_qos("/early", QOS + late)
+    assert check_bag(tmp_path / "q") == []
+    bag = open_bag(tmp_path / "q")
+    meta = {t.name: t for t in bag.metadata.topics}
+    assert [q["depth"] for q in meta["/early"].offered_qos_profiles] == [7]
+    assert meta["/late"].offered_qos_profiles == []
+    assert bag.topics["/late"].late_offered_qos_profiles[0]["reliability"] == "best_effort"
+    assert bag.topics["/early"].late_offered_qos_profiles[0]["reliability"] == "best_effort"
+
+
 def test_serialized_metadata_as_rosbag2_reads_it(tmp_path: Path) -> None:
     """MCAPStorage::read_metadata: the metadata *index* entries named ``rosbag2``, the record at
     each offset, key ``serialized_metadata``, decoded as the bare BagMetadata map."""
