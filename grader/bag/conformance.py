@@ -150,14 +150,19 @@ def _mcap_decoder(factory: Any, schema: Any, channel: Any, notes: list[str]) -> 
     counted undecoded and noted; any other failure is a problem of the bag.
     """
     try:
+        from mcap_ros2._vendor.rosidl_adapter.parser import InvalidResourceName
+        name_errors: tuple = (InvalidResourceName,)
+    except ImportError:      # a later release without that parser: every failure is a problem
+        name_errors = ()
+    try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             decode = factory.decoder_for(channel.message_encoding, schema)   # it prints on errors
-    except Exception as exc:  # noqa: BLE001 - McapROS2DecodeError, InvalidResourceName, ...
-        if schema is not None and "/msg/" not in schema.name:
-            notes.append(f"mcap-ros2-support cannot parse {schema.name} (service/action part "
-                         f"names are outside its .msg grammar); {channel.topic} counted undecoded")
-            return None
-        raise
+    except name_errors:
+        if schema is None or "/msg/" in schema.name:
+            raise
+        notes.append(f"mcap-ros2-support cannot parse {schema.name} (service/action part "
+                     f"names are outside its .msg grammar); {channel.topic} counted undecoded")
+        return None
     if decode is None:
         raise ValueError(f"no decoder for {channel.topic} (message encoding "
                          f"{channel.message_encoding!r}, schema {schema.encoding if schema else None!r})")

@@ -21,8 +21,8 @@ import numpy as np
 import yaml
 
 from grader.bag.mcap_scan import ScanResult
-from grader.bag.metadata import BagMetadata
-from grader.bag.reader import metadata_from_bag, open_bag
+from grader.bag.metadata import BagMetadata, qos_from_any, qos_yaml
+from grader.bag.reader import Bag, metadata_from_bag, open_bag
 from grader.bag.writer import METADATA_RECORD, open_mcap, rosbag2_record
 
 
@@ -51,6 +51,18 @@ def wrapped_rosbag2_record(res: ScanResult) -> bool:
     return isinstance(doc, dict) and "rosbag2_bagfile_information" in doc
 
 
+def _keep_listed_offers(bag: Bag, rewrite: list[ScanResult]) -> None:
+    """Old bags list offers in metadata.yaml that their channels lack: the rewritten channels
+    carry them, so that the QoS survives and both places agree again."""
+    listed = {t.name: t.offered_qos_profiles for t in bag.metadata.topics} if bag.metadata else {}
+    for res in rewrite:
+        for ch in res.channels.values():
+            offers = listed.get(ch.topic)
+            if offers and not qos_from_any(ch.metadata.get("offered_qos_profiles")):
+                ch.metadata = {**ch.metadata, "offered_qos_profiles": qos_yaml(offers)}
+                bag.topics[ch.topic].offered_qos_profiles = list(offers)
+
+
 def _rewrite(res: ScanResult, target: Path, meta: BagMetadata) -> int:
     """Write every message of a scan into a new, finalized MCAP file at ``target``."""
     w, f = open_mcap(target)
@@ -60,7 +72,7 @@ def _rewrite(res: ScanResult, target: Path, meta: BagMetadata) -> int:
         rows = []
         for cid, ch in res.channels.items():
             new = w.register_channel(ch.topic, ch.message_encoding, schema_ids.get(ch.schema_id, 0),
-                                     dict(ch.metadata))
+                                     {"topic_type_hash": "", **ch.metadata})
             for blk in res.blocks.get(cid, []):
                 mv = memoryview(blk.buf)
                 for off, ln, lt, pt, sq in zip(blk.offsets.tolist(), blk.lengths.tolist(),
@@ -85,6 +97,7 @@ def repair_bag(bag_dir: Path | str, keep_damaged: bool = True) -> RepairReport:
             if not res.complete or wrapped_rosbag2_record(res)]
     if bag.finalized and not redo:
         return RepairReport(bag_dir, [], bag.message_count, True)
+    _keep_listed_offers(bag, [res for _, res in redo])
     meta = metadata_from_bag(bag)       # what the rewritten files will hold, message for message
     meta.custom_data.setdefault("repaired_by", "grader bag repair")
     rewritten = []

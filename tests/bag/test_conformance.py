@@ -194,6 +194,9 @@ def test_the_old_writer_bugs_are_caught_and_repair_fixes_them(tmp_path: Path) ->
     report = repair_bag(bag)
     assert report.rewritten == ["old_0.mcap"] and report.messages == 200
     assert check_bag(bag) == []
+    # the offers metadata.yaml listed now are in the channel too, not dropped
+    (topic,) = parse_metadata((bag / "metadata.yaml").read_text()).topics
+    assert [q["depth"] for q in topic.offered_qos_profiles] == [7]
 
 
 def test_metadata_that_lies_is_caught(tmp_path: Path) -> None:
