@@ -19,6 +19,7 @@ SUBSYSTEMS = (
     "grader.sim.cli",
     "grader.bag.cli",
     "grader.grading.cli",
+    "grader.grading.shards",
     "grader.scores.cli",
     "grader.lms.cli",
 )
