@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from grader.analyze.evidence import SHARE
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import (WORLD_MAX, Frames, events, goal_xy, meta, parse_xy_line,
                                     rosout_lines, since_start, stdout_lines, thin, times, topic)
@@ -25,6 +26,14 @@ from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    "action_name": ('action name', ''),
+    "client_logger": ("the client's logger", ''),
+    "reject_pattern": ("pattern of the client's rejection message", ''),
+    "short_timeout_s": ('goals with a time_out up to this are timeout probes', 's'),
+    "pose_topic": ('pose topic', ''),
+    "default_goal_tol": ('goal tolerance when the goal gives none', 'm'),
+    "pos_slack": ('extra distance allowed at a success', 'm'),
+    "late_credit": ('credit for giving up late', SHARE),
     "action": ("action name", ""),
     "events": None, "action_topics": None, "action_server_missing": ("goals sent without a server", ""),
     "goals": ("goals", ""),

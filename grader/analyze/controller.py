@@ -30,6 +30,18 @@ from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence); shared by the three analyzers
 EVIDENCE = {
+    "steps": ('steps whose goals count (empty: all)', ''),
+    "pose_topic": ('pose topic', ''),
+    "goal_topic": ('goal topic', ''),
+    "cmd_topic": ('command topic', ''),
+    "skip_after_goal_s": ('time left out after each goal', 's'),
+    "wrap_margin": ('margin from ±π for wrap-dependent samples', 'rad'),
+    "min_wrap_rows": ('samples needed to judge the wrap', ''),
+    "use_pub_time": ('use publisher send times', ''),
+    "min_rows": ('samples needed for the fit', ''),
+    "wrap_turn_deg": ('judge goals where wrapping changes the turn by', 'deg'),
+    "ambiguous_deg": ('within this of 180° both ways are fine', 'deg'),
+    "detect_deg": ('heading change that marks the first turn', 'deg'),
     "goals": ("goals", ""),
     "goal": ("goal", ""),
     "x": ("goal x", "m"), "y": ("goal y", "m"),
@@ -51,7 +63,7 @@ EVIDENCE = {
     "v_stop": ("speed counted as stopped", "m/s"),
     "steady_tol": ("movement counted as steady", "m"),
     "stop_weight": ("share of credit for stopping", SHARE),
-    "goal_source": None,
+    "goal_source": ("where goals are read (events, topic, auto)", ""),
     "trajectory": None,
     "wall_contacts": ("times the turtle hit a wall", ""),
     "wall_points": None,

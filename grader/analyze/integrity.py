@@ -26,6 +26,12 @@ DT = 0.016
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    "flag_services": ('services a student must not call', ''),
+    "list_services": ('services whose calls are listed', ''),
+    "driver_match_s": ("a call this close to the grader's own is the grader's", 's'),
+    "pose_topic": ('pose topic', ''),
+    "jump_tol": ("jump beyond the unicycle's reach flagged", 'm'),
+    "max_rate_hz": ('pose rate above this means a second publisher', 'Hz'),
     "publishers": ("nodes publishing the pose", ""),
     "rosout_loggers": ("ROS loggers seen", ""),
     "rate_hz": ("pose rate", "Hz"),
