@@ -224,6 +224,7 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
         with slots.taken():
             build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support))
         shutil.copy(build.build_log, out / "build.log") if build.build_log.exists() else None
+        errors += [f"submission: {w}" for w in build.warnings]
         if not build.ok:
             errors += [f"package {n} did not build ({build.packages[n].status}):\n{build.packages[n].log_excerpt}"
                        for n in build.failed]

@@ -247,6 +247,8 @@ class ActionGoal(Model):
     type: ActionType
     goal: dict[str, Any] = Field({}, description="goal field values, nested as in the goal message")
     server_timeout: PositiveFloat = Field(5.0, description="s to wait for the action server")
+    response_timeout: PositiveFloat = Field(10.0, description="s to wait for the server to accept or "
+                                            "reject the goal")
 
 
 class Replay(Model):
