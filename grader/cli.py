@@ -12,12 +12,17 @@ from grader.errors import GraderError
 #: modules with a ``register(subparsers)`` function; missing ones are skipped so that a partial
 #: checkout still gives a working CLI for what it has.
 SUBSYSTEMS = (
+    "grader.bootstrap",
+    "grader.labs",
     "grader.doctor",
     "grader.workspace.cli",
     "grader.sim.cli",
     "grader.bag.cli",
     "grader.grading.cli",
+    "grader.grading.shards",
+    "grader.rubric.guide",
     "grader.scores.cli",
+    "grader.lms.cli",
 )
 
 

@@ -59,13 +59,14 @@ def run(args: argparse.Namespace) -> int:
                                "SUBNET (default; runs use LOCALHOST, or SUBNET in a scenario's own network namespace)")
     print(f"network  discovery range {discovery}")
     if info["mode"] == "missing":
-        print("FAIL rclpy is not importable: run `make bootstrap` (or source ROS 2 Jazzy).")
+        print("FAIL rclpy is not importable: run `grader setup` (`make bootstrap` in a checkout), "
+              "or source ROS 2 Jazzy.")
         return 1
     print("interfaces:")
     for pkg in INTERFACE_PACKAGES:
         where = _interface_location(pkg)
         ok &= where is not None
-        print(f"  {'ok  ' if where else 'FAIL'} {pkg:15} {where or 'not importable (run make bootstrap)'}")
+        print(f"  {'ok  ' if where else 'FAIL'} {pkg:15} {where or 'not importable (run grader setup / make bootstrap)'}")
     passed, detail = live_selftest(args.timeout)
     ok &= passed
     print(f"{'PASS' if passed else 'FAIL'} live pub/sub self-test between two processes: {detail}")

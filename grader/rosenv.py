@@ -66,7 +66,9 @@ def child_env(*, domain_id: int | None = None, prefixes: Iterable[Path] = (),
     _prepend(env, "AMENT_PREFIX_PATH", [str(p) for p in prefixes] + [str(venv)])
     _prepend(env, "CMAKE_PREFIX_PATH", [str(p) for p in prefixes] + [str(venv)])
     _prepend(env, "PYTHONPATH", [str(p / PY_SITE) for p in prefixes if (p / PY_SITE).is_dir()])
-    _prepend(env, "LD_LIBRARY_PATH", [str(p / "lib") for p in prefixes if (p / "lib").is_dir()])
+    # the venv is an install prefix too: our turtlesim's typesupport libraries are in venv/lib (the
+    # wheels' start-up hook adds it; a sourced system ROS 2 does not, and turtlesim fails to load)
+    _prepend(env, "LD_LIBRARY_PATH", [str(p / "lib") for p in [*prefixes, venv] if (p / "lib").is_dir()])
     _prepend(env, "PATH", [str(venv / "bin")])
     if domain_id is not None:
         env["ROS_DOMAIN_ID"] = str(domain_id)

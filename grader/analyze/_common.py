@@ -79,6 +79,17 @@ def topic(frames: Frames, name: str) -> pd.DataFrame | None:
     return None
 
 
+def sim_pose(frames: Frames, pose_topic: str) -> pd.DataFrame | None:
+    """The simulator's own poses for ``pose_topic``: its grader-only copy
+    (``/grader/sim/turtle1/pose``, published by the reference simulator alone), else — in bags
+    recorded before the copy existed — the public topic. A node that publishes its own
+    ``/turtle1/pose`` therefore cannot move the turtle a grade is judged on."""
+    from grader.sim import truth_pose_topic
+
+    return topic(frames, truth_pose_topic(pose_topic)) if topic(frames, truth_pose_topic(pose_topic)) is not None \
+        else topic(frames, pose_topic)
+
+
 def topic_or_student_topic(frames: Frames, name: str, type_name: str | None
                            ) -> tuple[pd.DataFrame | None, str, str]:
     """``name``'s frame, or, when it is missing and ``type_name`` is given, the one other topic of
@@ -434,3 +445,25 @@ def service_calls(df: pd.DataFrame) -> list[dict]:
         elif not calls[key]["request"]:
             calls[key]["request"] = _request(df, i)
     return sorted(calls.values(), key=lambda c: c["t"])
+
+
+#: services that move the turtle without driving it
+TELEPORT_SERVICES = ("teleport_absolute", "teleport_relative", "reset")
+
+
+def teleport_times(frames: Frames, driver_match_s: float = 2.0) -> list[float]:
+    """When something other than the grader's driver teleported or reset a turtle (from the
+    simulator's service introspection): a goal "reached" through one of those earns nothing."""
+    driver = [e["t"] for e in events(frames, Event.SERVICE_CALL)
+              if str(e.get("service", "")).rsplit("/", 1)[-1] in TELEPORT_SERVICES]
+    out = []
+    for key, df in frames.items():
+        if not key.endswith("/_service_event") or not isinstance(df, pd.DataFrame) or len(df) == 0:
+            continue
+        service = key[: -len("/_service_event")].rsplit("/", 1)[-1]
+        if service not in TELEPORT_SERVICES:
+            continue
+        for call in service_calls(df):
+            if not any(abs(call["t"] - d) <= driver_match_s for d in driver):
+                out.append(call["t"])
+    return sorted(out)

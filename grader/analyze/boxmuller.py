@@ -38,6 +38,14 @@ from grader.analyze.evidence import SHARE
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    "exclude_loggers": ("loggers whose lines are not the student's values", ''),
+    "max_lag_s": ('latest a value may be logged after its input', 's'),
+    "lead_s": ('earliest before its input', 's'),
+    "bug_min_ratio": ('share of values a known bug must explain', SHARE),
+    "max_chance": ('chance a match is a coincidence, at most', ''),
+    "tail_grace_s": ('time after the last input still read', 's'),
+    "bug_credit": ('credit when a known bug explains the values', SHARE),
+    "max_shapiro": ('values used in the Shapiro-Wilk test, at most', ''),
     "n_inputs": ("(u1, u2) pairs published", ""),
     "source": ("output read", ""),
     "source.kind": ("where the values were found (rosout = ROS logger, stdout = print)", ""),

@@ -23,13 +23,25 @@ import numpy as np
 import pandas as pd
 
 from grader.analyze import Finding, graded, register
-from grader.analyze._common import (WORLD_MAX, Frames, Goal, events, fmt, goals, heading_error, sentence,
+from grader.analyze._common import (sim_pose, teleport_times, WORLD_MAX, Frames, Goal, events, fmt, goals, heading_error, sentence,
                                     missing_topic_feedback, fit_gain, since_start, thin, times, topic)
 from grader.analyze.evidence import SHARE, TIME
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence); shared by the three analyzers
 EVIDENCE = {
+    "steps": ('steps whose goals count (empty: all)', ''),
+    "pose_topic": ('pose topic', ''),
+    "goal_topic": ('goal topic', ''),
+    "cmd_topic": ('command topic', ''),
+    "skip_after_goal_s": ('time left out after each goal', 's'),
+    "wrap_margin": ('margin from ±π for wrap-dependent samples', 'rad'),
+    "min_wrap_rows": ('samples needed to judge the wrap', ''),
+    "use_pub_time": ('use publisher send times', ''),
+    "min_rows": ('samples needed for the fit', ''),
+    "wrap_turn_deg": ('judge goals where wrapping changes the turn by', 'deg'),
+    "ambiguous_deg": ('within this of 180° both ways are fine', 'deg'),
+    "detect_deg": ('heading change that marks the first turn', 'deg'),
     "goals": ("goals", ""),
     "goal": ("goal", ""),
     "x": ("goal x", "m"), "y": ("goal y", "m"),
@@ -51,9 +63,10 @@ EVIDENCE = {
     "v_stop": ("speed counted as stopped", "m/s"),
     "steady_tol": ("movement counted as steady", "m"),
     "stop_weight": ("share of credit for stopping", SHARE),
-    "goal_source": None,
+    "goal_source": ("where goals are read (events, topic, auto)", ""),
     "trajectory": None,
     "wall_contacts": ("times the turtle hit a wall", ""),
+    "teleported": ("teleport or reset calls while the goal was active", ""),
     "wall_points": None,
     # turn_direction
     "start": None,
@@ -92,7 +105,7 @@ _GOAL_DEFAULTS = {
 
 
 def _pose(frames: Frames, p: dict) -> pd.DataFrame | None:
-    df = topic(frames, p["pose_topic"])
+    df = sim_pose(frames, p["pose_topic"])
     if df is None or not {"x", "y", "theta"} <= set(df.columns):
         return None
     return df
@@ -154,11 +167,19 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
     v = pose["linear_velocity"].to_numpy(float) if "linear_velocity" in pose.columns else None
+    teleports = teleport_times(frames)
     rows = []
     score = 0.0
     for k, g in enumerate(gl, 1):
         m = (t >= g.t) & (t <= g.t_end)
         row = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
+        moved = [tp for tp in teleports if g.t <= tp <= g.t_end]
+        if moved:
+            # the turtle was teleported (or reset) while this goal was active: no arrival counts
+            row.update(reached=False, teleported=len(moved), note="the turtle was teleported or reset while "
+                       "this goal was active: an arrival does not count")
+            rows.append(row)
+            continue
         if m.sum() < 2:
             row.update(reached=False, note="no poses recorded while this goal was active")
             rows.append(row)
@@ -189,7 +210,9 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     for r in rows:
         label = f"goal {r['goal']} ({r['x']:g}, {r['y']:g})"
         if not r.get("reached"):
-            if "min_distance" in r:
+            if r.get("teleported"):
+                problems.append(f"{label}: {r['note']}")
+            elif "min_distance" in r:
                 problems.append(f"{label}: closest approach {r['min_distance']:.2f} m "
                                 f"(needs < {p['tol_reached']:g} m), final error {r['final_error']:.2f} m")
             else:

@@ -12,6 +12,7 @@ import re
 
 import numpy as np
 
+from grader.analyze.evidence import SHARE
 from grader.analyze import Finding, register
 from grader.analyze.evidence import TIME
 from grader.analyze._common import (Frames, events, missing_topic_feedback, parse_xy_line, stdout_lines,
@@ -44,6 +45,9 @@ def _goal_msgs(frames: Frames, name: str) -> tuple[np.ndarray, np.ndarray, np.nd
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    "goal_topic": ('goal topic', ''),
+    "tol": ('allowed difference', ''),
+    "partial_credit": ('credit for partly right', SHARE),
     "expected": ("goals typed [x, y]", "m"),
     "published": ("goals published [x, y]", "m"),
     "n_published": ("messages published", ""),

@@ -13,8 +13,9 @@ from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+
     "nodes": ("nodes", ""), "node": ("node", ""), "running": ("ran", ""), "declared": ("declared by the launch file", ""),
-    "seen": ("nodes seen in the ROS graph", ""), "launch": ("launch file", ""), "launch_process": None,
+    "seen": ("nodes seen in the ROS graph", ""), "launch": ("launch file", ""), "launch_process": ("the rubric process running the launch file", ""),
     "installed": ("installed with the package", ""), "notes": ("notes", ""),
     "node_name": ("node name", ""), "package": ("package", ""), "executable": ("executable", ""),
     "stand_in": ("played by the reference simulator", ""), "error": ("error", ""), "start_delay": ("start delay", "s"),

@@ -125,7 +125,10 @@ def heard_messages(frames: Frames, p: dict) -> Finding:
         return Finding.fail(f"{p['logger']} logged nothing matching {p['pattern']!r} while {len(published)} "
                             f"messages were published on {p['topic']} (is it subscribed to {p['topic']} and spinning?).", ev)
     known = set(published)
-    foreign = [h for _, h in heard if h not in known]
+    # lines heard before the recorder's first message may be messages the recorder had not yet
+    # subscribed for: they cannot be checked, so they do not count either way
+    first = float(pub_t[0]) - 0.05 if len(pub_t) else float("inf")
+    foreign = [h for t, h in heard if h not in known and t >= first]
     window = (pub_t >= heard[0][0] - 1.0) & (pub_t <= heard[-1][0])
     expected = int(window.sum()) or len(heard)
     share = min(1.0, sum(1 for _, h in heard if h in known) / expected)

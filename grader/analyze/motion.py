@@ -22,12 +22,13 @@ import pandas as pd
 
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
-                                    times, topic)
+from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
+                                    thin, times, topic)
 from grader.analyze.rate import rate_stats
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+
     "radius_m": ("fitted radius", "m"), "centre": ("circle centre (x, y)", "m"), "rms_m": ("RMS distance from the circle", "m"),
     "expected_m": ("expected radius", "m"), "rel_error": ("relative error", SHARE), "poses": ("poses used", ""),
     "path": None, "period_s": ("time for one circle", "s"), "angular_velocity_rad_s": ("turning rate", "rad/s"),
@@ -40,7 +41,8 @@ EVIDENCE = {
     "min_clearance_m": ("closest approach to a wall", "m"), "closest_at": ("closest point (x, y)", "m"),
     "closest_t": ("closest at", SINCE_START), "wall_warnings": ("'hit the wall' warnings", ""),
     "contacts": ("poses touching a wall", ""), "world_max": ("world size", "m"), "min_clearance": ("clearance required", "m"),
-    "pose_topic": ("pose topic", ""), "cmd_topic": ("command topic", ""), "sim_logger": None,
+    "pose_topic": ("pose topic", ""), "cmd_topic": ("command topic", ""), "sim_logger": ("the simulator's logger", ""),
+    "world_max_m": ("world size", "m"), "contact_points": None,
 }
 
 _POSE = {"pose_topic": "/turtle1/pose", "min_speed": 0.05}
@@ -48,7 +50,7 @@ _POSE = {"pose_topic": "/turtle1/pose", "min_speed": 0.05}
 
 def _moving_pose(frames: Frames, p: dict) -> tuple[pd.DataFrame | None, Finding | None]:
     """The poses from the moment the turtle first moved (plus ``skip_s``)."""
-    df = topic(frames, p["pose_topic"])
+    df = sim_pose(frames, p["pose_topic"])
     if df is None or not {"x", "y", "theta", "linear_velocity"} <= set(df.columns):
         return None, Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
     moving = np.nonzero(np.abs(df["linear_velocity"].to_numpy(float)) > p["min_speed"])[0]
@@ -90,10 +92,10 @@ def circle_radius(frames: Frames, p: dict) -> Finding:
         return problem
     x, y = df["x"].to_numpy(float), df["y"].to_numpy(float)
     cx, cy, r, rms = fit_circle(x, y)
+    keep = thin(len(x))
     ev = {"radius_m": r, "centre": [cx, cy], "rms_m": rms, "expected_m": p["expected_m"],
           "rel_error": r / p["expected_m"] - 1.0, "poses": len(df),
-          "path": {"x": np.round(x[:: max(1, len(x) // 400)], 3).tolist(),
-                   "y": np.round(y[:: max(1, len(y) // 400)], 3).tolist()}}
+          "path": {"x": np.round(x[keep], 3).tolist(), "y": np.round(y[keep], 3).tolist()}}
     value = f"r = {r:.3f} m"
     if rms > 0.1 * max(r, 0.1):
         return Finding(value, 0.0, "fail", f"The path is not a circle (points deviate {rms:.2f} m on average "
@@ -144,7 +146,7 @@ def circle_period(frames: Frames, p: dict) -> Finding:
 })
 def keeps_moving(frames: Frames, p: dict) -> Finding:
     """Commands arrive before the simulator's command timeout and the turtle never stalls."""
-    pose = topic(frames, p["pose_topic"])
+    pose = sim_pose(frames, p["pose_topic"])
     cmd = topic(frames, p["cmd_topic"])
     if pose is None or "linear_velocity" not in pose.columns:
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
@@ -165,16 +167,21 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
           "moving_share": share, "stalls": stalls[:10], "limit_gap_s": p["max_gap_s"]}
     value = f"{share:.0%} of the time moving"
     problems = []
-    if len(gaps) and gaps.max() >= p["max_gap_s"]:
+    slow = bool(len(gaps)) and gaps.max() >= p["max_gap_s"]
+    if slow:
         problems.append(f"commands were {gaps.max():.2f} s apart at the longest, so the simulator's "
                         f"{p['max_gap_s']:g} s command timeout stopped the turtle")
     if share < p["min_moving_share"]:
-        problems.append(f"the turtle moved only {share:.0%} of the time (needs {p['min_moving_share']:.0%})")
+        longest = max(stalls, key=lambda s: s["duration_s"]) if stalls else None
+        problems.append(f"the turtle moved only {share:.0%} of the time (needs {p['min_moving_share']:.0%})"
+                        + (f"; it stood still for {longest['duration_s']:.1f} s from t = "
+                           f"{longest['start'] - pt[0]:.1f} s" if longest else ""))
     if not problems:
         return Finding(value, 1.0, "pass", f"Commands every {fmt(1 / stats['rate_hz'] if stats['rate_hz'] else float('nan'))} s "
                        f"on average (at most {gaps.max() if len(gaps) else 0:.2f} s apart): the turtle never stopped.", ev)
-    return Finding(value, 0.0, "fail", "; ".join(problems).capitalize() + ": publish faster than once a second "
-                   "(a timer period below 1 s).", ev)
+    advice = (": publish faster than once a second (a timer period below 1 s)" if slow else
+              ": it stopped going anywhere (check for turning on the spot or pushing against a wall)")
+    return Finding(value, 0.0, "fail", "; ".join(problems)[0].upper() + "; ".join(problems)[1:] + advice + ".", ev)
 
 
 def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
@@ -199,7 +206,7 @@ def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
     "min_clearance": 0.0,             # m: closer than this to a wall also counts as contact
 })
 def no_wall_contact(frames: Frames, p: dict) -> Finding:
-    pose = topic(frames, p["pose_topic"])
+    pose = sim_pose(frames, p["pose_topic"])
     if pose is None or not {"x", "y"} <= set(pose.columns):
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
@@ -209,9 +216,12 @@ def no_wall_contact(frames: Frames, p: dict) -> Finding:
     hits = logs[(logs["logger"] == p["sim_logger"]) & logs["text"].str.contains("hit the wall", case=False)]
     t0 = float(times(pose)[0])
     touched = np.nonzero(clearance <= max(p["min_clearance"], 1e-3))[0]
+    keep = np.union1d(thin(len(x)), touched[:50])
     ev = {"min_clearance_m": float(clearance[i]), "closest_at": [float(x[i]), float(y[i])],
           "closest_t": float(times(pose)[i] - t0), "wall_warnings": int(len(hits)),
-          "contacts": int(len(touched))}
+          "contacts": int(len(touched)), "world_max_m": p["world_max"],
+          "path": {"x": np.round(x[keep], 3).tolist(), "y": np.round(y[keep], 3).tolist()},
+          "contact_points": [[float(x[k]), float(y[k])] for k in touched[:50]]}
     value = f"closest {clearance[i]:.2f} m"
     if len(hits) or len(touched):
         where = f"({x[touched[0]]:.2f}, {y[touched[0]]:.2f})" if len(touched) else f"({x[i]:.2f}, {y[i]:.2f})"

@@ -18,7 +18,8 @@ import pandas as pd
 
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import Frames, missing_topic_feedback, service_calls, times, topic
+from grader.analyze._common import (sim_pose, Frames, missing_topic_feedback, scenario_end_time, service_calls,
+                                    thin, times, topic)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -31,6 +32,7 @@ EVIDENCE = {
     "left_color": ("colour left of the line", ""), "max_delay_s": ("time allowed after a crossing", "s"),
     "min_pixels": ("pixels needed per colour", ""), "min_share": ("share needed on its side", SHARE),
     "t": ("time", SINCE_START), "service": ("service", ""), "pose_topic": ("pose topic", ""),
+    "y": ("at y", "m"), "path": None,
 }
 
 CANVAS = "__canvas__"
@@ -42,11 +44,14 @@ _PEN = {
 }
 
 
-def crossings(t: np.ndarray, x: np.ndarray, split: float) -> list[dict[str, Any]]:
-    """Times and directions at which ``x`` crosses ``split``."""
+def crossings(t: np.ndarray, x: np.ndarray, split: float, y: np.ndarray | None = None) -> list[dict[str, Any]]:
+    """Times, directions (and heights) at which ``x`` crosses ``split``."""
     out = []
     for i in np.nonzero((x[:-1] <= split) != (x[1:] <= split))[0]:
-        out.append({"t": float(t[i + 1]), "direction": "right" if x[i + 1] > split else "left"})
+        row = {"t": float(t[i + 1]), "direction": "right" if x[i + 1] > split else "left"}
+        if y is not None:
+            row["y"] = float(y[i + 1])
+        out.append(row)
     return out
 
 
@@ -65,11 +70,17 @@ def _color(request: dict) -> list[int] | None:
     "max_delay_s": 0.1,              # s from the crossing pose to the call reaching the simulator
 })
 def pen_on_crossings(frames: Frames, p: dict) -> Finding:
-    pose = topic(frames, p["pose_topic"])
+    pose = sim_pose(frames, p["pose_topic"])
     if pose is None or "x" not in pose.columns:
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
     t0 = float(times(pose)[0])
-    cross = crossings(times(pose), pose["x"].to_numpy(float), p["split_x"])
+    x_all = pose["x"].to_numpy(float)
+    y_all = pose["y"].to_numpy(float) if "y" in pose.columns else None
+    cross = crossings(times(pose), x_all, p["split_x"], y_all)
+    # after the scenario's end the student's node is being stopped while the turtle coasts on:
+    # crossings then cannot be answered and do not count
+    end = scenario_end_time(frames)
+    cross = [c for c in cross if not (end == end and c["t"] > end - p["max_delay_s"])]
     df = topic(frames, f"{p['service']}/_service_event")
     calls = [{"t": c["t"], "color": _color(c["request"]), "width": c["request"].get("width"),
               "off": c["request"].get("off")} for c in (service_calls(df) if df is not None else [])]
@@ -79,7 +90,7 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
     for c in cross:
         k = next((i for i, call in enumerate(calls) if not used[i]
                   and c["t"] - 0.05 <= call["t"] <= c["t"] + p["max_delay_s"]), None)
-        row = {"t": c["t"] - t0, "direction": c["direction"], "wanted": want[c["direction"]]}
+        row = {"t": c["t"] - t0, "direction": c["direction"], "wanted": want[c["direction"]], "y": c.get("y")}
         if k is None:
             late = next((call for i, call in enumerate(calls) if not used[i] and call["t"] > c["t"]), None)
             row.update(ok=False, why="no set_pen call within "
@@ -96,6 +107,9 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
     matched = sum(1 for r in rows if r["ok"])
     denominator = len(rows) + len(extra)
     ev = {"crossings": rows[:40], "extra_calls": extra[:20], "calls": len(calls), "split_x": p["split_x"]}
+    if y_all is not None:
+        keep = thin(len(x_all), 600)
+        ev["path"] = {"x": np.round(x_all[keep], 3).tolist(), "y": np.round(y_all[keep], 3).tolist()}
     if not cross:
         return Finding.fail(f"The turtle never crossed x = {p['split_x']:g}, so the pen colour change could not "
                             "be checked.", ev, value="no crossings")

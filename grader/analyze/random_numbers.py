@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from grader.analyze.evidence import SHARE
 from grader.analyze import Finding, register
 from grader.analyze._common import (Frames, meta, meta_row, missing_topic_feedback, norm_type, sentence,
                                     topic_or_student_topic,
@@ -18,6 +19,10 @@ from grader.analyze._common import (Frames, meta, meta_row, missing_topic_feedba
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    "min_count": ("messages needed", ""),
+    "ks_min_samples": ('samples needed for the uniformity test', ''),
+    "shape_credit": ('credit for the right shape only', SHARE),
+    "fallback_type": ("type of the student's own topic to measure instead", ''),
     "type": ("message type", ""),
     "expected_type": ("message type expected", ""),
     "count": ("messages recorded", ""),

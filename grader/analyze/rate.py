@@ -17,6 +17,9 @@ from grader.analyze._common import (Frames, missing_topic_feedback, since_start,
 from grader.analyze.evidence import SHARE
 
 EVIDENCE = {
+    "partial_credit": ('credit within the partial tolerance', SHARE),
+    "use_pub_time": ('use publisher send times', ''),
+    "fallback_type": ("type of the student's own topic to measure instead", ''),
     "value": ("publish rate", "Hz"),
     "expected_hz": ("expected rate", "Hz"),
     "rate_hz": ("measured rate (1 / mean interval)", "Hz"),

@@ -13,7 +13,8 @@ from typing import Any
 import numpy as np
 
 from grader.analyze import REQUIRED, Finding, graded, register
-from grader.analyze._common import Frames, events, missing_topic_feedback, times, topic
+from grader.analyze.evidence import SINCE_START
+from grader.analyze._common import Frames, events, missing_topic_feedback, since_start, times, topic
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -24,7 +25,7 @@ EVIDENCE = {
     "match": ("values match", ""), "service": ("service", ""), "field": ("response field", ""),
     "expected": ("expected value", ""), "fields": ("message field: request field", ""),
     "window_s": ("time allowed for the message", "s"), "tol": ("allowed difference", ""),
-    "success": ("success", ""),
+    "success": ("success", ""), "t": ("called at", SINCE_START), "message_t": None,
 }
 
 
@@ -102,7 +103,9 @@ def request_echoed(frames: Frames, p: dict) -> Finding:
         t_next = calls[k]["t"] if k < len(calls) else math.inf
         lo, hi = c["t"] - 0.2, min(c["t"] + p["window_s"], t_next)
         idx = np.nonzero((t >= lo) & (t < hi))[0]
-        row: dict[str, Any] = {"call": k, "request": c["request"], "messages": int(len(idx))}
+        row: dict[str, Any] = {"call": k, "request": c["request"], "messages": int(len(idx)),
+                               "t": float(since_start(frames, [c["t"]])[0]),
+                               "message_t": since_start(frames, t[idx]).tolist()}
         if len(idx):
             msg = df.iloc[idx[0]]
             got = {f: _value(msg.get(f)) for f in p["fields"]}

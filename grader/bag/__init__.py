@@ -2,14 +2,17 @@
 
 Module map (pure = no rclpy):
 
-* ``mcap_io`` (pure) byte-level MCAP writer with timed chunks and a truncation-tolerant scanner
-* ``metadata`` (pure) metadata.yaml version 9 and QoS dicts
+* ``mcap_scan`` (pure) crash-tolerant, vectorised MCAP scanner for analysis
+* ``metadata`` (pure) metadata.yaml version 9, the ``rosbag2`` record's map, QoS dicts
+* ``rosbag2_yaml`` (pure) rosbag2 Jazzy's metadata decoding rules, as checks
 * ``msgdefs`` (pure) complete ros2msg definitions from installed interface files
-* ``writer`` / ``reader`` (pure) bag directories
+* ``writer`` (pure) bag directories written through the ``mcap`` package
+* ``reader`` (pure) bag directories read through ``mcap_scan``
 * ``cdr`` / ``frames`` (pure) decoding into DataFrames: :func:`load_frames`, :func:`load_bag_meta`
-* ``info``, ``repair`` (pure) the ``grader bag`` subcommands
+* ``info``, ``repair``, ``conformance`` (pure) the ``grader bag`` subcommands; ``conformance``
+  also gives tests :func:`~grader.bag.conformance.check_bag` (rosbags, mcap, ours agree)
 * ``recorder``, ``replay``, ``loadgen``, ``rosio`` (rclpy) live-graph processes
-* ``cli`` registers ``record``, ``bag info|repair`` and ``replay``
+* ``cli`` registers ``record``, ``bag info|repair|verify`` and ``replay``
 
 Heavy imports stay lazy so that the recorder process does not pay for pandas.
 """

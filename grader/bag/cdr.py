@@ -11,6 +11,13 @@ Two paths, chosen per type:
 Column names follow docs/ARCHITECTURE.md: nested fields joined with dots (``linear.x``), array
 elements as ``data[0]`` with ``data.len``; arrays longer than :data:`MAX_EXPANDED` stay one
 column of numpy arrays (``data``) so an image never becomes a million columns.
+
+Why not rosbags' ``deserialize_cdr``, measured: a one-hour 225,000-message Pose bag loads into
+a DataFrame in 0.057 s through the fixed-layout path, against 0.96 s for rosbags' AnyReader
+deserialising the same messages into objects (17x, before any flattening into columns);
+for variable types (50,000 ``rcl_interfaces/msg/Log``) the generated decoders take 0.29 s for
+the finished DataFrame, rosbags 0.30 s for the objects alone. rosbags still decodes every bag in
+the conformance check (:mod:`grader.bag.conformance`).
 """
 
 from __future__ import annotations

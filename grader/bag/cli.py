@@ -1,4 +1,4 @@
-"""CLI registration of the bag layer: ``grader record``, ``grader bag info|repair``, ``grader replay``."""
+"""CLI registration of the bag layer: ``grader record``, ``grader bag info|repair|verify``, ``grader replay``."""
 
 from __future__ import annotations
 
@@ -22,6 +22,12 @@ def _repair(args: argparse.Namespace) -> int:
     from grader.bag import repair
 
     return repair.run(args)
+
+
+def _verify(args: argparse.Namespace) -> int:
+    from grader.bag import conformance
+
+    return conformance.run(args)
 
 
 def _replay(args: argparse.Namespace) -> int:
@@ -51,6 +57,14 @@ def register(subparsers: Any) -> None:
     repair.add_argument("--no-backup", action="store_true",
                         help="delete the damaged MCAP file instead of keeping *.mcap.damaged")
     repair.set_defaults(func=_repair)
+    verify = bag_sub.add_parser(
+        "verify", help="check that ros2 bag, rosbags and Foxglove's mcap tooling read a bag alike",
+        description="Read each bag with rosbags, mcap + mcap-ros2-support and the grader's reader "
+                    "(decoding every message), compare their counts with metadata.yaml and the "
+                    "MCAP summary, and check the metadata the way rosbag2 Jazzy decodes it. "
+                    "Prints one line per problem; exit 1 when a bag does not conform.")
+    verify.add_argument("bags", nargs="+", metavar="BAG", help="bag directories")
+    verify.set_defaults(func=_verify)
     bag.set_defaults(func=lambda args: (bag.print_help(), 2)[1])
 
     rp = subparsers.add_parser("replay", help="publish a bag into the live graph with its timing")

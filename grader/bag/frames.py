@@ -163,3 +163,22 @@ def _decode_rows(td: TopicData, text: str) -> list[dict]:
             raise GraderError(f"message {i} on {td.name} ({td.type}) does not match its stored "
                               f"definition ({exc}); the bag is corrupt.") from None
     return rows
+
+
+def canvas_frame(png: Path | str) -> pd.DataFrame:
+    """The simulator's saved canvas as one row per drawn pixel: ``x_m``, ``y_m`` (world metres,
+    pixel centres), ``r``, ``g``, ``b``. Background and turtle-marker pixels are left out, so the
+    frame holds the pen trails (what "the canvas shows blue right of x = 5.5" is judged on)."""
+    import numpy as np
+
+    from grader.sim.canvas import TURTLE_BODY, TURTLE_HEAD, read_png
+    from grader.sim.physics import DEFAULT_BACKGROUND, METER
+
+    rgb = read_png(png)[..., :3].astype(np.int32)
+    height = rgb.shape[0]
+    skip = np.zeros(rgb.shape[:2], dtype=bool)
+    for colour in (DEFAULT_BACKGROUND, TURTLE_BODY, TURTLE_HEAD):
+        skip |= np.all(rgb == np.asarray(colour, np.int32), axis=2)
+    rows, cols = np.nonzero(~skip)
+    return pd.DataFrame({"x_m": cols / METER, "y_m": (height - 1 - rows) / METER,
+                         "r": rgb[rows, cols, 0], "g": rgb[rows, cols, 1], "b": rgb[rows, cols, 2]})

@@ -66,6 +66,30 @@ def qos_from_any(value: Any) -> list[dict[str, Any]]:
     return out
 
 
+#: custom_data key for offers of publishers that appeared after a topic's channel was written
+LATE_QOS_KEY = "grader.late_offered_qos_profiles"
+
+
+def qos_yaml(profiles: list[dict[str, Any]]) -> str:
+    """Offered QoS profiles as the YAML text of an MCAP channel's ``offered_qos_profiles``.
+
+    rosbag2 (``serialize_rclcpp_qos_vector``) writes a YAML sequence there, ``[]`` when empty.
+    """
+    if not profiles:
+        return "[]\n"
+    return yaml.safe_dump(profiles, sort_keys=False, default_flow_style=False)
+
+
+def rosbags_safe_hash(type_name: str, type_hash: str) -> str:
+    """The hash to put in metadata.yaml: empty for ``pkg/srv/...`` types.
+
+    rosbags (0.11) files service types under ``pkg/srv/msg/Name`` when it parses their stored
+    definition, so a metadata hash for ``pkg/srv/Name_Event`` makes its AnyReader fail to open the
+    bag. The hash stays in the MCAP channel metadata (``topic_type_hash``), where we read it.
+    """
+    return "" if "/srv/" in type_name else type_hash
+
+
 @dataclass
 class TopicInfo:
     """One topic of a bag, as metadata.yaml describes it."""
@@ -102,8 +126,9 @@ class BagMetadata:
     ros_distro: str = ROS_DISTRO
     version: int = VERSION
 
-    def to_yaml(self) -> str:
-        info = {
+    def to_dict(self) -> dict[str, Any]:
+        """The bare ``BagMetadata`` map, field for field as rosbag2's yaml.hpp encodes it."""
+        return {
             "version": self.version,
             "storage_identifier": self.storage_identifier,
             "duration": {"nanoseconds": int(self.duration_ns)},
@@ -127,8 +152,19 @@ class BagMetadata:
             "custom_data": dict(self.custom_data) or None,
             "ros_distro": self.ros_distro,
         }
-        return yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False,
+
+    def to_yaml(self) -> str:
+        """metadata.yaml text: the map under ``rosbag2_bagfile_information`` (MetadataIo)."""
+        return yaml.safe_dump({"rosbag2_bagfile_information": self.to_dict()}, sort_keys=False,
                               default_flow_style=False)
+
+    def serialized(self) -> str:
+        """``serialized_metadata`` of the MCAP Metadata record ``rosbag2``: the *bare* map.
+
+        rosbag2_storage_mcap (Jazzy) writes ``YAML::convert<BagMetadata>::encode`` there and
+        decodes it the same way on open, so, unlike metadata.yaml, there is no wrapper key.
+        """
+        return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=False)
 
     def write(self, bag_dir: Path) -> None:
         """Write atomically: a reader never sees half a metadata file."""
@@ -145,19 +181,35 @@ def _require(d: dict, key: str, where: str) -> Any:
     return d[key]
 
 
-def parse_metadata(text: str, where: str = METADATA_FILE) -> BagMetadata:
-    """Parse metadata.yaml text of versions 4..9 into a BagMetadata."""
+def _load_yaml(text: str, where: str) -> Any:
     try:
-        doc = yaml.safe_load(text)
+        return yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}" if mark is not None else ""
         raise GraderError(f"{where} is not valid YAML ({getattr(exc, 'problem', None) or 'parse error'}"
                           f"{at}); run `grader bag repair BAG` to rebuild it from the MCAP file.") from None
+
+
+def parse_metadata(text: str, where: str = METADATA_FILE) -> BagMetadata:
+    """Parse metadata.yaml text of versions 4..9 into a BagMetadata."""
+    doc = _load_yaml(text, where)
     if not isinstance(doc, dict) or not isinstance(doc.get("rosbag2_bagfile_information"), dict):
         raise GraderError(f"{where} has no 'rosbag2_bagfile_information' section; it is not "
                           "rosbag2 metadata. Run `grader bag repair BAG` to rebuild it.")
-    info = doc["rosbag2_bagfile_information"]
+    return metadata_from_dict(doc["rosbag2_bagfile_information"], where)
+
+
+def parse_serialized(text: str, where: str = "serialized_metadata") -> BagMetadata:
+    """Parse the bare map of the MCAP ``rosbag2`` record (see :meth:`BagMetadata.serialized`)."""
+    doc = _load_yaml(text, where)
+    if not isinstance(doc, dict):
+        raise GraderError(f"{where} is not a YAML map; it is not rosbag2 metadata.")
+    return metadata_from_dict(doc, where)
+
+
+def metadata_from_dict(info: dict, where: str = METADATA_FILE) -> BagMetadata:
+    """A BagMetadata from the bare map (what is under ``rosbag2_bagfile_information``)."""
     topics = []
     for entry in _require(info, "topics_with_message_count", where) or []:
         tm = _require(entry, "topic_metadata", where)

@@ -3,8 +3,9 @@
 Why: a bag must decode without the workspace that produced it (students' custom interface
 packages are gone after grading). Like rosbag2's LocalMessageDefinitionSource we look up
 ``share/<pkg>/<msg|srv|action>/<Name>.<ext>`` under every prefix of ``AMENT_PREFIX_PATH`` and
-append every dependency once after an 80-``=`` delimiter and ``MSG: pkg/msg/Name``. Unlike rosbag2
-Jazzy we also synthesise the hidden types that appear on topics but have no file of their own:
+append every dependency once after an 80-``=`` delimiter and ``MSG: pkg/Name`` (see
+:func:`reference` for why not rosbag2's ``pkg/msg/Name``: that header is what Foxglove's parser
+cannot match to the ``.msg`` files' ``pkg/Name`` field types). Unlike rosbag2 Jazzy we also synthesise the hidden types that appear on topics but have no file of their own:
 service events (``pkg/srv/Name_Event``), request/response parts, and the action types
 ``_FeedbackMessage``, ``_Goal``/``_Result``/``_Feedback``, ``_SendGoal_*`` and ``_GetResult_*``.
 No rclpy: this runs in the recorder and in repair, analysis and tests alike.
@@ -119,10 +120,10 @@ class DefinitionSource:
             a = f"{pkg}/action/{base}"
             return {
                 "Goal": goal, "Result": result, "Feedback": feedback,
-                "FeedbackMessage": f"unique_identifier_msgs/msg/UUID goal_id\n{a}_Feedback feedback\n",
-                "SendGoal_Request": f"unique_identifier_msgs/msg/UUID goal_id\n{a}_Goal goal\n",
-                "SendGoal_Response": "bool accepted\nbuiltin_interfaces/msg/Time stamp\n",
-                "GetResult_Request": "unique_identifier_msgs/msg/UUID goal_id\n",
+                "FeedbackMessage": f"unique_identifier_msgs/UUID goal_id\n{a}_Feedback feedback\n",
+                "SendGoal_Request": f"unique_identifier_msgs/UUID goal_id\n{a}_Goal goal\n",
+                "SendGoal_Response": "bool accepted\nbuiltin_interfaces/Time stamp\n",
+                "GetResult_Request": "unique_identifier_msgs/UUID goal_id\n",
                 "GetResult_Response": f"int8 status\n{a}_Result result\n",
                 "SendGoal_Event": _event_text(f"{a}_SendGoal"),
                 "GetResult_Event": _event_text(f"{a}_GetResult"),
@@ -142,7 +143,7 @@ class DefinitionSource:
             for dep in dependencies(text, split_type(t)[0]):
                 if dep not in seen and dep != root:
                     seen.add(dep)
-                    out += f"\n{SEPARATOR}\nMSG: {dep}\n" + walk(dep, depth + 1)
+                    out += f"\n{SEPARATOR}\nMSG: {reference(dep)}\n" + walk(dep, depth + 1)
             return out
 
         return walk(root, 0)
@@ -171,24 +172,39 @@ class DefinitionSource:
         return ""
 
 
+def reference(type_name: str) -> str:
+    """How a definition names a type, in field lines and ``MSG:`` headers alike.
+
+    Message types as ``.msg`` files name them (``pkg/Type``), service and action parts in full
+    (``pkg/srv/Name_Request``: no shorter name is unambiguous). Measured against the parsers
+    that read our bags: mcap-ros2-support's (rosidl_adapter) rejects ``pkg/msg/Type`` in a field
+    line, Foxglove's ``@foxglove/rosmsg`` (5.0) resolves a field type only to the header spelled
+    the same way, and rosbags and ours accept both spellings; so a dependency is written the
+    same way in both places, in the ``.msg`` file's spelling where there is one.
+    """
+    pkg, kind, name = split_type(type_name)
+    return f"{pkg}/{name}" if kind == "msg" else f"{pkg}/{kind}/{name}"
+
+
 def qualify(text: str, package: str) -> str:
-    """Write relative field types of a .srv/.action section as ``package/msg/Type``.
+    """Write relative field types of a .srv/.action section as ``package/Type``.
 
     In a service or action file ``Goal goal`` means ``<pkg>/msg/Goal``; once the section stands as
-    ``<pkg>/action/X_Goal`` a reader would look for ``<pkg>/action/Goal`` instead (rosbags does).
+    ``<pkg>/action/X_Goal`` a reader would look for ``<pkg>/action/Goal`` instead (rosbags and
+    Foxglove do).
     """
     out = []
     for line in text.split("\n"):
         m = re.match(r"^(\s*)([A-Za-z][A-Za-z0-9_]*)((?:\[[^\]]*\])?\s+[A-Za-z].*)$", line)
         if m and m.group(2) not in PRIMITIVES and m.group(2) not in _ALIASES and "=" not in line.split("#")[0].split()[1]:
-            line = f"{m.group(1)}{package}/msg/{m.group(2)}{m.group(3)}"
+            line = f"{m.group(1)}{package}/{m.group(2)}{m.group(3)}"
         out.append(line)
     return "\n".join(out)
 
 
 def _event_text(service: str) -> str:
     """Fields of ``<service>_Event`` (service introspection), as rosidl generates them."""
-    return ("service_msgs/msg/ServiceEventInfo info\n"
+    return ("service_msgs/ServiceEventInfo info\n"
             f"{service}_Request[<=1] request\n{service}_Response[<=1] response\n")
 
 

@@ -1,8 +1,12 @@
 """Open a rosbag2 MCAP bag directory — finished, crashed or written by real rosbag2 — without ROS.
 
-Why not just rosbags: we need (a) bags whose recorder was killed (no summary, no metadata.yaml)
-to read up to their last complete chunk, and (b) payload locations as numpy arrays for the
-vectorised decoding in :mod:`grader.bag.frames`. rosbags stays the independent check in tests.
+Why not rosbags or ``mcap``'s reader: we need (a) bags whose recorder was killed (no summary,
+no metadata.yaml) to read up to their last complete chunk, and (b) payload locations as numpy
+arrays for the vectorised decoding in :mod:`grader.bag.frames`. Measured on a one-hour 225,000
+message bag: ``load_frames`` through this reader 0.057 s, rosbags' AnyReader with
+deserialisation 0.96 s (17x), ``mcap``'s ``iter_messages`` without decoding 2.5 s (44x); details
+in :mod:`grader.bag.mcap_scan`. rosbags and ``mcap`` stay the independent checks
+(:mod:`grader.bag.conformance`).
 """
 
 from __future__ import annotations
@@ -14,9 +18,9 @@ from typing import Iterator
 import numpy as np
 import yaml
 
-from grader.bag.mcap_io import McapFormatError, MessageBlock, ScanResult, scan
-from grader.bag.metadata import METADATA_FILE, BagMetadata, FileInfo, TopicInfo, parse_metadata, qos_from_any
-from grader.bag.writer import LATE_QOS_KEY, rosbags_safe_hash
+from grader.bag.mcap_scan import McapFormatError, MessageBlock, ScanResult, scan
+from grader.bag.metadata import (LATE_QOS_KEY, METADATA_FILE, BagMetadata, FileInfo, TopicInfo,
+                                 parse_metadata, qos_from_any, rosbags_safe_hash)
 from grader.errors import GraderError
 
 
@@ -31,7 +35,7 @@ class TopicData:
     serialization_format: str = "cdr"
     offered_qos_profiles: list[dict] = field(default_factory=list)
     type_description_hash: str = ""
-    late_offered_qos_profiles: list[dict] = field(default_factory=list)  # see writer.LATE_QOS_KEY
+    late_offered_qos_profiles: list[dict] = field(default_factory=list)  # see metadata.LATE_QOS_KEY
     blocks: list[MessageBlock] = field(default_factory=list)
     _order: np.ndarray | None = None
 

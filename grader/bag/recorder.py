@@ -101,6 +101,7 @@ class _Sub:
     transient: bool = False
     publishers: int = -1             # publisher count seen at the last refresh
     offers: dict[str, dict] = field(default_factory=dict)   # gid -> offered QoS dict
+    probed: bool = False             # offers were looked up at the first message (see drain)
 
 
 class Recorder:
@@ -161,18 +162,24 @@ class Recorder:
             if count != sub.publishers:
                 self.refresh(sub, count)
 
+    def _record_offers(self, sub: _Sub) -> list:
+        """Look up the topic's publishers and keep every new offer; returns their infos."""
+        from grader.bag.rosio import qos_to_dict
+
+        infos = self.node.get_publishers_info_by_topic(sub.topic)
+        for info in infos:
+            gid = ".".join(f"{b:02x}" for b in info.endpoint_gid)
+            sub.offers.setdefault(gid, qos_to_dict(info.qos_profile))
+        return infos
+
     def refresh(self, sub: _Sub, count: int) -> None:
         """Publishers changed: record their offers and (re)subscribe with a compatible QoS."""
         from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
-        from grader.bag.rosio import qos_to_dict
-
-        infos = self.node.get_publishers_info_by_topic(sub.topic)
+        infos = self._record_offers(sub)
         sub.publishers = count
         type_hash = ""
         for info in infos:
-            gid = ".".join(f"{b:02x}" for b in info.endpoint_gid)
-            sub.offers.setdefault(gid, qos_to_dict(info.qos_profile))
             type_hash = type_hash or str(info.topic_type_hash)
         if type_hash and not type_hash.startswith("RIHS01_"):
             type_hash = ""
@@ -233,12 +240,22 @@ class Recorder:
                 got = take(cls, True)
                 if got is None:
                     break
+                if not sub.offers and not sub.probed:
+                    self._probe_offers(sub)
                 data, info = got
                 recv = info.get("received_timestamp") or time.time_ns()
                 write(topic, recv, data, info.get("source_timestamp") or 0,
                       info.get("publication_sequence_number") or 0)
                 n += 1
         return n
+
+    def _probe_offers(self, sub: _Sub) -> None:
+        """The first message came from a publisher the last graph poll did not see yet (the
+        topic had only subscribers then): look its offer up now, so that the topic's MCAP
+        channel, written with this message, carries it instead of an empty list."""
+        sub.probed = True
+        if self._record_offers(sub):
+            self.writer.update_qos(sub.topic, list(sub.offers.values()))
 
     def _build_waitset(self):
         from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy

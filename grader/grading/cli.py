@@ -10,8 +10,6 @@ from pathlib import Path
 
 from grader.errors import GraderError
 
-REPO_RUBRICS = Path(__file__).resolve().parents[2] / "rubrics"
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     g = sub.add_parser("grade", help="grade a folder of submissions against a rubric",
@@ -21,20 +19,29 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("submissions", type=Path, help="folder with one folder or archive per student (or one submission)")
     g.add_argument("--rubric", type=Path, required=True, help="rubric YAML (e.g. rubrics/enee467_lab3.yaml)")
     g.add_argument("-o", "--out", type=Path, required=True, help="output folder")
-    g.add_argument("--jobs", type=int, default=1, help="submissions graded in parallel (default 1)")
+    g.add_argument("--jobs", type=_positive, default=None,
+                   help="scenarios (and builds) run at once across the batch (default: twice the cores)")
     g.add_argument("--only", nargs="+", metavar="ID", help="grade only these submission ids")
+    g.add_argument("--shard", type=_shard, default=None, metavar="K/N",
+                   help="grade only shard K of N (a stable 1/N of the submissions, by id; "
+                        "combine the outputs with `grader merge`)")
     g.add_argument("--resume", action="store_true", help="skip submissions that already have a result.json in OUT")
     g.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
+    g.add_argument("--no-reuse", action="store_true",
+                   help="run every scenario, even when an identical one was recorded before")
     g.set_defaults(func=run_grade)
 
     c = sub.add_parser("check", help="self-check your own workspace (public items only)",
                        description="Runs the lab's public auto-graded items on your workspace, prints a table "
                                    "with a hint per item and writes a report. Exit 0 only when all pass.")
     c.add_argument("workspace", type=Path, nargs="?", default=Path("."), help="your workspace (default: .)")
-    c.add_argument("--lab", default=None, help="lab id, e.g. enee467-lab3 (see rubrics/)")
+    c.add_argument("--lab", default=None, help="lab id, e.g. enee467-lab3 (see `grader labs`)")
     c.add_argument("--rubric", type=Path, default=None, help="rubric YAML instead of --lab")
     c.add_argument("-o", "--out", type=Path, default=None, help="report folder (default: WORKSPACE/.grader-check)")
     c.add_argument("--cache-dir", type=Path, default=None)
+    c.add_argument("--jobs", type=_positive, default=None, help="scenarios run at once (default: twice the cores)")
+    c.add_argument("--no-reuse", action="store_true",
+                   help="run every scenario, even those whose packages did not change since the last check")
     c.set_defaults(func=run_check)
 
     r = sub.add_parser("regrade", help="recompute grades from recorded bags (no ROS needed)",
@@ -45,20 +52,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.set_defaults(func=run_regrade)
 
 
-def rubric_for_lab(lab: str) -> Path:
-    from grader.rubric.load import load_rubric
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
 
-    known = []
-    for path in sorted(REPO_RUBRICS.glob("*.yaml")):
-        try:
-            rub = load_rubric(path)
-        except GraderError:
-            continue
-        known.append(rub.lab)
-        if rub.lab == lab:
-            return path
-    raise GraderError(f"no rubric for lab {lab!r}; known labs: {', '.join(known) or 'none'} "
-                      f"(rubrics live in {REPO_RUBRICS}).")
+
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        k, n = (int(part) for part in text.split("/"))
+    except ValueError:
+        k = n = 0
+    if not (n >= 1 and 1 <= k <= n):
+        raise argparse.ArgumentTypeError(f"expected K/N with 1 <= K <= N (e.g. 2/4), got {text!r}")
+    return k, n
 
 
 class Progress:
@@ -102,22 +113,33 @@ def run_grade(args: argparse.Namespace) -> int:
     from grader.grading.pipeline import discover_submissions, grade_submission, submission_id
     from grader.rubric.load import load_rubric
 
+    from grader.grading.schedule import Slots, default_jobs
+    from grader.grading.shards import in_shard, write_shard_note
+
     rubric = load_rubric(args.rubric)
     subs = discover_submissions(args.submissions)
     if args.only:
         subs = [s for s in subs if submission_id(s) in set(args.only)]
         if not subs:
             raise GraderError(f"none of {', '.join(args.only)} is among the submissions in {args.submissions}.")
+    if args.shard:
+        subs = [s for s in subs if in_shard(submission_id(s), *args.shard)]
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.shard:
+        write_shard_note(args.out, rubric, *args.shard)
+    jobs = args.jobs or default_jobs()
+    slots = Slots(jobs)
     todo = [s for s in subs if not (args.resume and (args.out / submission_id(s) / "result.json").exists())]
     progress = Progress(len(subs))
     progress.done = len(subs) - len(todo)
     failures: dict[str, str] = {}
     interrupted = False
     try:
-        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        # more submissions in flight than slots: one builds or analyzes while others' scenarios run
+        with ThreadPoolExecutor(max_workers=jobs + 1) as pool:
             futures = {pool.submit(grade_submission, s, rubric, args.out, cache_dir=args.cache_dir,
-                                   progress=progress.status if args.jobs == 1 else None): s for s in todo}
+                                   progress=progress.status if len(todo) == 1 else None, slots=slots,
+                                   reuse=not args.no_reuse): s for s in todo}
             try:
                 for fut in as_completed(futures):
                     sid = submission_id(futures[fut])
@@ -155,6 +177,7 @@ def run_grade(args: argparse.Namespace) -> int:
 def run_check(args: argparse.Namespace) -> int:
     from grader.grading.outputs import print_check_table
     from grader.grading.pipeline import grade_submission
+    from grader.labs import rubric_for_lab
     from grader.rubric.load import load_rubric
 
     if args.rubric is None and args.lab is None:
@@ -162,9 +185,12 @@ def run_check(args: argparse.Namespace) -> int:
     rubric = load_rubric(args.rubric or rubric_for_lab(args.lab))
     ws = args.workspace.resolve()
     out = (args.out or ws / ".grader-check").resolve()
+    from grader.grading.schedule import Slots, default_jobs
+
     progress = Progress(1)
     graded = grade_submission(ws, rubric, out, cache_dir=args.cache_dir, public_only=True,
-                              sid="check", progress=progress.status)
+                              sid="check", progress=progress.status, slots=Slots(args.jobs or default_jobs()),
+                              reuse=not args.no_reuse)
     progress.close()
     ok = print_check_table(graded, rubric)
     print(f"report: {graded.out / 'report.html'}")

@@ -44,7 +44,8 @@ def write_submission_outputs(graded, rubric, *, public_only: bool) -> None:
     ver = versions()
     extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
              "errors": graded.errors, "timings": graded.timings,
-             "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir())}
+             "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir()),
+             "scenarios_reused": dict(getattr(graded, "reused", {}) or {})}
     sandbox = recorded_summary(sorted(p for p in (graded.out / "scenarios").glob("*") if p.is_dir()))
     problems = list(graded.errors)
     if sandbox is not None:
@@ -95,6 +96,9 @@ def print_check_table(graded, rubric) -> bool:
                 print(f"        {line}")
         if item.kind == "auto" and item.status != "pass":
             ok = False
+    for sc_id, src in (getattr(graded, "reused", {}) or {}).items():
+        print(f"\n  note: scenario {sc_id} was not run again: nothing it runs changed since "
+              f"{src.get('recorded', 'an earlier run')} (its recording was reused; --no-reuse runs it)")
     for err in graded.errors:
         print(f"\n  problem: {err.splitlines()[0]}")
     print("\nAll public checks pass." if ok else "\nSome checks do not pass yet (see above).")

@@ -10,6 +10,7 @@ import json
 import re
 import shutil
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -56,6 +57,7 @@ class GradedSubmission:
     build_failed: list[str] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+    reused: dict[str, dict] = field(default_factory=dict)     # scenario -> where its recording came from
     previous: dict | None = None      # a regrade's summary of the result it replaced (class view diff)
 
 
@@ -90,6 +92,10 @@ def scenario_frames(scenario_dir: Path) -> dict:
     frames["__meta__"] = pd.DataFrame(
         [{"topic": n, "type": t.type, "count": t.count, "publishers": sorted(publishers.get(n, set()))}
          for n, t in meta.topics.items()], columns=["topic", "type", "count", "publishers"])
+    canvas = scenario_dir / "canvas.png"
+    if canvas.exists():
+        from grader.bag.frames import canvas_frame
+        frames["__canvas__"] = canvas_frame(canvas)
     record_file = scenario_dir / "scenario.json"
     if record_file.exists():
         frames["__meta__"].attrs["scenario"] = json.loads(record_file.read_text())
@@ -189,13 +195,18 @@ def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], li
 
 def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | None = None,
                      public_only: bool = False, sid: str | None = None,
-                     progress: Callable[[str], None] | None = None) -> GradedSubmission:
-    """Build, run the needed scenarios, analyze and score one submission; writes its folder."""
+                     progress: Callable[[str], None] | None = None, slots=None,
+                     reuse: bool = True) -> GradedSubmission:
+    """Build, run the needed scenarios (side by side, within ``slots``), analyze and score one
+    submission; writes its folder. ``reuse``: copy a scenario's recording when everything it
+    runs is identical to an earlier run (see grader.grading.reuse)."""
+    from grader.grading.schedule import Slots
     from grader.rubric.score import score
-    from grader.scenario import resolve, run_scenario
     from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
     from grader.workspace import build_workspace
+    from grader.workspace.build import default_cache_dir
 
+    slots = slots or Slots(1)
     sid = sid or submission_id(Path(path))
     out = Path(out_root) / sid
     with manual_scores_kept(out):          # a re-grade keeps the TA's merged manual scores
@@ -210,8 +221,10 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     t0 = time.monotonic()
     build = None
     try:
-        build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support))
+        with slots.taken():
+            build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support))
         shutil.copy(build.build_log, out / "build.log") if build.build_log.exists() else None
+        errors += [f"submission: {w}" for w in build.warnings]
         if not build.ok:
             errors += [f"package {n} did not build ({build.packages[n].status}):\n{build.packages[n].log_excerpt}"
                        for n in build.failed]
@@ -221,13 +234,22 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     timings["build_s"] = round(time.monotonic() - t0, 2)
 
     items = selected_items(rubric, public_only)
-    for sc_id in needed_scenarios(items):
-        say(f"{sid}: scenario {sc_id}")
-        t1 = time.monotonic()
-        record = run_scenario(resolve(sc_id, rubric.scenarios[sc_id], build), out / SCENARIOS_DIR / sc_id)
-        timings[f"scenario:{sc_id}:wall_s"] = round(time.monotonic() - t1, 2)
-        timings[f"scenario:{sc_id}:active_s"] = record.get("active_s", 0.0)
-        errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]
+    recordings = (Path(cache_dir or default_cache_dir()) / "recordings") if reuse else None
+    reused: dict[str, dict] = {}
+    t1 = time.monotonic()
+    scenario_ids = needed_scenarios(items)
+    say(f"{sid}: scenarios {', '.join(scenario_ids)}")
+    with ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
+        runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings)
+                for sc_id in scenario_ids}
+        for sc_id, future in runs.items():
+            record = future.result()
+            timings[f"scenario:{sc_id}:wall_s"] = record.get("parent_wall_s", 0.0)
+            timings[f"scenario:{sc_id}:active_s"] = record.get("active_s", 0.0)
+            errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]
+            if record.get("reused"):
+                reused[sc_id] = record["reused"]
+    timings["scenarios_wall_s"] = round(time.monotonic() - t1, 2)
 
     say(f"{sid}: analyzing")
     findings, problems = analyze_bags(rubric, items, out)
@@ -238,9 +260,37 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
         result = result.for_student()
     graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
                               build_failed=list(build.failed) if build else ["(no build)"],
-                              errors=errors, timings=timings)
+                              errors=errors, timings=timings, reused=reused)
     write_outputs(graded, rubric, public_only=public_only)
     return graded
+
+
+def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None) -> dict:
+    """One scenario: copied from an identical earlier recording, or run (within a slot)."""
+    from grader.grading.reuse import RecordingCache, reusable, scenario_key
+    from grader.scenario import resolve, run_scenario
+
+    folder = out / SCENARIOS_DIR / sc_id
+    key = scenario_key(sc_id, scenario, build) if recordings is not None else None
+    if key is None:
+        with slots.taken():
+            return run_scenario(resolve(sc_id, scenario, build), folder)
+    cache = RecordingCache(recordings)
+    with cache.locked(key):
+        t0 = time.monotonic()
+        source = cache.get(key, folder)
+        if source is not None:
+            record = json.loads((folder / "scenario.json").read_text())
+            record.update(reused={"from": source.get("submission"), "key": key,
+                                  "recorded": source.get("recorded")},
+                          parent_wall_s=round(time.monotonic() - t0, 3))
+            (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
+            return record
+        with slots.taken():
+            record = run_scenario(resolve(sc_id, scenario, build), folder)
+        if reusable(record):
+            cache.put(key, folder, sid)
+        return record
 
 
 def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:

@@ -361,8 +361,6 @@ class Rubric(Model):
             for name, path in self.support.items():
                 if not (path / "package.xml").is_file():
                     out.append((f"support.{name}", f"support package {name!r}: no package.xml in {path}"))
-            if self.handout is not None and not self.handout.is_dir():
-                out.append(("handout", f"handout folder not found (looked for {self.handout})"))
         ids: dict[str, int] = {}
         scored = {i.id for i in self.items if i.kind == "auto"}
         all_ids = [i.id for i in self.items]

@@ -100,8 +100,8 @@ def _braces(message: str) -> str:
 class Goal(Model):
     """A position ``[x, y]`` or ``{x: .., y: ..}`` (m, turtlesim world frame)."""
 
-    x: Annotated[float, Field(allow_inf_nan=False)]
-    y: Annotated[float, Field(allow_inf_nan=False)]
+    x: Annotated[float, Field(allow_inf_nan=False, description="m")]
+    y: Annotated[float, Field(allow_inf_nan=False, description="m")]
 
     @model_validator(mode="before")
     @classmethod
@@ -120,8 +120,9 @@ class Goal(Model):
 class StdinLine(Model):
     """A line typed into a process ``delay`` seconds after the previous one (or after the prompt)."""
 
-    line: str
-    delay: NonNegativeFloat = 0.5
+    line: str = Field(description="the text typed (Enter is added)")
+    delay: NonNegativeFloat = Field(0.5, description="s after the previous line (the first: after the "
+                                    "node is up and its topics are recorded)")
 
     @model_validator(mode="before")
     @classmethod
@@ -135,9 +136,9 @@ class Limits(Model):
     ``memory_mb`` bounds each process's address space (rclpy + Fast DDS need about 1 GiB).
     """
 
-    wall_s: PositiveFloat | None = None
-    cpu_s: PositiveInt | None = None
-    memory_mb: PositiveInt | None = None
+    wall_s: PositiveFloat | None = Field(None, description="wall-clock seconds")
+    cpu_s: PositiveInt | None = Field(None, description="CPU seconds")
+    memory_mb: PositiveInt | None = Field(None, description="MiB of address space per process")
 
 
 class Process(Model):
@@ -145,16 +146,16 @@ class Process(Model):
     (``pkg.module:func``, tried when the console script is missing: students name scripts freely),
     or by ``launch`` file (every node it declares starts as a process of its own)."""
 
-    name: LocalId
-    package: PackageName | None = None
-    executable: ExecutableName | None = None
-    module: EntryPoint | None = None
-    launch: LaunchFile | None = None
-    launch_arguments: dict[str, str] = {}
-    args: Annotated[tuple[str, ...], Field(strict=False)] = ()
-    parameters: dict[str, ParamValue] = {}
-    remappings: dict[RosName, RosName] = {}
-    env: dict[EnvName, str] = {}
+    name: LocalId = Field(description="unique in the scenario; steps and conditions use it")
+    package: PackageName | None = Field(None, description="the ROS package")
+    executable: ExecutableName | None = Field(None, description="a console script of the package")
+    module: EntryPoint | None = Field(None, description="pkg.module:function, when the script's name varies")
+    launch: LaunchFile | None = Field(None, description="a launch file of the package: starts its nodes")
+    launch_arguments: dict[str, str] = Field({}, description="name: value arguments of the launch file")
+    args: Annotated[tuple[str, ...], Field(strict=False, description="extra command-line arguments")] = ()
+    parameters: dict[str, ParamValue] = Field({}, description="ROS parameters, typed as written (30.0 is a double)")
+    remappings: dict[RosName, RosName] = Field({}, description="from: to topic/service remappings")
+    env: dict[EnvName, str] = Field({}, description="environment variables the process gets")
     stdin: Annotated[tuple[StdinLine, ...], Field(strict=False)] | None = Field(None, description="lines typed into the process; "
                                                 "absent: stdin is /dev/null")
     stdin_close: bool = Field(False, description="EOF after the script (a terminal would not)")
@@ -220,9 +221,9 @@ class Publish(Model):
 
     topic: RosName
     type: MsgType
-    msg: dict[str, Any] = {}
-    count: PositiveInt = 1
-    rate_hz: PositiveFloat | None = None
+    msg: dict[str, Any] = Field({}, description="field values, nested as in the message")
+    count: PositiveInt = Field(1, description="messages to publish")
+    rate_hz: PositiveFloat | None = Field(None, description="pace when count > 1")
 
 
 class ServiceCall(Model):
@@ -233,8 +234,8 @@ class ServiceCall(Model):
     """
 
     name: RosName
-    type: SrvType | None = None
-    request: dict[str, Any] = {}
+    type: SrvType | None = Field(None, description="absent: the type the server advertises")
+    request: dict[str, Any] = Field({}, description="request field values")
     server_timeout: PositiveFloat = Field(5.0, description="s to wait for the service to appear")
     response_timeout: PositiveFloat = Field(10.0, description="s to wait for the response")
 
@@ -244,8 +245,10 @@ class ActionGoal(Model):
 
     name: RosName
     type: ActionType
-    goal: dict[str, Any] = {}
+    goal: dict[str, Any] = Field({}, description="goal field values, nested as in the goal message")
     server_timeout: PositiveFloat = Field(5.0, description="s to wait for the action server")
+    response_timeout: PositiveFloat = Field(10.0, description="s to wait for the server to accept or "
+                                            "reject the goal")
 
 
 class Replay(Model):
@@ -258,11 +261,13 @@ class Replay(Model):
     prints nothing per message gets the plain pace after a few messages).
     """
 
-    bag: LaxPath
-    topics: Annotated[tuple[RosName, ...], Field(strict=False)] | None = None
-    rate_hz: PositiveFloat | None = None
-    count: PositiveInt | None = None
-    lead: PositiveInt | None = None
+    bag: LaxPath = Field(description="a bag folder, relative to the rubric")
+    topics: Annotated[tuple[RosName, ...], Field(strict=False)] | None = Field(
+        None, description="topics to publish (absent: all but the grader's own)")
+    rate_hz: PositiveFloat | None = Field(None, description="fixed pace (absent: the recorded timing)")
+    count: PositiveInt | None = Field(None, description="the first N messages (absent: all)")
+    lead: PositiveInt | None = Field(None, description="at most this many messages ahead of the "
+                                     "student's output lines")
 
     @field_validator("bag", mode="before")
     @classmethod
@@ -304,9 +309,9 @@ class GoalReached(Model):
     there for ``settle`` seconds."""
 
     condition: Literal["goal_reached"]
-    goal: Goal | None = None
-    tolerance: PositiveFloat = 0.1
-    settle: NonNegativeFloat = 0.5
+    goal: Goal | None = Field(None, description="absent: the step's goal")
+    tolerance: PositiveFloat = Field(0.1, description="m")
+    settle: NonNegativeFloat = Field(0.5, description="s it must stay within the tolerance")
     pose_topic: RosName = "/turtle1/pose"
 
 
@@ -340,7 +345,7 @@ class Output(Model):
 
     condition: Literal["output"]
     process: LocalId
-    pattern: str
+    pattern: str = Field(description="a regular expression (Python syntax)")
 
     @field_validator("pattern")
     @classmethod
@@ -357,7 +362,7 @@ class Messages(Model):
 
     condition: Literal["messages"]
     topic: RosName
-    count: PositiveInt = 1
+    count: PositiveInt = Field(1, description="messages since the step began")
 
 
 class Advertised(Model):

@@ -71,6 +71,7 @@ class BuildResult:
     packages: dict[str, PackageBuild]
     cached: bool = False
     duration_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)   # what staging skipped (not cached: per submission)
 
     @property
     def install(self) -> Path:
@@ -281,7 +282,8 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
     cache_dir.mkdir(parents=True, exist_ok=True)
     staging = cache_dir / f".staging-{os.getpid()}-{time.monotonic_ns()}"
     try:
-        staged = stage_sources(Path(submission), staging / "src", staging, support)
+        staging_result = stage_sources(Path(submission), staging / "src", staging, support)
+        staged = staging_result.packages
         digest = tree_digest(staging / "src", extra=f"{CACHE_FORMAT}:{ros_mode()}:{sys.version_info[:2]}")
         root = cache_dir / digest
         with open(cache_dir / f"{digest}.lock", "w") as lockf:
@@ -291,6 +293,7 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                 result = load_result(result_file)
                 result.source = str(submission)
                 result.cached = True
+                result.warnings = staging_result.warnings
                 return result
             if root.exists():
                 shutil.rmtree(root)
@@ -300,7 +303,7 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
             rc = _run_colcon(root, root / "build.log")
             packages = _package_results(root, staged, timed_out=rc == TIMED_OUT)
             result = BuildResult(str(submission), digest, root, packages,
-                                 duration_s=round(time.monotonic() - t0, 2))
+                                 duration_s=round(time.monotonic() - t0, 2), warnings=staging_result.warnings)
             result_file.write_text(json.dumps(_to_json(result), indent=1))
             return result
     finally:

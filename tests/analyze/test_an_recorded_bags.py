@@ -46,7 +46,13 @@ def test_recorded_bag_analysis_matches_expected(submission: str, scenario: str, 
     item = RUBRIC.item(item_id)
     finding = analyze_item(item, frames_cache[key])
     assert finding.status != "error", f"{item.analyzer} could not analyze the recorded bag: {finding.feedback}"
-    status = score(RUBRIC, {item_id: finding}).item(item_id).status   # after the partial-credit rule
+    # the items it requires are analyzed too (on their own scenario's bag), so gating applies
+    findings = {item_id: finding}
+    for req in item.requires:
+        other = RUBRIC.item(req)
+        findings[req] = analyze_item(other, frames_cache.setdefault(
+            (submission, other.scenario[0]), scenario_frames(BAGS / submission / other.scenario[0])))
+    status = score(RUBRIC, findings).item(item_id).status   # after the partial-credit rule and gating
     want = yaml.safe_load((SUBMISSIONS / submission / "expected.yaml").read_text())["expected"][item_id]
     allowed = set(want if isinstance(want, list) else [want])
     if "warn" in allowed:

@@ -102,6 +102,17 @@ def assert_jazzy_v9_metadata(bag_dir: Path) -> dict:
     return info
 
 
+def crash(writer: Any) -> int:
+    """Leave ``writer``'s bag as a SIGKILL would: only the bytes the OS already has, no summary,
+    no metadata.yaml. Returns the size of that file."""
+    mcap_file = writer.path / writer.file_name
+    on_disk = mcap_file.read_bytes()      # what the process handed to the OS so far
+    writer.close()
+    (writer.path / "metadata.yaml").unlink()
+    mcap_file.write_bytes(on_disk)
+    return len(on_disk)
+
+
 def wait_for(predicate, timeout: float, step: float = 0.05) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:

@@ -1,4 +1,4 @@
-"""``grader bag info|repair`` and the registration of ``record``/``replay`` (no ROS needed)."""
+"""``grader bag info|repair|verify`` and the registration of ``record``/``replay`` (no ROS needed)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ import pytest
 from grader.bag.msgdefs import DefinitionSource
 from grader.bag.writer import BagWriter
 from grader.cli import main
+
+from baghelpers import crash
 
 POSE = "turtlesim/msg/Pose"
 T0 = 1_700_000_000_000_000_000
@@ -25,7 +27,7 @@ def synth(path: Path, hz: float, n: int, abandon: bool = False) -> Path:
     for i in range(n):
         w.write("/turtle1/pose", T0 + int(i * 1e9 / hz), b"\x00\x01\x00\x00" + struct.pack("<5f", *[i] * 5))
     if abandon:
-        w.mcap.abandon()
+        crash(w)
     else:
         w.close()
     return path
@@ -78,7 +80,7 @@ def test_user_errors_exit_2_without_traceback(tmp_path: Path, capsys) -> None:
 
 def test_subcommands_are_registered(capsys) -> None:
     for argv in (["record", "--help"], ["replay", "--help"], ["bag", "info", "--help"],
-                 ["bag", "repair", "--help"]):
+                 ["bag", "repair", "--help"], ["bag", "verify", "--help"]):
         with pytest.raises(SystemExit) as exc:
             main(argv)
         assert exc.value.code == 0

@@ -57,7 +57,7 @@ def test_definitions_hash_like_rosidl(type_name: str) -> None:
 def test_service_event_definition_lists_each_dependency_once() -> None:
     text = SRC.full_text("turtlesim/srv/Spawn_Event")
     headers = [line for line in text.splitlines() if line.startswith("MSG: ")]
-    assert headers == ["MSG: service_msgs/msg/ServiceEventInfo", "MSG: builtin_interfaces/msg/Time",
+    assert headers == ["MSG: service_msgs/ServiceEventInfo", "MSG: builtin_interfaces/Time",
                        "MSG: turtlesim/srv/Spawn_Request", "MSG: turtlesim/srv/Spawn_Response"]
     types = cdr.parse_definition(text, "turtlesim/srv/Spawn_Event")
     ev = {f.name: f for f in types["turtlesim/srv/Spawn_Event"]}

@@ -17,6 +17,7 @@ import yaml
 
 from baghelpers import (assert_jazzy_v9_metadata, finish, loadgen, start_recorder, stop_recorder,
                         wait_for)
+from grader.bag.conformance import check_bag
 from grader.bag.frames import load_bag_meta, load_frames
 from grader.bag.reader import open_bag
 from grader.bag.repair import repair_bag
@@ -113,6 +114,7 @@ def test_custom_student_types_decode_from_the_bag_alone(tmp_path: Path, tci_pref
             finish(p)
         stop_recorder(rec)
     meta = assert_jazzy_v9_metadata(bag)
+    assert check_bag(bag) == []      # rosbags, mcap + mcap-ros2-support and ours read it alike
     hashes = {e["topic_metadata"]["name"]: e["topic_metadata"]["type_description_hash"]
               for e in meta["topics_with_message_count"]}
     rosidl = json.loads((tci_prefix / "share" / pkg / "action" / "SendGoal.json").read_text())
@@ -184,6 +186,7 @@ def test_late_topics_qos_adaptation_and_service_events(graph, tmp_path: Path) ->
     assert sorted(ev["request[0].x"].dropna().unique()) == [0.0, 1.0, 2.0]
     rb, mc = third_party_counts(bag)
     assert dict(rb) == dict(mc)
+    assert check_bag(bag) == []      # QoS of channels and metadata.yaml agree, events decode
 
 
 def test_sigkill_keeps_every_completed_chunk(graph, tmp_path: Path) -> None:
@@ -194,6 +197,7 @@ def test_sigkill_keeps_every_completed_chunk(graph, tmp_path: Path) -> None:
                   extra=["--wait-subscribers", "2"])
     assert wait_for(lambda: "READY" in gen.output(), 30)
     time.sleep(1.6)
+    killed_at = time.time()
     os.killpg(rec_early.pgid, signal.SIGKILL)              # mid-stream: ~320 sent by now
     finish(gen)
     time.sleep(1.6)                                         # > chunk age + poll: all flushed
@@ -207,12 +211,18 @@ def test_sigkill_keeps_every_completed_chunk(graph, tmp_path: Path) -> None:
     xs = load_frames(late)["/p"]["x"].tolist()
     assert xs == [float(i) for i in range(600)], "a chunk older than the chunk age was lost"
 
-    part = load_frames(early)["/p"]["x"].tolist()
+    recovered = load_frames(early)["/p"]
+    part = recovered["x"].tolist()
     assert 100 <= len(part) < 600
     assert part == [float(i) for i in range(len(part))], "recovered data must be a gap-free prefix"
+    # at most the last second is lost: the chunk age (1 s), plus the recorder's 50 ms loop and
+    # slack for a loaded machine
+    lost_s = killed_at - recovered["pub_t"].iloc[-1]
+    assert lost_s < 1.5, f"the last {lost_s:.2f} s before the SIGKILL were lost"
     report = repair_bag(early)
     assert report.messages == len(part)
     assert_jazzy_v9_metadata(early)
+    assert check_bag(early) == []
     rb, mc = third_party_counts(early)
     assert rb["/p"] == mc["/p"] == len(part)
     assert yaml.safe_load((early / "metadata.yaml").read_text())[

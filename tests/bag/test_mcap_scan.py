@@ -1,4 +1,5 @@
-"""MCAP writing/scanning: third-party readers agree with us; truncation keeps complete chunks."""
+"""MCAP writing (``mcap`` package) and our scanning: third-party readers agree with us; a
+truncated file keeps every complete chunk, as ``mcap``'s own stream reader sees it."""
 
 from __future__ import annotations
 
@@ -10,14 +11,14 @@ from pathlib import Path
 
 import pytest
 
-from grader.bag.mcap_io import McapWriter, scan
+from grader.bag.mcap_scan import scan
 from grader.bag.msgdefs import DefinitionSource
 from grader.bag.reader import open_bag
 from grader.bag.repair import repair_bag
-from grader.bag.writer import BagWriter
+from grader.bag.writer import BagWriter, open_mcap
 from grader.errors import GraderError
 
-from baghelpers import assert_jazzy_v9_metadata
+from baghelpers import assert_jazzy_v9_metadata, crash
 
 POSE = "turtlesim/msg/Pose"
 T0 = 1_700_000_000_000_000_000
@@ -63,30 +64,47 @@ def test_third_party_readers_agree_with_ours(tmp_path: Path) -> None:
     assert decoded[-1].x == 499.0 and decoded[-1].y == -499.0
 
 
-def _chunk_ends(path: Path, n: int) -> tuple[list[int], list[int]]:
-    """Write n messages per chunk-sized batch, abandon the file; return chunk end offsets."""
-    w = McapWriter(path, chunk_size=10**9, chunk_age_s=1e9)
-    sid = w.add_schema(POSE, "ros2msg", b"float32 x\nfloat32 y\nfloat32 theta\nfloat32 linear_velocity\nfloat32 angular_velocity\n")
-    cid = w.add_channel(sid, "/p", "cdr", {"offered_qos_profiles": ""})
-    ends, counts = [], []
+def _chunks(path: Path, n: int) -> tuple[list[int], list[int], list[int]]:
+    """Write 5 chunks of n messages through the ``mcap`` Writer, flushing after each, and leave
+    the file unfinished; return each chunk's start and end offsets and the running counts."""
+    w, f = open_mcap(path, chunk_size=10**9)
+    sid = w.register_schema(POSE, "ros2msg", b"float32 x\nfloat32 y\nfloat32 theta\n"
+                            b"float32 linear_velocity\nfloat32 angular_velocity\n")
+    cid = w.register_channel("/p", "cdr", sid, {"offered_qos_profiles": "[]\n", "topic_type_hash": ""})
+    starts, ends, counts = [], [], []
     for c in range(5):
+        starts.append(f.tell())
         for i in range(n):
-            w.write_message(cid, T0 + (c * n + i) * 1000, 0, pose(c * n + i))
-        w.flush_chunk()
-        ends.append(w._pos)
+            w.add_message(cid, T0 + (c * n + i) * 1000, pose(c * n + i), 0)
+        w.flush()
+        ends.append(f.tell())
         counts.append((c + 1) * n)
-    w.abandon()
-    return ends, counts
+    f.close()
+    return starts, ends, counts
+
+
+def mcap_stream_count(path: Path) -> int:
+    """Messages ``mcap``'s StreamReader yields before the file's cut (the library's view)."""
+    from mcap.records import Message
+    from mcap.stream_reader import StreamReader
+
+    n = 0
+    with open(path, "rb") as fh:
+        try:
+            for rec in StreamReader(fh).records:
+                n += isinstance(rec, Message)
+        except Exception:  # noqa: BLE001 - the cut ends the stream, whatever the library raises
+            pass
+    return n
 
 
 def test_truncated_file_yields_every_complete_chunk(tmp_path: Path) -> None:
     path = tmp_path / "x.mcap"
-    ends, counts = _chunk_ends(path, 40)
+    starts, ends, counts = _chunks(path, 40)
     data = path.read_bytes()
-    chunk_starts = [ends[0] - (ends[1] - ends[0])] + ends[:-1]
-    # cut inside each chunk, just after each chunk, and inside each chunk's message index
+    # cut inside each chunk, inside each chunk's message index, and just after it
     for k in range(5):
-        for cut, expect in ((chunk_starts[k] + 50, counts[k - 1] if k else 0),
+        for cut, expect in ((starts[k] + 50, counts[k - 1] if k else 0),
                             (ends[k] - 5, counts[k]), (ends[k], counts[k])):
             (tmp_path / "cut.mcap").write_bytes(data[:cut])
             res = scan(tmp_path / "cut.mcap")
@@ -96,6 +114,7 @@ def test_truncated_file_yields_every_complete_chunk(tmp_path: Path) -> None:
             xs = [struct.unpack_from("<f", bytes(b.buf), int(o) + 4)[0]
                   for blocks in res.blocks.values() for b in blocks for o in b.offsets]
             assert xs == [float(i) for i in range(expect)]
+            assert mcap_stream_count(tmp_path / "cut.mcap") == expect
 
 
 def test_repair_makes_crashed_bag_readable_by_rosbags(tmp_path: Path) -> None:
@@ -107,16 +126,17 @@ def test_repair_makes_crashed_bag_readable_by_rosbags(tmp_path: Path) -> None:
     w.add_topic("/p", POSE, src.full_text(POSE), type_hash=src.type_hash(POSE))
     for i in range(300):
         w.write("/p", T0 + i * 1000, pose(i))
-    in_memory = sum(len(v) for v in w.mcap._chunk_index.values()) // 2
-    assert 0 < in_memory < 300
-    w.mcap.abandon()      # what SIGKILL leaves: the open chunk lost, no summary, no metadata.yaml
+        if i == 149:
+            w.flush()       # what the recorder's timer does: the first 150 are on disk for sure
+    crash(w)               # what SIGKILL leaves: the open chunk lost, no summary, no metadata.yaml
     mcap_file = bag / "crash_0.mcap"
     raw = mcap_file.read_bytes()
     mcap_file.write_bytes(raw[:-7])   # and half a record at the end
     before = open_bag(bag)
     assert not before.finalized and any("repair" in p for p in before.problems)
     n = before.message_count
-    assert n == 300 - in_memory     # every completed chunk, even with its index cut short
+    assert 150 <= n < 300
+    assert n == mcap_stream_count(mcap_file)     # every complete chunk, as the library sees it
     with pytest.raises(Exception):
         with AnyReader([bag]) as r:   # rosbags cannot read it yet
             list(r.messages())
@@ -131,15 +151,18 @@ def test_repair_makes_crashed_bag_readable_by_rosbags(tmp_path: Path) -> None:
 
 
 def test_chunks_reach_disk_on_a_timer(tmp_path: Path) -> None:
-    w = McapWriter(tmp_path / "t.mcap", chunk_size=10**9, chunk_age_s=0.05)
-    cid = w.add_channel(w.add_schema(POSE, "ros2msg", b"float32 x\n"), "/p", "cdr", {})
-    w.write_message(cid, T0, 0, pose(1))
-    size = (tmp_path / "t.mcap").stat().st_size
+    src = DefinitionSource()
+    w = BagWriter(tmp_path / "t", chunk_size=10**9, chunk_age_s=0.05)
+    w.add_topic("/p", POSE, src.full_text(POSE))
+    mcap_file = tmp_path / "t" / "t_0.mcap"
+    w.write("/p", T0, pose(1))
+    size = mcap_file.stat().st_size
     w.poll()
-    assert (tmp_path / "t.mcap").stat().st_size == size, "closed a fresh chunk early"
+    assert mcap_file.stat().st_size == size, "closed a fresh chunk early"
+    assert scan(mcap_file).message_count() == 0
     time.sleep(0.08)
     w.poll()
-    assert scan(tmp_path / "t.mcap").message_count() == 1
+    assert scan(mcap_file).message_count() == 1
     w.close()
 
 

@@ -1,0 +1,1 @@
+"""Exchanges with the systems instructors already grade in (Gradescope, LMS gradebooks)."""

@@ -1,0 +1,52 @@
+"""`grader gradescope` (write an autograder zip) and `grader gradescope-run` (what it runs)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    g = sub.add_parser("gradescope", help="write a Gradescope autograder zip for a rubric",
+                       description="Writes the autograder .zip to upload on a Gradescope programming "
+                                   "assignment: setup.sh (Ubuntu 22.04 base image), run_autograder, the "
+                                   "grader wheel and the rubric with its support files.")
+    g.add_argument("--rubric", type=Path, required=True, help="rubric YAML (e.g. rubrics/enee467_lab3.yaml)")
+    g.add_argument("-o", "--out", type=Path, required=True, help="the zip to write (e.g. autograder.zip)")
+    g.add_argument("--wheel", type=Path, default=None,
+                   help="grader wheel to ship (default: build one from this source checkout)")
+    g.set_defaults(func=run_bundle)
+
+    r = sub.add_parser("gradescope-run", help="grade a Gradescope submission (run_autograder calls this)",
+                       description="Grades ROOT/submission with every item of the rubric and writes "
+                                   "ROOT/results/results.json in Gradescope's format.")
+    r.add_argument("--rubric", type=Path, required=True)
+    r.add_argument("--root", type=Path, default=None,
+                   help="the autograder root (default: $GRADER_AUTOGRADER_ROOT or /autograder)")
+    r.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
+    r.set_defaults(func=run_autograder)
+
+
+def run_bundle(args: argparse.Namespace) -> int:
+    from grader.lms.gradescope_bundle import BASE_IMAGE, write_bundle
+
+    info = write_bundle(args.rubric, args.out, wheel=args.wheel)
+    size = info["zip"].stat().st_size / 2**20
+    print(f"wrote {info['zip']} ({size:.1f} MiB): lab {info['lab']}, {info['wheel']}, {info['rubric']}")
+    print(f"  {info['tests']} autograder tests worth {info['auto_points']:g} points "
+          f"({info['hidden']} shown after publishing, {info['integrity']} integrity flags for staff only)")
+    if info["manual"]:
+        manual = ", ".join(f"{item} ({points:g})" for item, points in info["manual"])
+        print(f"  manual items, to create as Gradescope questions: {manual}")
+    print(f"  on Gradescope: base image {BASE_IMAGE}; in the autograder settings give it 2 CPUs, "
+          "4 GB of memory and a 20 minute timeout (it runs ROS 2 live)")
+    return 0
+
+
+def run_autograder(args: argparse.Namespace) -> int:
+    from grader.lms.gradescope import default_root, run
+
+    root = args.root or default_root()
+    doc = run(root, args.rubric, cache_dir=args.cache_dir)
+    print(f"{root / 'results' / 'results.json'}: {doc['score']:g} points, {len(doc['tests'])} tests")
+    return 0

@@ -1,0 +1,174 @@
+"""Gradescope's side of a grade: ``results.json`` from a Result, and the autograder run itself.
+
+Gradescope runs ``/autograder/run_autograder`` once per submission in a fresh container, with the
+student's files in ``/autograder/submission``, and reads ``/autograder/results/results.json``
+(format: ``gradescope.schema.json`` beside this file, written from Gradescope's "Autograder
+Specifications"). ``run_autograder`` calls ``grader gradescope-run``, which grades the submission
+with the same pipeline as ``grader grade`` (``grade_submission``, every item, hidden ones too),
+keeps grader's own result.json and report.html next to it, and converts the Result:
+
+* one test per automatic item (auto, advisory, integrity); manual items are left out, they stay
+  Gradescope manual questions;
+* visibility: public items ``visible``, hidden items ``after_published``, integrity flags
+  ``hidden`` (worth no points; for the staff);
+* ``output``: the feedback, the hint and the measured value; ``tags``: the item's section.
+
+A submission that cannot be graded at all (empty, no ROS package) still gets a valid results.json
+with score 0 and the reason, instead of Gradescope's "The autograder failed to execute correctly".
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any, Mapping
+
+from grader.errors import GraderError
+
+SCHEMA = Path(__file__).resolve().parent / "gradescope.schema.json"
+#: the folder under the autograder root where grader keeps its own outputs (result.json, bags)
+WORK_DIR = "grader-out"
+SUBMISSION_ID = "submission"
+
+
+def visibility(item) -> str:
+    if item.kind == "integrity":
+        return "hidden"
+    return "visible" if item.public else "after_published"
+
+
+def _measured(value: Any) -> str:
+    """The item's headline value as one short line."""
+    if isinstance(value, float):
+        return f"{value:.4g}" if math.isfinite(value) else str(value)
+    if isinstance(value, (dict, list, tuple)):
+        from grader.report.result import jsonable
+
+        text = json.dumps(jsonable(value), ensure_ascii=False)
+        return text if len(text) <= 400 else text[:397] + "..."
+    return str(value)
+
+
+def test_output(item) -> str:
+    lines = [item.feedback.strip()] if item.feedback else []
+    if item.hint and item.status != "pass":
+        lines.append(f"Hint: {item.hint.strip()}")
+    if item.value is not None:
+        lines.append(f"Measured: {_measured(item.value)}")
+    return "\n".join(lines)
+
+
+def test_entry(item) -> dict[str, Any]:
+    return {
+        "name": f"{item.id}: {item.title}",
+        "name_format": "text",
+        "score": float(item.points or 0.0),
+        "max_score": float(item.max_points),
+        "status": "passed" if item.status == "pass" else "failed",
+        "output": test_output(item),
+        "output_format": "text",
+        "visibility": visibility(item),
+        "tags": [item.section.key],
+        "extra_data": {"item": item.id, "kind": item.kind, "status": item.status},
+    }
+
+
+def _manual_note(rubric) -> str:
+    manual = [i for i in rubric.items if i.kind == "manual"]
+    if not manual:
+        return ""
+    points = sum(i.points for i in manual)
+    return (f"The {points:g} points of {', '.join(i.id for i in manual)} are graded by the course "
+            "staff, not by this autograder.")
+
+
+def results_document(result, rubric, *, problems: list[str], build_ok: bool,
+                     execution_time: float) -> dict[str, Any]:
+    """results.json for a graded submission (``result`` of grade_submission, all items)."""
+    tests = [test_entry(i) for i in result.items if i.kind != "manual"]
+    lines = [f"{rubric.title}: {result.auto_score:g}/{result.auto_max:g} points from the autograder."]
+    if not build_ok:
+        lines.append("Some of your packages did not build; the items that need them score 0.")
+    lines += [f"Problem: {p}" for p in problems]
+    if any(t["visibility"] == "after_published" for t in tests):
+        lines.append("Some checks stay hidden until the grades are published.")
+    if note := _manual_note(rubric):
+        lines.append(note)
+    return {
+        "score": float(result.auto_score),
+        "execution_time": int(round(execution_time)),
+        "output": "\n".join(lines),
+        "output_format": "text",
+        "test_output_format": "text",
+        "test_name_format": "text",
+        "stdout_visibility": "hidden",
+        "extra_data": {"lab": rubric.lab, "auto_max": float(result.auto_max)},
+        "tests": tests,
+    }
+
+
+def not_graded_document(rubric, reason: str, *, execution_time: float) -> dict[str, Any]:
+    """results.json when nothing could be graded: 0 points, the reason on every test."""
+    tests = []
+    for item in rubric.items:
+        if item.kind == "manual":
+            continue
+        tests.append({"name": f"{item.id}: {item.title}", "name_format": "text", "score": 0.0,
+                      "max_score": float(item.points), "status": "failed",
+                      "output": f"Not graded: {reason}", "output_format": "text",
+                      "visibility": visibility(item), "tags": [item.section.key],
+                      "extra_data": {"item": item.id, "kind": item.kind, "status": "error"}})
+    return {"score": 0.0, "execution_time": int(round(execution_time)),
+            "output": f"The autograder could not grade this submission: {reason}",
+            "output_format": "text", "test_output_format": "text", "test_name_format": "text",
+            "stdout_visibility": "hidden", "extra_data": {"lab": rubric.lab}, "tests": tests}
+
+
+def find_submission(folder: Path) -> Path:
+    """What to grade in Gradescope's submission folder: the folder itself (workspace, packages,
+    a repository), or the one archive a student uploaded without unpacking."""
+    from grader.workspace.source import is_archive
+
+    if not folder.is_dir() or not any(p.is_file() for p in folder.rglob("*")):
+        raise GraderError("the submission is empty: upload your workspace's src/ folder or your "
+                          "package folders (a .zip of them works too).")
+    if any(folder.rglob("package.xml")):
+        return folder
+    archives = [p for p in folder.iterdir() if is_archive(p)]
+    if len(archives) == 1:
+        return archives[0]
+    raise GraderError("no ROS package (package.xml) in the submission: upload your workspace's "
+                      "src/ folder or your package folders (a .zip of them works too).")
+
+
+def write_json(path: Path, doc: Mapping[str, Any]) -> None:
+    from grader.report.result import atomic_write
+
+    atomic_write(path, json.dumps(doc, indent=1, allow_nan=False, ensure_ascii=False) + "\n")
+
+
+def run(root: Path, rubric_path: Path, *, cache_dir: Path | None = None) -> dict[str, Any]:
+    """Grade ``root/submission`` and write ``root/results/results.json``; returns the document."""
+    from grader.grading.pipeline import grade_submission
+    from grader.rubric.load import load_rubric
+
+    t0 = time.monotonic()
+    root = Path(root)
+    rubric = load_rubric(rubric_path)      # a broken bundle is the instructor's error: no results
+    try:
+        graded = grade_submission(find_submission(root / "submission"), rubric, root / WORK_DIR,
+                                  cache_dir=cache_dir, sid=SUBMISSION_ID,
+                                  progress=lambda msg: print(msg, flush=True))
+        doc = results_document(graded.result, rubric, problems=graded.errors, build_ok=graded.build_ok,
+                               execution_time=time.monotonic() - t0)
+    except GraderError as exc:
+        doc = not_graded_document(rubric, str(exc), execution_time=time.monotonic() - t0)
+    write_json(root / "results" / "results.json", doc)
+    return doc
+
+
+def default_root() -> Path:
+    return Path(os.environ.get("GRADER_AUTOGRADER_ROOT", "/autograder"))

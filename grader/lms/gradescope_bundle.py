@@ -1,0 +1,152 @@
+"""``grader gradescope``: the autograder zip an instructor uploads to a Gradescope assignment.
+
+The zip holds, at its root (Gradescope's requirement): ``setup.sh`` (run once, as root, when
+Gradescope builds the image), ``run_autograder`` (run per submission), the grader wheel and
+``rubric/`` (the rubric with the support packages and bags it references, see
+``grader.rubric.stage``). Everything ``setup.sh`` installs comes from Ubuntu's archive and PyPI.
+
+Assumed image: Gradescope's default base image, Ubuntu 22.04 ("Base" variant). The ROS 2 Jazzy
+wheels are built for CPython 3.11 only; Ubuntu 22.04 has ``python3.11`` in its own archive
+(universe), so no PPA or downloaded interpreter is needed. Ubuntu 24.04's archive has no 3.11:
+there ``setup.sh`` stops with a message naming the 22.04 image.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+
+from grader import __version__
+from grader.errors import GraderError
+
+BASE_IMAGE = "Ubuntu 22.04"
+PIP_VERSION = "25.1.1"      # the image's own pip (22.0, Ubuntu's python3.11-venv) predates the wheels' metadata
+VENV_DIR = "grader-venv"    # under the autograder root
+
+SETUP_SH = r"""#!/usr/bin/env bash
+# Gradescope autograder set-up for {lab} ({title}); made by grader {version}.
+# Gradescope runs it once, as root, when it builds the autograder image.
+#
+# Assumes Gradescope's default base image, {base_image} ("Base" variant). Everything comes from
+# Ubuntu's archive and PyPI: python3.11 with venv and headers (Ubuntu 22.04's universe component),
+# cmake, ninja and a C/C++ compiler; then the grader wheel and, through `grader setup`, ROS 2
+# Jazzy as PyPI wheels (built for CPython 3.11 only) and grader's turtlesim interfaces.
+set -euo pipefail
+ROOT="${{GRADER_AUTOGRADER_ROOT:-/autograder}}"
+SOURCE="$(cd "$(dirname "${{BASH_SOURCE[0]}}")" && pwd)"
+VENV="$ROOT/{venv}"
+PY=python3.11
+
+need=()
+if command -v "$PY" >/dev/null; then
+  "$PY" -c 'import ensurepip' 2>/dev/null || need+=(python3.11-venv)
+  inc="$("$PY" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
+  [ -f "$inc/Python.h" ] || need+=(python3.11-dev)
+else
+  need+=(python3.11 python3.11-venv python3.11-dev)
+fi
+command -v cmake >/dev/null || need+=(cmake)
+command -v ninja >/dev/null || need+=(ninja-build)
+{{ command -v cc && command -v c++; }} >/dev/null || need+=(build-essential)
+if [ ${{#need[@]}} -gt 0 ]; then
+  if ! command -v apt-get >/dev/null; then
+    echo "setup.sh: needs ${{need[*]}} and there is no apt-get: select the {base_image} base image" >&2
+    exit 1
+  fi
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  if ! apt-get install -y -qq --no-install-recommends "${{need[@]}}"; then
+    echo "setup.sh: apt-get could not install ${{need[*]}}; python3.11 is in {base_image}'s archive:" \
+         "select the {base_image} base image in the autograder settings" >&2
+    exit 1
+  fi
+fi
+
+"$PY" -m venv "$VENV"
+"$VENV/bin/python" -m pip install -q --disable-pip-version-check "pip=={pip}"
+"$VENV/bin/python" -m pip install -q --disable-pip-version-check "$SOURCE/{wheel}"
+"$VENV/bin/grader" setup --wheels
+"$VENV/bin/grader" doctor          # a live two-process ROS self-test: fail the image build, not a submission
+"""
+
+RUN_AUTOGRADER = r"""#!/usr/bin/env bash
+# Gradescope runs this for every submission: grade $ROOT/submission with the rubric below and
+# write $ROOT/results/results.json (grader keeps result.json, report.html and bags in $ROOT/{work}).
+ROOT="${{GRADER_AUTOGRADER_ROOT:-/autograder}}"
+mkdir -p "$ROOT/results"
+exec "$ROOT/{venv}/bin/grader" gradescope-run --root "$ROOT" --rubric "$ROOT/source/{rubric}"
+"""
+
+
+def checkout_root() -> Path | None:
+    from grader.labs import CHECKOUT, in_checkout
+
+    return CHECKOUT if in_checkout() else None
+
+
+def build_wheel(dest: Path) -> Path:
+    """Build the grader wheel from this source checkout with pip (build isolation: the pinned
+    build requirements of pyproject.toml)."""
+    root = checkout_root()
+    if root is None:
+        raise GraderError("this grader is installed, not a source checkout, so it cannot build its own "
+                          "wheel: pass the wheel you installed it from with --wheel FILE.whl.")
+    proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
+                           "--disable-pip-version-check", "-w", str(dest), str(root)],
+                          capture_output=True, text=True)
+    wheels = sorted(dest.glob("grader-*.whl"))
+    if proc.returncode != 0 or not wheels:
+        tail = "\n".join((proc.stderr or proc.stdout).strip().splitlines()[-15:])
+        raise GraderError(f"building the grader wheel from {root} failed:\n{tail}")
+    return wheels[-1]
+
+
+def _add(zf: zipfile.ZipFile, path: Path, arcname: str) -> None:
+    info = zipfile.ZipInfo.from_file(path, arcname)     # keeps the mode bits (run_autograder: 0755)
+    info.compress_type = zipfile.ZIP_DEFLATED
+    with path.open("rb") as fh:
+        zf.writestr(info, fh.read())
+
+
+def write_bundle(rubric_path: Path, out: Path, *, wheel: Path | None = None) -> dict:
+    """Write the autograder zip; returns a summary (files, lab, items) for the CLI."""
+    from grader.rubric.load import load_rubric
+    from grader.rubric.stage import stage_rubrics
+
+    rubric = load_rubric(rubric_path)
+    if wheel is not None and not (wheel.is_file() and wheel.name.endswith(".whl")):
+        raise GraderError(f"--wheel {wheel}: not a .whl file.")
+    out = Path(out)
+    if out.suffix != ".zip":
+        raise GraderError(f"-o {out}: the autograder bundle is a .zip file (e.g. -o autograder.zip).")
+    with tempfile.TemporaryDirectory(prefix="grader-gradescope-") as tmp:
+        stage = Path(tmp) / "bundle"
+        stage.mkdir()
+        wheel_file = wheel if wheel is not None else build_wheel(Path(tmp) / "wheel")
+        shutil.copy2(wheel_file, stage / wheel_file.name)
+        staged = stage_rubrics([rubric_path], stage / "rubric")[0]
+        rubric_rel = staged.relative_to(stage).as_posix()
+        fields = dict(lab=rubric.lab, title=rubric.title, version=__version__, base_image=BASE_IMAGE,
+                      venv=VENV_DIR, pip=PIP_VERSION, wheel=wheel_file.name, rubric=rubric_rel,
+                      work="grader-out")
+        (stage / "setup.sh").write_text(SETUP_SH.format(**fields))
+        (stage / "run_autograder").write_text(RUN_AUTOGRADER.format(**fields))
+        for script in ("setup.sh", "run_autograder"):
+            (stage / script).chmod(0o755)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        partial = out.with_name(f".{out.name}.partial")
+        with zipfile.ZipFile(partial, "w") as zf:
+            for path in sorted(p for p in stage.rglob("*") if p.is_file()):
+                _add(zf, path, path.relative_to(stage).as_posix())
+        partial.replace(out)
+    manual = [i for i in rubric.items if i.kind == "manual"]
+    auto = [i for i in rubric.items if i.kind != "manual"]
+    return {"zip": out, "lab": rubric.lab, "wheel": wheel_file.name, "rubric": rubric_rel,
+            "tests": len(auto), "auto_points": rubric.auto_max,
+            "hidden": sum(1 for i in auto if not i.public and i.kind != "integrity"),
+            "integrity": sum(1 for i in auto if i.kind == "integrity"),
+            "manual": [(i.id, i.points) for i in manual]}

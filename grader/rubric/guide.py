@@ -1,0 +1,221 @@
+"""Reference material generated from the code, so it cannot drift from what the grader does.
+
+* :func:`json_schema`: the rubric's JSON Schema for editors (VS Code's YAML extension reads it
+  through a ``# yaml-language-server: $schema=...`` line), generated from the rubric model
+  (``grader.rubric.schema`` and ``grader.scenario.model``). pydantic describes the canonical
+  shapes; the YAML shorthands the loader accepts (``goal: [2, 7]``, ``until: action_done``,
+  ``section: report``, ``start: client``...) are added where the model's before-validators
+  take them.
+* :func:`analyzer_reference`, :func:`scenario_reference`: the Markdown tables of
+  ``rubrics/README.md`` between its ``<!-- generated:... -->`` markers.
+
+``grader rubric schema`` prints the schema; ``grader rubric guide --write`` refreshes the README's
+generated parts (a test fails when they are stale).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import typing
+from pathlib import Path
+from typing import Any
+
+from grader.errors import GraderError
+
+
+# -------------------------------------------------------------------------------- JSON Schema
+def json_schema() -> dict[str, Any]:
+    from grader.rubric.schema import Rubric
+
+    schema = Rubric.model_json_schema(by_alias=True)
+    defs = schema["$defs"]
+    name = {"type": "string", "pattern": r"^[A-Za-z][A-Za-z0-9_-]*$"}
+    defs["Goal"] = {"anyOf": [defs["Goal"], {"type": "array", "items": {"type": "number"},
+                                              "minItems": 2, "maxItems": 2, "description": "[x, y]"}]}
+    defs["StdinLine"] = {"anyOf": [defs["StdinLine"], {"type": "string", "description": "a line, typed after 0.5 s"}]}
+    for key in ("Start", "Stop"):
+        defs[key] = {"description": defs[key].get("description", ""),
+                     "anyOf": [name, {"type": "array", "items": name, "minItems": 1}]}
+    section = defs["Section"]
+    defs["Section"] = {"description": section.get("description", ""), "anyOf": [
+        {"type": "string", "pattern": r"^[a-z][a-z0-9_]*$"},
+        {"type": "object", "minProperties": 1, "maxProperties": 1,
+         "patternProperties": {r"^[a-z][a-z0-9_]*$": {"anyOf": [{"type": "integer", "minimum": 0},
+                                                                {"type": "string"}]}},
+         "additionalProperties": False}]}
+    pair = {"type": "array", "items": {"type": "number", "minimum": 0, "maximum": 1}, "minItems": 2, "maxItems": 2}
+    defs["Partial"] = {"description": defs["Partial"].get("description", ""), "anyOf": [
+        {"enum": ["linear", "none"]},
+        {"type": "object", "properties": {"steps": {"type": "array", "items": pair, "minItems": 1}},
+         "required": ["steps"], "additionalProperties": False}]}
+    for field in ("scenario", "requires"):
+        prop = defs["Item"]["properties"][field]
+        prop.pop("type", None)
+        items = prop.pop("items", {"type": "string"})
+        prop["anyOf"] = [items, {"type": "array", "items": items}]
+    until = defs["Step"]["properties"]["until"]
+    conditions = sorted(until["anyOf"][0]["discriminator"]["mapping"])
+    until["anyOf"].insert(0, {"enum": conditions, "description": "a condition without parameters"})
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "grader rubric"
+    return schema
+
+
+# ------------------------------------------------------------------------------ Markdown tables
+def analyzer_reference() -> str:
+    """Every registered analyzer: what it checks, its parameters with defaults and meaning."""
+    from grader import analyze
+    from grader.analyze import REQUIRED
+
+    out = []
+    for name in analyze.names():
+        fn = analyze.get(name)
+        doc = (fn.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
+        module = fn.__module__.rsplit(".", 1)[-1]
+        labels = analyze.evidence_labels(name)
+        out.append(f"### `{name}` ({module})\n")
+        if doc:
+            out.append(doc + "\n")
+        expect = analyze.expected_text(name)
+        if expect:
+            out.append(f"Expected, in the report: *{expect}*\n")
+        out.append("| parameter | default | meaning |\n|---|---|---|")
+        for key, default in analyze.defaults(name).items():
+            label = labels.get(key)
+            meaning = (f"{label[0]}" + (f" ({label[1]})" if label[1] and label[1] not in ("share", "time")
+                                         else " (0..1)" if label[1] == "share" else "")) if label else ""
+            shown = "**required**" if default is REQUIRED else f"`{json.dumps(default)}`"
+            out.append(f"| `{key}` | {shown} | {meaning} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def _schema_type(prop: dict[str, Any]) -> str:
+    """A field's type in words, from its JSON Schema."""
+    if "$ref" in prop:
+        return prop["$ref"].rsplit("/", 1)[-1]
+    if "anyOf" in prop:
+        kinds = [_schema_type(p) for p in prop["anyOf"] if p.get("type") != "null"]
+        return " or ".join(dict.fromkeys(kinds))
+    if "enum" in prop or "const" in prop:
+        return " \\| ".join(f"`{v}`" for v in prop.get("enum", [prop.get("const")]))
+    kind = prop.get("type", "any")
+    if kind == "array":
+        return f"list of {_schema_type(prop.get('items', {}))}"
+    if kind == "object":
+        return "mapping"
+    return {"number": "number", "integer": "integer", "string": "text", "boolean": "true/false"}.get(kind, kind)
+
+
+def _fields_table(cls: Any, skip: tuple[str, ...] = ()) -> str:
+    from pydantic_core import PydanticUndefined
+
+    props = cls.model_json_schema(by_alias=True).get("properties", {})
+    rows = ["| key | type | default | meaning |", "|---|---|---|---|"]
+    for key, field in cls.model_fields.items():
+        if key in skip:
+            continue
+        name = field.alias or key
+        default = field.default
+        shown = "required" if default is PydanticUndefined else f"`{json.dumps(default, default=str)}`"
+        meaning = (field.description or "").replace("\n", " ")
+        rows.append(f"| `{name}` | {_schema_type(props.get(name, {}))} | {shown} | {meaning} |")
+    return "\n".join(rows)
+
+
+def scenario_reference() -> str:
+    """Every step action and every ``until`` condition, from the scenario model."""
+    from grader.scenario import model as m
+
+    out = ["#### Step actions (one per step)\n"]
+    for key, cls in (("goal", m.Goal), ("publish", m.Publish), ("service", m.ServiceCall),
+                     ("action", m.ActionGoal), ("replay", m.Replay), ("start", m.Start), ("stop", m.Stop)):
+        doc = (cls.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
+        out.append(f"**`{key}:`** {doc}\n")
+        if cls not in (m.Start, m.Stop):
+            out.append(_fields_table(cls) + "\n")
+    out.append("#### Conditions (`until:`)\n")
+    for cls in typing.get_args(typing.get_args(m.Condition)[0]):
+        tag = typing.get_args(cls.model_fields["condition"].annotation)[0]
+        doc = (cls.__doc__ or "").strip().replace("\n", " ")
+        params = [k for k in cls.model_fields if k != "condition"]
+        out.append(f"**`{tag}`**: {doc}\n")
+        if params:
+            out.append(_fields_table(cls, skip=("condition",)) + "\n")
+    out.append("#### Processes\n")
+    out.append(_fields_table(m.Process) + "\n")
+    out.append("#### Scenario\n")
+    out.append(_fields_table(m.Scenario) + "\n")
+    return "\n".join(out)
+
+
+GENERATED = {"analyzers": analyzer_reference, "scenario": scenario_reference}
+
+
+def refresh(readme: Path, check: bool = False) -> list[str]:
+    """Rewrite the generated parts of ``readme``; returns the names of the parts that changed."""
+    text = readme.read_text(encoding="utf-8")
+    changed = []
+    for name, make in GENERATED.items():
+        begin, end = f"<!-- generated:{name} -->", f"<!-- /generated:{name} -->"
+        if begin not in text or end not in text:
+            raise GraderError(f"{readme} lacks the markers {begin} ... {end}")
+        head, rest = text.split(begin, 1)
+        old, tail = rest.split(end, 1)
+        new = "\n" + make().strip() + "\n"
+        if old != new:
+            changed.append(name)
+            text = head + begin + new + end + tail
+    if changed and not check:
+        readme.write_text(text, encoding="utf-8")
+    return changed
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    r = sub.add_parser("rubric", help="rubric tools: JSON Schema for editors, the guide's generated tables")
+    rsub = r.add_subparsers(dest="rubric_command", metavar="ACTION", required=True)
+    s = rsub.add_parser("schema", help="print (or write) the rubric JSON Schema")
+    s.add_argument("-o", "--out", type=Path, default=None)
+    s.set_defaults(func=_run_schema)
+    g = rsub.add_parser("guide", help="refresh the generated tables of a rubric guide (rubrics/README.md)")
+    g.add_argument("readme", type=Path, nargs="?", default=None)
+    g.add_argument("--check", action="store_true", help="exit 1 when the tables are stale, write nothing")
+    g.set_defaults(func=_run_guide)
+    c = rsub.add_parser("check", help="validate a rubric and list what it grades")
+    c.add_argument("rubric", type=Path)
+    c.set_defaults(func=_run_check)
+
+
+def _run_schema(args: argparse.Namespace) -> int:
+    text = json.dumps(json_schema(), indent=1) + "\n"
+    if args.out:
+        args.out.write_text(text)
+    else:
+        print(text, end="")
+    return 0
+
+
+def _run_guide(args: argparse.Namespace) -> int:
+    from grader.labs import CHECKOUT
+
+    readme = args.readme or CHECKOUT / "rubrics" / "README.md"
+    changed = refresh(readme, check=args.check)
+    if args.check and changed:
+        print(f"{readme}: stale generated part(s): {', '.join(changed)} (run grader rubric guide)")
+        return 1
+    print(f"{readme}: " + (f"updated {', '.join(changed)}" if changed else "up to date"))
+    return 0
+
+
+def _run_check(args: argparse.Namespace) -> int:
+    from grader.rubric.load import load_rubric
+
+    rubric = load_rubric(args.rubric)
+    print(f"{rubric.lab}: {rubric.title}")
+    print(f"  {len(rubric.items)} items, {rubric.auto_max:g} automatic + {rubric.manual_max:g} manual points; "
+          f"scenarios: {', '.join(rubric.scenarios) or 'none'}" + (f"; handout: {rubric.handout}" if rubric.handout else ""))
+    for sid, sc in rubric.scenarios.items():
+        print(f"  scenario {sid}: {len(sc.steps)} steps, up to {sc.budget_s:g} s; processes: "
+              + (", ".join(p.name for p in sc.processes) or "none"))
+    return 0

@@ -1,0 +1,249 @@
+"""The grader as students, TAs and Gradescope get it: a wheel built from a fresh clone, installed
+outside the repository.
+
+One module fixture does what an instructor and Gradescope do: `grader gradescope` in a fresh
+clone (it builds the wheel with pip), the zip unpacked into a temporary root laid out like
+``/autograder``, and the bundle's ``setup.sh`` run there: it creates a clean python3.11 venv
+outside the repository, pip-installs the wheel and runs `grader setup` and `grader doctor`, the
+very steps the README gives students. Then:
+
+* that installed grader lists its labs and self-checks a copy of the Lab 3 reference (`grader
+  check --lab enee467-lab3`, every public item passes), and so does the same wheel set up with
+  `grader setup` against a sourced "system" ROS 2 Jazzy (see ``system_ros``);
+* ``run_autograder`` grades three Lab 3 fixtures in their own roots: results.json validates
+  against the schema of Gradescope's format, every test's score is the item's points in grader's
+  own result.json of that run, the statuses are those of the fixture's expected.yaml, and
+  `grader regrade` from the recorded bags gives the same total;
+
+No process here imports the repository: every command runs the installed ``grader`` with
+PYTHONPATH removed and a working directory outside the checkout.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import jsonschema
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+FIXTURES = REPO / "fixtures" / "submissions" / "enee467_lab3"
+SCHEMA = json.loads((REPO / "grader" / "lms" / "gradescope.schema.json").read_text())
+
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
+
+
+def clean_env(**extra: str) -> dict[str, str]:
+    """The environment of a user who never cloned the repository."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "VIRTUAL_ENV", "GRADER_VENV", "PYTEST_CURRENT_TEST")}
+    env.update(extra)
+    return env
+
+
+def sh(cmd: list[str], *, cwd: Path, env: dict[str, str], timeout: float = 900) -> subprocess.CompletedProcess:
+    proc = subprocess.run([str(c) for c in cmd], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+    assert proc.returncode == 0, (f"{' '.join(map(str, cmd))} exited {proc.returncode}\n"
+                                  f"{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}")
+    return proc
+
+
+def fresh_clone(dest: Path) -> Path:
+    """The tracked files of this checkout, as a clone has them (uncommitted edits included, so the
+    test checks the tree under test; untracked files left out, as a clone would)."""
+    files = subprocess.run(["git", "-C", str(REPO), "ls-files", "-z"], capture_output=True,
+                           check=True).stdout.decode().split("\0")
+    for name in filter(None, files):
+        src = REPO / name
+        if src.is_file():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / name)
+    return dest
+
+
+@pytest.fixture(scope="module")
+def autograder(tmp_path_factory) -> Path:
+    """An /autograder-like root after Gradescope's image build: source/ + grader-venv/."""
+    if shutil.which("python3.11") is None or not (REPO / ".git").exists():
+        pytest.skip("needs python3.11 and a git checkout")
+    tmp = tmp_path_factory.mktemp("installed")
+    clone = fresh_clone(tmp / "clone")
+    bundle = tmp / "autograder.zip"
+    sh([sys.executable, "-m", "grader.cli", "gradescope", "--rubric", "rubrics/enee467_lab3.yaml",
+        "-o", bundle], cwd=clone, env=clean_env(PYTHONPATH=str(clone)))
+    root = tmp / "autograder"
+    with zipfile.ZipFile(bundle) as zf:
+        zf.extractall(root / "source")
+        for info in zf.infolist():      # zipfile does not restore the mode bits; Gradescope does
+            (root / "source" / info.filename).chmod(info.external_attr >> 16 or 0o644)
+    setup = sh(["bash", root / "source" / "setup.sh"], cwd=root / "source",
+               env=clean_env(GRADER_AUTOGRADER_ROOT=str(root)), timeout=1200)
+    assert "doctor: everything works" in setup.stdout
+    return root
+
+
+@dataclass
+class SystemRos:
+    venv: Path
+    env: dict[str, str]                 # the "sourced" environment
+    setup_output: list[str]             # stdout of the first and the second `grader setup`
+
+
+@pytest.fixture(scope="module")
+def system_ros(autograder: Path, tmp_path_factory) -> SystemRos:
+    """The wheel in a second clean venv, set up against a sourced "system" ROS 2 Jazzy.
+
+    That ROS is the Jazzy wheels installed with ``pip install --prefix`` into a folder laid out
+    like ``/opt/ros/jazzy`` (``lib/python3.11/site-packages``, ``lib``, ``share``, ``bin``) and
+    sourced through the variables its setup.bash would set: no apt ROS 2 Jazzy exists for this
+    machine's Debian. The venv sees system site packages, as the README tells lab machines.
+    """
+    tmp = tmp_path_factory.mktemp("system-ros")
+    installed = autograder / "grader-venv" / "lib" / "python3.11" / "site-packages"
+    reqs = installed / "grader" / "_data" / "requirements" / "ros-wheels.txt"   # the wheel's pins
+    ros = tmp / "opt-ros-jazzy"
+    sh(["python3.11", "-m", "pip", "install", "-q", "--disable-pip-version-check", "--prefix", ros,
+        "-r", reqs], cwd=tmp, env=clean_env())
+    site = ros / "lib" / "python3.11" / "site-packages"
+    libs = [ros / "lib", *sorted(site.glob("ros_*.libs"))]      # where its shared libraries are
+    sourced = clean_env(ROS_DISTRO="jazzy", ROS_VERSION="2", AMENT_PREFIX_PATH=str(ros),
+                        CMAKE_PREFIX_PATH=str(ros), PYTHONPATH=str(site),
+                        LD_LIBRARY_PATH=os.pathsep.join(map(str, libs)),
+                        PATH=f"{ros / 'bin'}:{os.environ['PATH']}")
+    # a distribution's packages export this machine's include paths; pip-installed wheels need
+    # the repair `grader setup` does in wheels mode (test preparation, not the code under test)
+    sh(["python3.11", "-c", "import sys; from pathlib import Path; from grader.bootstrap import Target, "
+        "repair_cmake_exports; repair_cmake_exports(Target(Path(sys.argv[1]), Path(sys.executable), "
+        "Path()), {})", ros], cwd=tmp, env=dict(sourced, PYTHONPATH=f"{site}:{installed}"))
+    wheel = next((autograder / "source").glob("grader-*.whl"))
+    venv = tmp / "venv"
+    sh(["python3.11", "-m", "venv", "--system-site-packages", venv], cwd=tmp, env=clean_env())
+    sh([venv / "bin" / "python", "-m", "pip", "install", "-q", "--disable-pip-version-check", wheel],
+       cwd=tmp, env=clean_env())
+    outputs = [sh([venv / "bin" / "grader", "setup"], cwd=tmp, env=sourced).stdout for _ in range(2)]
+    return SystemRos(venv, sourced, outputs)
+
+
+def test_setup_with_a_sourced_system_ros(system_ros: SystemRos, tmp_path: Path) -> None:
+    first, second = system_ros.setup_output
+    assert "ready (system ROS 2" in first and "ros-wheels.txt" not in first
+    assert "building interface package turtlesim" in first          # it has no turtlesim
+    site = system_ros.venv / "lib" / "python3.11" / "site-packages"
+    assert not list(site.glob("ros_jazzy_rclpy*")) and (site / "turtlesim").is_dir()
+    assert "building" not in second and "installing" not in second  # idempotent
+    doctor = sh([system_ros.venv / "bin" / "grader", "doctor"], cwd=tmp_path, env=system_ros.env).stdout
+    assert "from system install (sourced)" in doctor and "doctor: everything works" in doctor
+    assert f"turtlesim       {site}" in doctor
+
+
+def _self_check(grader: Path, ws: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
+    shutil.copytree(FIXTURES / "reference" / "src", ws / "src")
+    return subprocess.run([grader, "check", "--lab", "enee467-lab3", "--cache-dir", ws.parent / f"{ws.name}-cache"],
+                          cwd=ws, env=env, capture_output=True, text=True, timeout=900)
+
+
+def test_installed_wheel_self_checks_the_lab3_reference(autograder: Path, system_ros: SystemRos,
+                                                         tmp_path: Path) -> None:
+    """`grader check --lab enee467-lab3` on a copy of the reference passes with the installed
+    wheel: with the ROS 2 wheels (the Gradescope venv) and with the sourced system ROS, side by
+    side (two live gradings at once, as `make demo` runs them)."""
+    venv = autograder / "grader-venv"
+    where = sh([venv / "bin" / "python", "-c", "import grader, turtlesim.msg; print(grader.__file__)"],
+               cwd=tmp_path, env=clean_env()).stdout.strip()
+    assert Path(where).is_relative_to(venv), where            # the wheel, not the checkout
+    labs = sh([venv_grader(autograder), "labs", "--json"], cwd=tmp_path, env=clean_env()).stdout
+    lab3 = next(lab for lab in json.loads(labs) if lab["id"] == "enee467-lab3")
+    assert Path(lab3["rubric"]).is_relative_to(venv) and lab3["auto_points"] == 50
+    runs = {"wheels": (venv_grader(autograder), clean_env()),
+            "system": (system_ros.venv / "bin" / "grader", system_ros.env)}
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        futures = {mode: pool.submit(_self_check, grader, tmp_path / f"ws-{mode}", env)
+                   for mode, (grader, env) in runs.items()}
+    for mode, fut in futures.items():
+        check = fut.result()
+        assert check.returncode == 0, f"{mode}: " + check.stdout[-4000:] + check.stderr[-3000:]
+        assert "All public checks pass." in check.stdout and "50/50 points" in check.stdout, mode
+        assert (tmp_path / f"ws-{mode}" / ".grader-check" / "check" / "report.html").exists()
+
+
+def venv_grader(root: Path) -> Path:
+    return root / "grader-venv" / "bin" / "grader"
+
+
+def _allowed(want) -> set[str]:
+    """expected.yaml's statuses ("warn": an advisory item that did not pass)."""
+    wants = want if isinstance(want, list) else [want]
+    return {("fail" if w == "warn" else w) for w in wants} | ({"partial"} if "warn" in wants else set())
+
+
+def _submit(fixture: str, how: str, submission: Path) -> None:
+    """Put a fixture where Gradescope puts a student's upload, in one of the shapes students use."""
+    src = FIXTURES / fixture / "src"
+    submission.mkdir(parents=True)
+    if how == "zip":                                  # an uploaded archive of the workspace
+        with zipfile.ZipFile(submission / "lab3_ws.zip", "w") as zf:
+            for f in sorted(src.rglob("*")):
+                if f.is_file():
+                    zf.write(f, Path("lab3_ws/src") / f.relative_to(src))
+    elif how == "packages":                           # the package folders themselves
+        shutil.copytree(src, submission, dirs_exist_ok=True)
+    else:                                             # a workspace (e.g. a GitHub repository)
+        shutil.copytree(src, submission / "src")
+
+
+def _run_autograder(autograder: Path, tmp: Path, fixture: str, how: str) -> Path:
+    root = tmp / fixture
+    root.mkdir()
+    (root / "source").symlink_to(autograder / "source")
+    (root / "grader-venv").symlink_to(autograder / "grader-venv")
+    _submit(fixture, how, root / "submission")
+    proc = subprocess.run([root / "source" / "run_autograder"], cwd=root, capture_output=True, text=True,
+                          env=clean_env(GRADER_AUTOGRADER_ROOT=str(root), GRADER_CACHE=str(root / "cache")),
+                          timeout=900)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return root
+
+
+CASES = [("reference", "zip"), ("bm_log10", "packages"), ("broken_build", "workspace")]
+
+
+def test_gradescope_bundle_grades_like_grader_grade(autograder: Path, tmp_path: Path) -> None:
+    with ThreadPoolExecutor(max_workers=len(CASES)) as pool:       # `grader grade --jobs 3` load
+        roots = list(pool.map(lambda case: _run_autograder(autograder, tmp_path, *case), CASES))
+    rubric = autograder / "source" / "rubric" / "rubrics" / "enee467_lab3.yaml"
+    problems = []
+    for (fixture, _how), root in zip(CASES, roots):
+        doc = json.loads((root / "results" / "results.json").read_text())
+        jsonschema.validate(doc, SCHEMA)
+        graded = json.loads((root / "grader-out" / "submission" / "result.json").read_text())
+        items = {i["id"]: i for i in graded["items"]}
+        tests = {t["extra_data"]["item"]: t for t in doc["tests"]}
+        assert set(tests) == {i for i, item in items.items() if item["kind"] != "manual"}
+        assert doc["score"] == graded["auto_score"] == sum(t["score"] for t in doc["tests"])
+        for item_id, test in tests.items():
+            assert test["score"] == (items[item_id]["points"] or 0), item_id
+            assert test["max_score"] == items[item_id]["max_points"], item_id
+        expected = yaml.safe_load((FIXTURES / fixture / "expected.yaml").read_text())["expected"]
+        problems += [f"{fixture} {i}: expected {want}, got {tests[i]['extra_data']['status']}: "
+                     f"{tests[i]['output'][:200]}"
+                     for i, want in expected.items() if tests[i]["extra_data"]["status"] not in _allowed(want)]
+        regrade = sh([venv_grader(root), "regrade", root / "grader-out" / "submission", "--rubric", rubric],
+                     cwd=root, env=clean_env()).stdout
+        assert f"submission: {doc['score']:g}/50" in regrade
+    assert not problems, "\n".join(problems)
+    scores = {fixture: json.loads((root / "results" / "results.json").read_text())["score"]
+              for (fixture, _how), root in zip(CASES, roots)}
+    assert scores == {"reference": 50, "bm_log10": 42, "broken_build": 30}
+    broken = json.loads((roots[2] / "results" / "results.json").read_text())
+    assert "did not build" in broken["output"] and "turtle_control" in broken["output"]
+
