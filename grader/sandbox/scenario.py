@@ -89,11 +89,12 @@ def require_complete(caps: Capabilities | None = None) -> None:
 
 
 def _extra_ro(prefixes: Sequence[str], env: Mapping[str, str]) -> list[str]:
-    """The build's ``install`` and ``src`` trees, and system ROS prefixes under /opt."""
+    """The build's ``install`` and ``src`` trees (and the simulator overlay that the system's
+    ``ros2 launch`` uses), and system ROS prefixes under /opt."""
     ro: list[str] = []
     for prefix in prefixes:
         install = Path(prefix).parent
-        for tree in (install, install.parent / "src"):
+        for tree in (install, install.parent / "src", install.parent / "grader-sim-overlay"):
             if tree.is_dir() and str(tree) not in ro:
                 ro.append(str(tree))
     for entry in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
