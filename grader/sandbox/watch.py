@@ -7,10 +7,11 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-from grader.sandbox.scenario import ChildConfig
+from grader.sandbox.scenario import CPU_REPORT_S, ChildConfig
 class LimitWatch:
     """Reports each limit as it is hit: output caps of the graph's processes, and the kernel's
-    counts for the scenario's student cgroup (OOM kills, refused forks), polled twice a second.
+    counts for the scenario's student cgroup (OOM kills, refused forks, CPU throttling), polled
+    twice a second.
 
     ``on_limit(limit=..., detail=..., **fields)`` is set by the scenario child (it emits a
     ``limit_hit`` event); hits before it is set are kept and delivered when it is.
@@ -76,6 +77,12 @@ class LimitWatch:
                 if counts.get(key, 0) > self._seen.get(key, 0):
                     self._seen[key] = counts[key]
                     self._emit({"limit": limit, "count": int(counts[key]), "detail": text})
+            throttled = counts.get("cpu_throttled_s", 0.0)
+            if throttled >= CPU_REPORT_S and "cpu" not in self._seen:
+                self._seen["cpu"] = throttled           # once: the record has the final total
+                self._emit({"limit": "cpu", "seconds": round(throttled, 2),
+                            "detail": f"CPU limit of {policy.cpus:g} CPU(s): the student processes are "
+                                      f"being held back ({throttled:.1f} s so far)"})
 
     def stop(self) -> None:
         self._stop.set()

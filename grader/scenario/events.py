@@ -46,6 +46,6 @@ class Event(StrEnum):
     STDIN_READY = "stdin_ready"              # process, nodes
     STDIN_LINE = "stdin_line"                # process, line, delivered
     LAUNCH_RESOLVED = "launch_resolved"      # process, launch, installed, nodes (declared), notes
-    LIMIT_HIT = "limit_hit"                  # limit (memory|processes|output), detail; process, stream (output)
+    LIMIT_HIT = "limit_hit"                  # limit (memory|processes|cpu|output), detail; process, stream (output)
     # the ROS graph
     GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services
