@@ -10,7 +10,7 @@ import pytest
 
 from grader.launch import describe_launch
 from grader.workspace import build_workspace
-from tests.sandbox.conftest import processes_with, require_protections, snapshot
+from sandboxhelpers import processes_with, require_protections, snapshot
 
 ATTACK = '''
 import os, socket, subprocess, sys

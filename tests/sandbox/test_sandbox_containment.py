@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.sandbox.conftest import events, log, processes_with, require_protections, run_hostile, snapshot
+from sandboxhelpers import events, log, processes_with, require_protections, run_hostile, snapshot
 
 REPO = Path(__file__).resolve().parents[2]
 

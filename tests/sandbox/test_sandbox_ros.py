@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from tests.sandbox.conftest import events, log, require_protections, run_hostile
+from sandboxhelpers import events, log, require_protections, run_hostile
 
 
 @pytest.mark.slow

@@ -16,7 +16,7 @@ from grader.sandbox import probe
 from grader.sandbox.capture import CappedLog
 from grader.sandbox.jail import SANDBOX_DDS_PROFILE, Jail, minimal_env, prepare
 from grader.sandbox.scenario import ScenarioSandbox, summary
-from tests.sandbox.conftest import require_protections
+from sandboxhelpers import require_protections
 
 REPO = Path(__file__).resolve().parents[2]
 NS = {"d": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
