@@ -21,7 +21,6 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import sys
 import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -202,8 +201,9 @@ def prepare(jail: Jail | None, argv: Sequence[str], env: Mapping[str, str], *,
     """The command, environment and fork-to-exec steps that run ``argv`` in ``jail``.
 
     ``env`` is the grader's environment for ROS children (trimmed to its ROS variables);
-    ``extra_env`` is passed as it is (the rubric's ``env:``). ``jail=None`` prepares the
-    unsandboxed command (minimal environment still applies only when a jail is given).
+    ``extra_env`` is passed as it is (the rubric's ``env:``). ``jail=None``: the command as it
+    is, with ``env`` + ``extra_env`` (``GRADER_SANDBOX=off``). A jail without bubblewrap: the
+    command as it is, but with the minimal environment and a scratch directory of its own.
     """
     if jail is None:
         return Prepared(list(argv), {**env, **(extra_env or {})}, cwd or os.getcwd(), lambda: None, False)
@@ -246,7 +246,3 @@ def prepare(jail: Jail | None, argv: Sequence[str], env: Mapping[str, str], *,
             cgroups.join(procs)
 
     return Prepared(list(argv), child_env, cwd or str(scratch), preexec_fallback, False, scratch=scratch)
-
-
-def python_argv(module: str, *args: str) -> list[str]:
-    return [sys.executable, "-m", module, *args]
