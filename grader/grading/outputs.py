@@ -35,7 +35,7 @@ def effective_params(rubric) -> dict[str, dict]:
     return out
 
 
-def write_submission_outputs(graded, rubric, *, public_only: bool) -> None:
+def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[str, str] | None = None) -> None:
     """result.json (+ build, errors, timings, previous grading) and report.html for one submission."""
     from grader.report.html import write_html
     from grader.report.result import write_result
@@ -56,7 +56,7 @@ def write_submission_outputs(graded, rubric, *, public_only: bool) -> None:
     if getattr(graded, "previous", None):
         extra["previous"] = graded.previous
     out_dir, sid = graded.out.parent, graded.out.name
-    write_result(out_dir, sid, graded.result, versions=ver, extra=extra)
+    write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
                problems=problems, params=effective_params(rubric))
 
