@@ -42,17 +42,20 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
     from grader.sandbox.scenario import recorded_summary
 
     ver = versions()
-    extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
-             "errors": graded.errors, "timings": graded.timings,
-             "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir()),
-             "scenarios_reused": dict(getattr(graded, "reused", {}) or {})}
+    # which protections student code ran under, and each limit it reached (from the scenario
+    # records, so a regrade reports the grading run): a line each in errors and the report
     sandbox = recorded_summary(sorted(p for p in (graded.out / "scenarios").glob("*") if p.is_dir()))
     problems = list(graded.errors)
     if sandbox is not None:
-        extra["sandbox"] = sandbox           # which protections student code ran under
         if sandbox.get("warning"):
             problems.append(f"sandbox: {sandbox['warning']}")
         problems += [f"limit reached: {hit}" for hit in sandbox.get("limits_hit", [])]
+    extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
+             "errors": problems, "timings": graded.timings,
+             "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir()),
+             "scenarios_reused": dict(getattr(graded, "reused", {}) or {})}
+    if sandbox is not None:
+        extra["sandbox"] = sandbox
     if getattr(graded, "previous", None):
         extra["previous"] = graded.previous
     out_dir, sid = graded.out.parent, graded.out.name
