@@ -50,6 +50,7 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
         if sandbox.get("warning"):
             problems.append(f"sandbox: {sandbox['warning']}")
         problems += [f"limit reached: {hit}" for hit in sandbox.get("limits_hit", [])]
+    problems = list(dict.fromkeys(problems))         # a regrade that keeps stored errors adds none twice
     extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
              "errors": problems, "timings": graded.timings,
              "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir()),
