@@ -6,7 +6,8 @@
    20 Hz), runs alternating on/off: the scenario's wall time and how long after its start the
    student's first message reached the bag (DDS discovery across the sandbox). Target: the
    sandbox adds under 1 s per scenario;
-3. ``grader grade fixtures/submissions/enee467_lab3 --only reference`` (the CLI, build cached),
+3. ``grader grade fixtures/submissions/enee467_lab3 --only reference`` (the CLI, build cached,
+   ``--no-reuse``: every scenario recorded again),
    runs alternating on/off. Target: the grading time changes by less than 5 %; the scores are
    identical.
 
@@ -145,7 +146,7 @@ def grade(runs: int) -> int:
             out = Path(tmp) / tag
             t0 = time.monotonic()
             subprocess.run([sys.executable, "-m", "grader.cli", "grade", str(sub), "--only", "reference",
-                            "--rubric", str(rubric), "-o", str(out), "--cache-dir", str(cache)],
+                            "--rubric", str(rubric), "-o", str(out), "--cache-dir", str(cache), "--no-reuse"],
                            env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             wall = time.monotonic() - t0
             doc = json.loads((out / "reference" / "result.json").read_text())
