@@ -15,8 +15,8 @@ import numpy as np
 from grader.analyze.evidence import SHARE
 from grader.analyze import Finding, register
 from grader.analyze.evidence import TIME
-from grader.analyze._common import (Frames, events, missing_topic_feedback, parse_xy_line, stdout_lines,
-                                    times, topic)
+from grader.analyze._common import (Frames, events, missing_topic_feedback, stdout_lines, times, topic)
+from grader.analyze.goals import parse_xy_line
 from grader.scenario.events import Event
 
 
