@@ -4,7 +4,6 @@ Pure functions on the ``frames`` of a bag (see grader.analyze._common)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -35,20 +34,6 @@ def goal_xy(obj: Any) -> tuple[float, float] | None:
                 if r is not None:
                     return r
     return None
-
-
-def parse_xy_line(line: str) -> tuple[float, float] | None:
-    """The lab's stdin format "x,y" (two floats separated by a comma); None when malformed."""
-    parts = str(line).strip().split(",")
-    if len(parts) != 2:
-        return None
-    try:
-        x, y = float(parts[0]), float(parts[1])
-    except ValueError:
-        return None
-    if not (math.isfinite(x) and math.isfinite(y)):
-        return None
-    return x, y
 
 
 @dataclass
