@@ -20,8 +20,9 @@ import numpy as np
 
 from grader.analyze.evidence import SHARE
 from grader.analyze import Finding, graded, register
-from grader.analyze._common import (WORLD_MAX, Frames, sim_pose, events, goal_xy, meta, parse_xy_line,
-                                    rosout_lines, since_start, stdout_lines, thin, times, topic)
+from grader.analyze._common import (WORLD_MAX, Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
+from grader.analyze.goal_publisher import parse_xy_line
+from grader.analyze.goals import goal_xy
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)

@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from grader.analyze import REQUIRED, Finding, graded, register
+from grader.analyze import REQUIRED, Finding, register
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
 from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
                                     thin, times, topic)

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from grader.analyze import REQUIRED, Finding, graded, register
-from grader.analyze.evidence import SHARE, SINCE_START, TIME
+from grader.analyze import Finding, graded, register
+from grader.analyze.evidence import SHARE, SINCE_START
 from grader.analyze._common import (sim_pose, Frames, missing_topic_feedback, scenario_end_time, service_calls,
                                     thin, times, topic)
 

@@ -11,6 +11,10 @@ The classes mirror the YAML a rubric author writes (``Step.publish``, ``Step.unt
 is also why ``grader rubric schema`` can hand editors a JSON Schema generated from them.
 pydantic is used because it gives typed, frozen models, strict validation with located errors,
 JSON round-trips and JSON Schema from one declaration.
+
+The module is longer than the project's usual ~400 lines on purpose: it is the whole scenario
+language of a rubric (names, actions, conditions, steps, processes, scenarios) in the order a
+rubric author reads it, and splitting it would scatter one declaration across files.
 """
 
 from __future__ import annotations
