@@ -112,12 +112,15 @@ def _crashed_nodes(frames: dict) -> list[str]:
     lines = stdout_lines(frames)
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
+    limits = [str(e.get("detail") or e.get("limit") or e.get("what") or "") for e in events(frames, Event.LIMIT_HIT)]
     out = []
     for e in events(frames, Event.PROCESS_EXIT):
         if not e.get("stopped_by_grader"):
             name = e.get("process", "?")
             tail = last_line.get(name, "")
             out.append(f"{name} exited with code {e.get('returncode')}" + (f" ({tail[:160]})" if tail else ""))
+    if out and limits:
+        out.append("limit reached: " + "; ".join(dict.fromkeys(m for m in limits if m)))
     return out
 
 
@@ -273,13 +276,22 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     return graded
 
 
+def recording_settings() -> str:
+    """What, besides the inputs, changes a recording: the sandbox's active protections (a
+    recording made with fewer of them is not reused where more are active)."""
+    from grader.sandbox import summary
+
+    info = summary()
+    return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}"
+
+
 def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None) -> dict:
     """One scenario: copied from an identical earlier recording, or run (within a slot)."""
     from grader.grading.reuse import RecordingCache, reusable, scenario_key
     from grader.scenario import resolve, run_scenario
 
     folder = out / SCENARIOS_DIR / sc_id
-    key = scenario_key(sc_id, scenario, build) if recordings is not None else None
+    key = scenario_key(sc_id, scenario, build, settings=recording_settings()) if recordings is not None else None
     if key is None:
         with slots.taken():
             return run_scenario(resolve(sc_id, scenario, build), folder)

@@ -137,12 +137,15 @@ class StdinLine(Model):
 class Limits(Model):
     """Resource limits of a process or a scenario; None leaves the grader's default.
 
-    ``memory_mb`` bounds each process's address space (rclpy + Fast DDS need about 1 GiB).
+    ``memory_mb`` of a process bounds its address space (rclpy + Fast DDS need about 1 GiB);
+    ``memory_mb`` of a scenario bounds the memory of all its student processes together (the
+    sandbox's cgroup; default 2048).
     """
 
     wall_s: PositiveFloat | None = Field(None, description="wall-clock seconds")
     cpu_s: PositiveInt | None = Field(None, description="CPU seconds")
-    memory_mb: PositiveInt | None = Field(None, description="MiB of address space per process")
+    memory_mb: PositiveInt | None = Field(None, description="MiB: a process's address space; a scenario's "
+                                          "student processes together")
 
 
 class Process(Model):

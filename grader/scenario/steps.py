@@ -351,15 +351,16 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
     driver.event(Event.STEP_START, step=step.id, action=kind)
     ended_by = "done"
     action = step.do
+    if step.target is not None and not isinstance(action, m.Goal):
+        # a goal set some other way (e.g. a service call): it is active from before the action,
+        # so whatever the student's nodes do in answer (even a teleport) falls inside its window
+        driver.event(Event.GOAL_SENT, step=step.id, goal=[step.target.x, step.target.y], topic=None)
     if action is not None:
         try:
             state.detail = HANDLERS[type(action)](rt, step, action, state)
         except Exception as exc:  # noqa: BLE001 - a bad step must not kill the whole run
             state.detail = {"error": f"{type(exc).__name__}: {exc}"}
             ended_by = "error"
-        if step.target is not None and not isinstance(action, m.Goal):
-            # a goal set some other way (e.g. a service call): analyzers judge arrival at it
-            driver.event(Event.GOAL_SENT, step=step.id, goal=[step.target.x, step.target.y], topic=None)
     if ended_by != "error":
         remaining = max(0.0, step.limit_s - (time.monotonic() - state.t0))
         if predicate is None:

@@ -17,8 +17,9 @@ FIXTURES = REPO / "fixtures" / "submissions" / "enee467_lab3"
 
 
 def _processes_mentioning(text: str) -> set[int]:
-    """Processes whose command line or environment names ``text`` (this test's output folder:
-    every process of a run gets ROS_LOG_DIR inside it, student nodes included)."""
+    """Processes whose command line or environment names ``text`` (this test's folder: every
+    process of the run names it, the grader's through ROS_LOG_DIR or the output folder, a
+    sandboxed student process through its jail's build-cache paths)."""
     found = set()
     for proc in Path("/proc").iterdir():
         if proc.name.isdigit():
@@ -35,9 +36,10 @@ def _processes_mentioning(text: str) -> set[int]:
 @pytest.mark.ros
 def test_ctrl_c_mid_batch(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "grader.cli", "grade", str(FIXTURES), "--rubric",
+    proc = subprocess.Popen(  # --no-reuse: the scenarios must really run when Ctrl-C comes
+        [sys.executable, "-m", "grader.cli", "grade", str(FIXTURES), "--rubric",
                              str(REPO / "rubrics" / "enee467_lab3.yaml"), "-o", str(out),
-                             "--only", "reference", "pub_10hz", "--cache-dir", str(tmp_path / "cache")],
+                             "--only", "reference", "pub_10hz", "--cache-dir", str(tmp_path / "cache"), "--no-reuse"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     # wait until the first scenario is recording, then press Ctrl-C
     deadline = time.monotonic() + 120
@@ -54,4 +56,4 @@ def test_ctrl_c_mid_batch(tmp_path: Path) -> None:
     from grader.bag.frames import load_bag_meta
     assert all(load_bag_meta(b).finalized for b in bags)
     time.sleep(1.0)
-    assert not _processes_mentioning(str(out)), "a process of the batch outlived it"
+    assert not _processes_mentioning(str(tmp_path)), "a process of the batch outlived it"
