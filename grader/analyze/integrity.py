@@ -28,6 +28,7 @@ DT = 0.016
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
     "truth_poses": ("poses the simulator published", ""), "public_poses": ("poses on the public topic", ""),
+    "foreign_poses": ("poses on the public topic the simulator never published", ""),
     "flag_services": ('services a student must not call', ''),
     "list_services": ('services whose calls are listed', ''),
     "driver_match_s": ("a call this close to the grader's own is the grader's", 's'),
@@ -76,12 +77,18 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
         problems.append(f"{name} was also published by {', '.join(foreign)}")
     truth = topic(frames, truth_pose_topic(name))
     public = topic(frames, name)
-    if truth is not None and public is not None:
-        # the simulator publishes each pose on both; more on the public topic = someone else's
-        extra = len(public) - len(truth)
-        ev.update(truth_poses=len(truth), public_poses=len(public))
-        if extra > 10:
-            problems.append(f"{extra} more poses on {name} than the simulator published")
+    if truth is not None and public is not None and {"x", "y", "theta"} <= set(public.columns):
+        # the simulator publishes every pose on both topics, the very same numbers: a pose on the
+        # public topic that is not among the simulator's (while both were recorded) is someone else's
+        own = set(zip(truth["x"].round(6), truth["y"].round(6), truth["theta"].round(6)))
+        t_pub = times(public)
+        window = (t_pub >= float(times(truth)[0])) & (t_pub <= float(times(truth)[-1]))
+        sub = public[window]
+        foreign_poses = sum(1 for key in zip(sub["x"].round(6), sub["y"].round(6), sub["theta"].round(6))
+                            if key not in own)
+        ev.update(truth_poses=len(truth), public_poses=len(public), foreign_poses=foreign_poses)
+        if foreign_poses:
+            problems.append(f"{foreign_poses} pose(s) on {name} that the simulator never published")
     df = topic(frames, name)
     if df is not None and len(df) >= 3 and {"x", "y"} <= set(df.columns):
         t = times(df)

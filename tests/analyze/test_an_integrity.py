@@ -84,3 +84,25 @@ def test_jump_caused_by_a_teleport_call_is_left_to_the_teleport_flag() -> None:
     assert check(get("integrity_no_teleport")(with_meta(fr), {})).status == "fail"
     del fr["/turtle1/teleport_absolute/_service_event"]
     assert check(get("integrity_pose_publisher")(with_meta(fr), {})).status == "fail"
+
+
+def test_poses_the_simulator_never_published_are_flagged_and_goals_use_its_own() -> None:
+    """The simulator's copy (/grader/sim/turtle1/pose) tells its poses from anyone else's: a fake
+    pose on /turtle1/pose is flagged, poses recorded on the public topic before the copy was
+    subscribed are not, and arrival is judged on the copy."""
+    import pandas as pd
+
+    from grader.analyze._common import sim_pose
+
+    fr = {k: v for k, v in _sim().items() if k != "__meta__"}
+    truth = fr["/turtle1/pose"].copy()
+    public = truth.copy()
+    fr["/grader/sim/turtle1/pose"] = truth.iloc[20:]           # the copy subscribed a bit later
+    assert check(get("integrity_pose_publisher")(with_meta(dict(fr)), {})).status == "pass"
+    fake = public.iloc[[len(public) // 2]].copy()
+    fake.index = fake.index + 0.001
+    fake["x"], fake["y"] = 2.0, 7.0                            # "I am at the goal"
+    fr["/turtle1/pose"] = pd.concat([public, fake]).sort_index()
+    f = check(get("integrity_pose_publisher")(with_meta(dict(fr)), {}))
+    assert f.status == "fail" and f.evidence["foreign_poses"] == 1
+    assert sim_pose(fr, "/turtle1/pose") is fr["/grader/sim/turtle1/pose"]
