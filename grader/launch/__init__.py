@@ -65,9 +65,6 @@ def find_launch_file(build: Any, package: str, name: str) -> tuple[Path | None, 
 
 def describe_launch(path: Path, arguments: dict[str, str], env: dict[str, str]) -> list[dict[str, Any]]:
     """Run ``grader.launch.describe`` on a launch file (student code: in a subprocess)."""
-    if path.suffix in (".xml", ".yaml", ".yml"):
-        raise GraderError(f"{path.name}: {path.suffix[1:].upper()} launch files are not supported by the "
-                          "grader's launch loader; write it as a Python launch file (*.launch.py)")
     argv = [sys.executable, "-m", "grader.launch.describe", str(path),
             *(f"{k}:={v}" for k, v in arguments.items())]
     # the launch file is student code: jailed (grader.sandbox), seeing only its builds and the

@@ -32,8 +32,9 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps({"error": str(exc)}))
         return 1
     except Exception as exc:  # noqa: BLE001 - the student's launch file raised
-        frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).name.endswith(".py")
-                  and "grader" not in Path(f.filename).parts]
+        # the innermost frame of the student's own files (not the grader's, not an installed library's)
+        frames = [f for f in traceback.extract_tb(exc.__traceback__) if f.filename.endswith(".py")
+                  and not {"grader", "site-packages", "dist-packages"} & set(Path(f.filename).parts)]
         where = f"{Path(frames[-1].filename).name}:{frames[-1].lineno}: " if frames else f"{path.name}: "
         print(json.dumps({"error": f"{where}{type(exc).__name__}: {exc}"}))
         return 1

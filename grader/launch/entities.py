@@ -61,7 +61,7 @@ SUPPORTED = ("LaunchDescription", "launch_ros.actions.Node", "DeclareLaunchArgum
              "LaunchConfiguration", "TextSubstitution", "PathJoinSubstitution",
              "EnvironmentVariable", "ThisLaunchFileDir", "FindPackageShare", "ExecuteProcess",
              "IncludeLaunchDescription", "PythonLaunchDescriptionSource", "TimerAction",
-             "SetEnvironmentVariable", "LogInfo", "IfCondition", "UnlessCondition")
+             "SetEnvironmentVariable", "LogInfo", "IfCondition", "UnlessCondition", "ParameterValue")
 
 
 # ------------------------------------------------------------------------------ substitutions
@@ -115,19 +115,19 @@ class ThisLaunchFileDir(Substitution):
 
 class FindPackageShare(Substitution):
     def __init__(self, package: Any) -> None:
-        self.package = package
+        self.package, self.at = package, caller_line()
 
     def perform(self, ctx: "Context") -> str:
-        return package_share(perform(self.package, ctx))
+        return package_share(perform(self.package, ctx), self.at)
 
 
-def package_share(package: str) -> str:
+def package_share(package: str, at: str) -> str:
     from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 
     try:
         return get_package_share_directory(package)
-    except PackageNotFoundError:
-        raise LaunchFileError(f"{caller_line()}: package {package!r} is not installed "
+    except (PackageNotFoundError, OSError, ValueError):     # OSError: no AMENT_PREFIX_PATH at all
+        raise LaunchFileError(f"{at}: package {package!r} is not installed "
                               "(not in the submission's build)") from None
 
 
@@ -273,6 +273,9 @@ class Context:
 
 def load_description(path: Path) -> LaunchDescription:
     """Execute a Python launch file and call its ``generate_launch_description()``."""
+    if path.suffix in (".xml", ".yaml", ".yml"):
+        raise LaunchUnsupported(f"{path.name}: {path.suffix[1:].upper()} launch files are not supported by "
+                                "the grader's launch loader; write it as a Python launch file (*.launch.py)")
     source = path.read_text(encoding="utf-8", errors="replace")
     namespace: dict[str, Any] = {"__file__": str(path), "__name__": "__launch_file__"}
     try:
@@ -376,15 +379,57 @@ def _node(node: Node, ctx: Context) -> Described:
 
 
 def _flat_params(params: dict, ctx: Context, prefix: str = "") -> dict[str, Any]:
-    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}``; substitutions performed, other values as given."""
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}``, values typed as ``launch_ros`` types them."""
     out: dict[str, Any] = {}
     for key, value in params.items():
         name = prefix + perform(key, ctx)
         if isinstance(value, dict):
             out.update(_flat_params(value, ctx, name + "."))
-        elif isinstance(value, (Substitution, list)) and not (
-                isinstance(value, list) and all(isinstance(v, (int, float, bool, str)) for v in value)):
-            out[name] = perform(value, ctx)
         else:
-            out[name] = value
+            out[name] = _param_value(name, value, ctx)
     return out
+
+
+def _param_value(name: str, value: Any, ctx: Context) -> Any:
+    """launch_ros's rule: text and substitutions are read as YAML ('2.0' is a double, 'true' a
+    bool) unless wrapped in ``ParameterValue(value, value_type=str)``; lists are of one type."""
+    if isinstance(value, ParameterValue):
+        text = perform(value.value, ctx)
+        return text if value.value_type is str else _yaml_param(name, text)
+    if isinstance(value, (bool, int, float)):
+        return value
+    if isinstance(value, (str, Substitution)) or (
+            isinstance(value, list) and value and all(isinstance(v, Substitution) for v in value)):
+        return _yaml_param(name, perform(value, ctx))
+    if isinstance(value, (list, tuple)):
+        items = [_param_value(name, v, ctx) for v in value]
+        if not items or len({type(v) for v in items}) != 1 or isinstance(items[0], list):
+            raise LaunchFileError(f"parameter {name!r}: a list parameter needs values of one type "
+                                  f"(bool, int, float or str), got {items!r}")
+        return items
+    raise LaunchFileError(f"parameter {name!r}: {type(value).__name__} is not a parameter value")
+
+
+def _yaml_param(name: str, text: str) -> Any:
+    import yaml
+
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        raise LaunchFileError(f"parameter {name!r}: {text!r} is not valid YAML (wrap a string in "
+                              "launch_ros.parameter_descriptions.ParameterValue(value, value_type=str))") from None
+    if value is None:
+        return ""
+    if isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, list) and value and len({type(v) for v in value}) == 1 and \
+            isinstance(value[0], (bool, int, float, str)):
+        return value
+    raise LaunchFileError(f"parameter {name!r}: {text!r} is not a bool, int, float, string or list of one of those")
+
+
+class ParameterValue:
+    """``launch_ros.parameter_descriptions.ParameterValue``: ``value_type=str`` keeps text as text."""
+
+    def __init__(self, value: Any, *, value_type: Any = None) -> None:
+        self.value, self.value_type = value, value_type

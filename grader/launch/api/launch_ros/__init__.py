@@ -2,7 +2,7 @@
 
 from grader.launch.entities import missing as _missing
 
-from . import actions, substitutions  # noqa: F401
+from . import actions, parameter_descriptions, substitutions  # noqa: F401
 
 
 def __getattr__(name: str):
