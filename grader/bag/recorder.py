@@ -372,17 +372,24 @@ def run(args: argparse.Namespace) -> int:
     """Record until SIGINT/SIGTERM (arguments as :func:`add_arguments` defines them)."""
     from grader.errors import GraderError
 
+    # handlers first: a stop that comes while the recorder is still starting (a batch's Ctrl-C
+    # during start-up) must not leave a bag file behind that was never finalized
+    stopping: list[Any] = []
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        stopping.append(signum)
+        if rec is not None:
+            rec.stop = True
+
+    rec: Recorder | None = None
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
     try:
         rec = Recorder(args)
     except GraderError as exc:
         print(f"grader: error: {exc}", file=sys.stderr)
         return 2
-
-    def on_signal(signum: int, _frame: Any) -> None:
-        rec.stop = True
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    rec.stop = rec.stop or bool(stopping)
     try:
         return rec.run()
     except BaseException:

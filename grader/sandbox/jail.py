@@ -36,6 +36,9 @@ SYSTEM_LINKS = ("/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32")
 ENTRY_MODULES = {"grader.workspace.launch": Path(__file__).resolve().parents[1] / "workspace" / "launch.py"}
 #: UDP-only Fast DDS profile: a sandbox cannot create the shared-memory segments in /dev/shm
 SANDBOX_DDS_PROFILE = Path(__file__).resolve().parents[1] / "dds" / "fastdds_profile_sandbox.xml"
+#: the grader package: hidden under an empty tmpfs when it sits inside a bound tree (a non-editable
+#: install puts it in the venv's site-packages, which student code needs for rclpy)
+PACKAGE_DIR = str(Path(__file__).resolve().parents[1])
 #: variables a child keeps from the environment the grader computed (grader.rosenv.child_env)
 KEEP_VARS = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DISTRO", "ROS_VERSION",
              "ROS_PYTHON_VERSION", "RMW_IMPLEMENTATION", "PYTHONUNBUFFERED", "RCUTILS_COLORIZED_OUTPUT",
@@ -179,6 +182,8 @@ def bwrap_argv(jail: Jail, argv: Sequence[str], *, cwd: str, files: Mapping[str,
         out += ["--bind", p, p]
     for dest, src in files.items():
         out += ["--ro-bind", src, dest]
+    if PACKAGE_DIR not in jail.ro and _under(PACKAGE_DIR, [*SYSTEM_DIRS, *ro, *rw]):
+        out += ["--perms", "0755", "--size", "4096", "--tmpfs", PACKAGE_DIR]
     out += ["--chdir", cwd]
     if jail.uid is not None:
         out += ["--cap-add", "CAP_SETUID", "--cap-add", "CAP_SETGID", "--",
@@ -213,8 +218,7 @@ def prepare(jail: Jail | None, argv: Sequence[str], env: Mapping[str, str], *,
         if len(argv) >= 3 and argv[1] == "-m" and argv[2].startswith("grader."):
             # the grader's own program run as student code (the simulator a launch file starts
             # when the scenario has none): it needs the grader package, read-only, still jailed
-            package = Path(__file__).resolve().parents[1]
-            jail = replace(jail, ro=(*jail.ro, str(package)), python_path=(str(package.parent), *jail.python_path))
+            jail = replace(jail, ro=(*jail.ro, PACKAGE_DIR), python_path=(str(Path(PACKAGE_DIR).parent), *jail.python_path))
         if jail.dds_profile and SANDBOX_DDS_PROFILE.exists():
             files[f"{GRADER_DIR}/fastdds_profile.xml"] = str(SANDBOX_DDS_PROFILE)
         run_cwd = cwd or SCRATCH

@@ -12,7 +12,9 @@ from pathlib import Path
 
 LISTENER = r"""
 import json, os, sys, time
-report = {"uid": os.getuid(), "sees": [p for p in sys.argv[1:] if os.path.exists(p)], "wrote": []}
+# an empty directory shows nothing (an installed grader package is covered by an empty tmpfs)
+report = {"uid": os.getuid(), "wrote": [],
+          "sees": [p for p in sys.argv[1:] if os.path.exists(p) and (not os.path.isdir(p) or os.listdir(p))]}
 for p in sys.argv[1:]:
     try:
         with open(os.path.join(p, "sandbox-selftest"), "w") as f:

@@ -78,6 +78,10 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
                        sim_node=sim_node, notes=notes, launch_installed=installed)
 
 
+#: how long a scenario child stopped by SIGTERM gets to stop its processes and finalize its bag
+TERMINATE_WAIT_S = 40.0
+
+
 def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = None) -> dict[str, Any]:
     """Run one resolved scenario in a child process; returns its record (see grader.scenario.run)."""
     out = Path(out)
@@ -134,7 +138,8 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
 def _terminate(proc: subprocess.Popen) -> None:
     os.killpg(proc.pid, signal.SIGTERM)
     try:
-        proc.wait(timeout=20)
+        # its students stop one after the other (up to 3 s each), then the recorder finalizes
+        proc.wait(timeout=TERMINATE_WAIT_S)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()

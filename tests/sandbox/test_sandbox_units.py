@@ -83,6 +83,22 @@ def test_jailed_command_sees_only_what_it_is_given(tmp_path: Path) -> None:
     assert "/.grader/launch.py" in p.argv and "-m" not in p.argv[p.argv.index("/.grader/launch.py") - 2:]
 
 
+def test_an_installed_grader_package_inside_a_bound_tree_is_covered(tmp_path: Path) -> None:
+    """A non-editable install puts the grader in the venv's site-packages, which student code
+    needs (rclpy): the package directory is covered by an empty tmpfs, its siblings stay."""
+    require_protections("filesystem")
+    jail = Jail(bwrap=probe().bwrap, ro=(str(REPO),), uid=65534 if probe().uid_drop else None)
+    code = "import os, sys; print(len(os.listdir(sys.argv[1])), os.path.exists(sys.argv[2]))"
+    p = prepare(jail, [sys.executable, "-c", code, str(REPO / "grader"), str(REPO / "pyproject.toml")], {})
+    done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
+    assert done.stdout.split() == ["0", "True"], done.stderr
+    # when the grader program itself runs jailed (a launch file's simulator), it stays visible
+    p = prepare(jail, [sys.executable, "-m", "grader.sandbox.enter", "--", sys.executable, "-c", code,
+                       str(REPO / "grader"), str(REPO / "pyproject.toml")], {})
+    done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
+    assert int(done.stdout.split()[0]) > 5, done.stderr
+
+
 def test_off_mode_warns_and_require_mode_refuses_a_missing_protection(monkeypatch) -> None:
     monkeypatch.setenv("GRADER_SANDBOX", "off")
     off = summary()
