@@ -40,6 +40,7 @@ EVIDENCE = {
     "wrap_turn_deg": ('judge goals where wrapping changes the turn by', 'deg'),
     "ambiguous_deg": ('within this of 180° both ways are fine', 'deg'),
     "detect_deg": ('heading change that marks the first turn', 'deg'),
+    "react_s": ('the turn is measured from this long after the goal', 's'),
     "goals": ("goals", ""),
     "goal": ("goal", ""),
     "x": ("goal x", "m"), "y": ("goal y", "m"),
@@ -264,6 +265,8 @@ def _wall_contacts(frames: Frames, t: np.ndarray, x: np.ndarray, y: np.ndarray, 
     "wrap_turn_deg": 10.0,    # ... and goals where wrapping changes the turn, if at least this
     "ambiguous_deg": 10.0,    # within this of 180 deg both directions are accepted
     "detect_deg": 5.0,        # heading change that marks the initial rotation
+    "react_s": 0.1,           # the turn is measured from this long after the goal (commands the
+                              # controller computed before it had the goal still act until then)
     "cmd_topic": "/turtle1/cmd_vel",
 })
 def turn_direction(frames: Frames, p: dict) -> Finding:
@@ -302,14 +305,16 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             rows.append(row)
             continue
         row["evaluated"] = True
-        dth = np.unwrap(th[m]) - th[i0]
+        i1 = min(int(np.searchsorted(t, g.t + p["react_s"], side="left")), len(t) - 1)
+        m1 = (t >= t[i1]) & (t <= g.t_end)
+        dth = np.unwrap(th[m1]) - th[i1]
         over = np.nonzero(np.abs(dth) >= math.radians(p["detect_deg"]))[0]
         turn = int(np.sign(dth[over[0]])) if len(over) else 0
         row["initial_turn"] = {1: "left (CCW)", -1: "right (CW)", 0: "none"}[turn]
         if cmd is not None and "angular.z" in cmd.columns:
             ct = times(cmd)
             w = cmd["angular.z"].to_numpy(float)
-            sel = (ct >= g.t) & (ct <= g.t_end) & (np.abs(w) > 1e-3)
+            sel = (ct >= g.t + p["react_s"]) & (ct <= g.t_end) & (np.abs(w) > 1e-3)
             row["first_cmd_angular_z"] = float(w[sel][0]) if sel.any() else None
         ambiguous = abs(req) >= math.pi - math.radians(p["ambiguous_deg"])
         ok = turn != 0 and (ambiguous or turn == int(np.sign(req)))

@@ -9,7 +9,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from grader.analyze._common import Frames, events, times, topic
+from grader.analyze._common import TELEPORT_SERVICES, Frames, events, times, topic
 from grader.scenario.events import Event
 
 
@@ -50,7 +50,9 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
     """Goals in time order: ``goal_sent`` events (auto/events) or Float32MultiArray on goal_topic.
 
     Consecutive identical goals are merged (re-sending the same goal does not restart it).
-    ``t_end`` is the next goal's time (or NaN for the last goal).
+    ``t_end`` is the next goal's time, or the scenario's own teleport/reset that ends the attempt
+    (a rubric may place the turtle before the next goal: a turtle placed on the goal it failed
+    to reach has not reached it), or NaN for the last goal.
     """
     out: list[Goal] = []
     if source in ("auto", "events"):
@@ -76,6 +78,12 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
         merged.append(g)
     for a, b in zip(merged, merged[1:]):
         a.t_end = b.t
+    placed = sorted(e["t"] for e in events(frames, Event.SERVICE_CALL)
+                    if str(e.get("service", "")).rsplit("/", 1)[-1] in TELEPORT_SERVICES)
+    for g in merged:
+        after = [t for t in placed if t > g.t and not t >= g.t_end]
+        if after:
+            g.t_end = after[0]
     return merged
 
 

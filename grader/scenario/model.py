@@ -121,6 +121,20 @@ class Goal(Model):
         return (self.x, self.y)
 
 
+#: turtlesim's world is [0, WORLD_M]^2 (float32 of 499/45: grader.sim.physics.W)
+WORLD_M = 11.088889
+
+
+class Placement(Model):
+    """Where the grader puts a turtle before a step's action (turtlesim's ``teleport_absolute``),
+    so the step starts from the same pose in every run, whatever the turtle did before."""
+
+    x: Annotated[float, Field(ge=0.0, le=WORLD_M, description="m")]
+    y: Annotated[float, Field(ge=0.0, le=WORLD_M, description="m")]
+    theta: Annotated[float, Field(allow_inf_nan=False, description="rad, 0 = facing +x")]
+    turtle: LocalId = Field("turtle1", description="the turtle's name")
+
+
 class StdinLine(Model):
     """A line typed into a process ``delay`` seconds after the previous one (or after the prompt)."""
 
@@ -412,6 +426,8 @@ class Step(Model):
     """
 
     id: LocalId
+    place: Placement | None = Field(None, description="first teleport the turtle there and wait until "
+                                    "the simulator shows it there; then the action")
     goal: Goal | None = Field(None, description="publish [x, y] on the scenario's goal_topic")
     publish: Publish | None = None
     service: ServiceCall | None = None
@@ -436,7 +452,7 @@ class Step(Model):
         if len(actions) > 1:
             own.append(((actions[1],), f"a step does one thing; it has {' and '.join(actions)}: split it"))
         if value.get("wait") is not None:
-            extra = [k for k in ("until", "timeout", *actions) if value.get(k) is not None]
+            extra = [k for k in ("until", "timeout", "place", *actions) if value.get(k) is not None]
             if extra:
                 own.append(((extra[0],), f"'wait: N' is a pause on its own; use timeout with "
                                          f"{extra[0]!r} instead"))

@@ -109,6 +109,34 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
         state.service_done = True
 
 
+#: how far the first pose after a placement may be from it (one 16 ms tick of the command the
+#: turtle had: 2 m/s and 8 rad/s), and how long the simulator may take to show it
+PLACE_TOL_M, PLACE_TOL_RAD, PLACE_WAIT_S = 0.05, 0.15, 3.0
+
+
+def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> dict[str, Any]:
+    """Teleport the turtle (the simulator's service, recorded like any driver call) and wait
+    until the simulator's own pose topic shows it there, so the action starts from that pose."""
+    from grader.sim import truth_pose_topic
+
+    driver = rt.driver
+    topic = truth_pose_topic(f"/{place.turtle}/pose")
+    driver.watch_pose(topic)
+    spec = m.ServiceCall(name=f"/{place.turtle}/teleport_absolute", type="turtlesim/srv/TeleportAbsolute",
+                         request={"x": place.x, "y": place.y, "theta": place.theta})
+    driver.poses.pop(topic, None)
+    called = _service(rt, step, spec, state)
+    state.service_done = False           # the step's own service (if any) has not run yet
+
+    def there() -> bool:
+        pose = driver.poses.get(topic)
+        return pose is not None and math.hypot(pose.x - place.x, pose.y - place.y) <= PLACE_TOL_M and \
+            abs(math.remainder(pose.theta - place.theta, math.tau)) <= PLACE_TOL_RAD
+
+    shown = called.get("response") is not None and driver.wait_until(there, PLACE_WAIT_S, poll=0.002)
+    return {"pose": [place.x, place.y, place.theta], "shown": bool(shown)}
+
+
 def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> dict[str, Any]:
     from rclpy.action import ActionClient
     from unique_identifier_msgs.msg import UUID
@@ -351,13 +379,15 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
     driver.event(Event.STEP_START, step=step.id, action=kind)
     ended_by = "done"
     action = step.do
+    if step.place is not None:
+        state.detail = {"placed": _place(rt, step, step.place, state)}
     if step.target is not None and not isinstance(action, m.Goal):
         # a goal set some other way (e.g. a service call): it is active from before the action,
         # so whatever the student's nodes do in answer (even a teleport) falls inside its window
         driver.event(Event.GOAL_SENT, step=step.id, goal=[step.target.x, step.target.y], topic=None)
     if action is not None:
         try:
-            state.detail = HANDLERS[type(action)](rt, step, action, state)
+            state.detail = {**state.detail, **HANDLERS[type(action)](rt, step, action, state)}
         except Exception as exc:  # noqa: BLE001 - a bad step must not kill the whole run
             state.detail = {"error": f"{type(exc).__name__}: {exc}"}
             ended_by = "error"

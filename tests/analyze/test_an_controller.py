@@ -137,3 +137,26 @@ def test_goal_sent_on_another_topic_is_not_a_goal() -> None:
     fr["/grader/events"] = pd.concat([fr["/grader/events"], other]).sort_index()
     f = check(get("goals_reached")(fr, {}))
     assert f.status == "pass" and len(f.evidence["goals"]) == 2
+
+
+def test_a_turtle_placed_on_its_goal_by_the_scenario_has_not_reached_it(runs) -> None:
+    """A rubric may teleport the turtle before the next goal (so every goal starts from the same
+    pose in every run); the goal before it ends at that teleport, and the pose after it does not
+    count as arriving there. Here wrong_sign's turtle is put on goal 1 for the last 2 s of goal
+    1's window."""
+    from grader.analyze.goals import goals
+
+    fr = dict(runs["wrong_sign"])
+    t_place = T0 + 23.5
+    pose = fr["/turtle1/pose"].copy()
+    after = pose.index >= t_place + 0.02
+    pose.loc[after & (pose.index < T0 + 25.5), ["x", "y"]] = [2.0, 7.0]     # parked on goal 1
+    fr["/turtle1/pose"] = pose
+    placed = events_frame([(t_place, "service_call", {"service": "/turtle1/teleport_absolute"})])
+    fr["/grader/events"] = pd.concat([fr["/grader/events"], placed]).sort_index()
+    g1, g2 = goals(fr)
+    assert g1.t_end == pytest.approx(t_place, abs=1e-6) and g2.t_end != g2.t_end      # NaN: the last goal
+    f = check(get("goals_reached")(fr, {}))
+    assert not f.evidence["goals"][0]["reached"], f.evidence["goals"][0]
+    # the grader's own teleport is no integrity problem and costs no goal its credit
+    assert "teleported" not in f.evidence["goals"][1]

@@ -262,6 +262,11 @@ def test_scenario_base_is_valid(write_rubric):
      "stdin[0].line: expected text (quote it), got 2.0"),
     ("start: client, ", ""
      , "processes[1]: process 'client' has autostart: false but no step starts it"),
+    ("- id: first\n", "- id: first\n        place: {x: 12.0, y: 1.0, theta: 0.0}\n",
+     "steps[0].place.x: expected a number >= 0 and <= 11.088889, got 12.0"),
+    ("- id: first\n", "- id: first\n        place: {x: 1.0, y: 1.0}\n", "steps[0].place.theta: required key is missing"),
+    ("      - {id: later,", "      - {id: pause, wait: 1, place: {x: 1, y: 1, theta: 0}}\n      - {id: later,",
+     "steps[1].place: 'wait: N' is a pause on its own"),
 ])
 def test_scenario_rules(problems, old, new, message):
     text = SCEN.replace(old, new)

@@ -39,3 +39,29 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
     assert names[0] == "scenario_start" and "service_call" in names and names[-1] == "scenario_end"
     assert "/turtle1/set_pen/_service_event" in frames
     assert Path(record["canvas"]).exists()
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path) -> None:
+    """`place:` teleports the (moving) turtle and waits until the simulator shows it there; the
+    teleport is recorded as the driver's own service call."""
+    scenario = Scenario.model_validate({"steps": [
+        {"id": "go", "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
+                                 "msg": {"linear": {"x": 1.0}, "angular": {"z": 0.5}}}, "timeout": 0.5},
+        {"id": "placed", "place": {"x": 2.0, "y": 7.0, "theta": 2.1},
+         "publish": {"topic": "/marker", "type": "std_msgs/msg/Empty"}, "timeout": 0.2},
+    ], "limits": {"wall_s": 30}})
+    record = run_scenario(resolve("place", scenario, None), tmp_path / "place")
+    assert record["errors"] == [], record
+    assert record["steps"][1]["detail"]["placed"] == {"pose": [2.0, 7.0, 2.1], "shown": True}
+    from grader.bag.frames import load_frames
+    frames = load_frames(tmp_path / "place" / "bag")
+    marker_t = frames["/marker"].index[0]
+    truth = frames["/grader/sim/turtle1/pose"]
+    before = truth[truth.index < marker_t].iloc[-1]
+    # the last pose before the action is the placement, moved by at most a tick of the command
+    assert abs(before["x"] - 2.0) < 0.05 and abs(before["y"] - 7.0) < 0.05 and abs(before["theta"] - 2.1) < 0.05
+    events = [json.loads(d) for d in frames["/grader/events"]["data"]]
+    calls = [e for e in events if e["event"] == "service_call"]
+    assert [c["service"] for c in calls] == ["/turtle1/teleport_absolute"]
