@@ -6,6 +6,10 @@ broken package does not stop the others (``--continue-on-error``). Each package'
 colcon's own result for it (``colcon_events``): built, failed, or skipped because a package it
 depends on failed. A failed package carries the one line that explains it (``diagnose``) and
 the path of its full log; a skipped one names the package that failed.
+
+Below the workspace cache, packages are cached one by one (``package_cache``): a package whose
+sources and workspace dependencies are identical to one built before (the lab's interface
+package, untouched by most of a class) is taken from that build instead of built again.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from grader.errors import GraderError
 from grader.rosenv import PY_SITE, child_env, ros_mode
 from grader.workspace.colcon_events import JobOutcome, read_events
 from grader.workspace.diagnose import DETAIL_LINES, Availability, Diagnosis, diagnose
+from grader.workspace.package_cache import CachedPackage, PackageCache, copy_installs, package_keys
 from grader.workspace.source import PackageSource, stage_sources, tree_digest
 
 BUILD_TIMEOUT_S = 900
@@ -52,6 +57,7 @@ class PackageBuild:
     blocked_by: list[str] = field(default_factory=list)       # skipped: the failed packages it needs
     missing_dependencies: list[str] = field(default_factory=list)  # neither installed nor submitted
     executables: dict[str, str] = field(default_factory=dict)   # console script -> module:func
+    reused_from: str = ""              # build area whose install of it was reused (package cache)
 
     def problem(self) -> str:
         """One line for a student: which package, and why it cannot be run."""
@@ -161,7 +167,7 @@ def _colcon_env() -> dict[str, str]:
     return env
 
 
-def _run_colcon(root: Path, log_file: Path) -> int:
+def _run_colcon(root: Path, log_file: Path, skip: list[str] = ()) -> int:
     cmake_args = [f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",
                   "-DCMAKE_BUILD_TYPE=Release"]
     if shutil.which("ninja"):
@@ -171,6 +177,7 @@ def _run_colcon(root: Path, log_file: Path) -> int:
            "--continue-on-error", "--parallel-workers", str(max(1, os.cpu_count() or 1)),
            "--event-handlers", "console_cohesion+", "console_direct-", "status-",
            "event_log+", "log+",        # events.log and per-package logs: the status is read from them
+           *(["--packages-skip", *skip] if skip else []),     # reused: in install/ already
            "--cmake-args", *cmake_args]
     with open(log_file, "wb") as log:
         log.write(("$ " + " ".join(cmd) + "\n").encode())
@@ -233,8 +240,11 @@ def _failure(root: Path, pkg: PackageSource, job: JobOutcome, timed_out: bool,
     return Diagnosis("colcon stopped before it finished (see build.log)"), log
 
 
-def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool) -> dict[str, PackageBuild]:
-    """Each package's result from colcon's events: built, failed (with why) or skipped (by what)."""
+def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool,
+                     reused: dict[str, CachedPackage] | None = None) -> dict[str, PackageBuild]:
+    """Each package's result from colcon's events: built, failed (with why) or skipped (by what);
+    ``reused`` packages were taken from an earlier build (colcon skipped them)."""
+    reused = reused or {}
     env = _colcon_env()
     avail = Availability([p.name for p in staged], env)
     jobs = read_events(root / "log" / "latest_build" / "events.log", [p.name for p in staged])
@@ -242,7 +252,11 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
     for pkg in staged:                 # built and failed first: skipped ones name the failed ones
         job = jobs[pkg.name]
         missing = avail.missing_from_manifest(root / "src" / pkg.name / "package.xml")
-        if job.succeeded:
+        if pkg.name in reused:
+            out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "built", missing_dependencies=missing,
+                                         executables=_console_scripts(root / "install" / pkg.name, pkg.name),
+                                         reused_from=str(reused[pkg.name].root))
+        elif job.succeeded:
             prefix = root / "install" / pkg.name
             out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "built", missing_dependencies=missing,
                                          executables=_console_scripts(prefix, pkg.name))
@@ -274,13 +288,16 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
 
 def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                     support: dict[str, Path] | None = None, force: bool = False) -> BuildResult:
-    """Stage, hash and (unless cached) colcon-build ``submission``."""
+    """Stage, hash and (unless cached) colcon-build ``submission``; packages an earlier build
+    already built from the same sources are reused from it (``package_cache``; not with ``force``)."""
     cache_dir = Path(cache_dir or default_cache_dir())
     cache_dir.mkdir(parents=True, exist_ok=True)
     staging = cache_dir / f".staging-{os.getpid()}-{time.monotonic_ns()}"
     try:
         staged = stage_sources(Path(submission), staging / "src", staging, support)
-        digest = tree_digest(staging / "src", extra=f"{CACHE_FORMAT}:{ros_mode()}:{sys.version_info[:2]}")
+        extra = f"{CACHE_FORMAT}:{ros_mode()}:{sys.version_info[:2]}"
+        digest = tree_digest(staging / "src", extra=extra)
+        keys = package_keys(staged, extra)
         root = cache_dir / digest
         with open(cache_dir / f"{digest}.lock", "w") as lockf:
             fcntl.flock(lockf, fcntl.LOCK_EX)     # parallel graders build one digest once
@@ -290,16 +307,28 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                 result.source = str(submission)
                 result.cached = True
                 return result
-            if root.exists():
-                shutil.rmtree(root)
-            root.mkdir(parents=True)
-            shutil.move(str(staging / "src"), root / "src")
-            t0 = time.monotonic()
-            rc = _run_colcon(root, root / "build.log")
-            packages = _package_results(root, staged, timed_out=rc == TIMED_OUT)
-            result = BuildResult(str(submission), digest, root, packages,
-                                 duration_s=round(time.monotonic() - t0, 2))
-            result_file.write_text(json.dumps(_to_json(result), indent=1))
+            packages_cache = PackageCache(cache_dir)
+            with packages_cache.locked(list(keys.values())):   # one build of a package at a time
+                if root.exists():
+                    shutil.rmtree(root)
+                root.mkdir(parents=True)
+                shutil.move(str(staging / "src"), root / "src")
+                reused = {} if force else packages_cache.reusable(staged, keys)
+                copy_installs(root, reused)
+                t0 = time.monotonic()
+                if len(reused) < len(staged):
+                    rc = _run_colcon(root, root / "build.log", skip=sorted(reused))
+                else:
+                    rc = 0
+                    (root / "build.log").write_text("every package is reused from an earlier build:\n" + "".join(
+                        f"  {n}: {c.install}\n" for n, c in sorted(reused.items())))
+                packages = _package_results(root, staged, timed_out=rc == TIMED_OUT, reused=reused)
+                result = BuildResult(str(submission), digest, root, packages,
+                                     duration_s=round(time.monotonic() - t0, 2))
+                result_file.write_text(json.dumps(_to_json(result), indent=1))
+                for name, pkg in packages.items():
+                    if pkg.status == "built" and name not in reused:
+                        packages_cache.put(keys[name], root, asdict(pkg))
             return result
     finally:
         shutil.rmtree(staging, ignore_errors=True)
