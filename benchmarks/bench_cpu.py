@@ -67,7 +67,7 @@ class Phases:
 def role(argv: list[str]) -> str:
     """What a probed process is, from its command line."""
     text = " ".join(argv)
-    for needle, name in (("grader.scenario.run", "driver (scenario process)"), ("grader.bag.recorder", "recorder"),
+    for needle, name in (("grader.scenario.run", "scenario process (driver, recorder)"), ("grader.bag.recorder", "recorder"),
                          ("grader.sim", "simulator"), ("grader.workspace.launch", "student node"),
                          ("grader.launch.describe", "launch file resolution"), ("colcon", "colcon"),
                          ("setup.py", "colcon"), ("rosidl", "colcon"), ("ament", "colcon")):
