@@ -117,7 +117,7 @@ class Launcher:
             lp.name, list(lp.argv), env={**proc.env, **lp.env} or None,
             stdin=script if (script or proc.stdin is not None) else None,
             close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.scenario.time_limit_s),
-            nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0),
+            nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0, untrusted=True),
             process_class=_EventedProcess, stdin_gate=gate)
         managed.driver = driver
         if gate is not None:
@@ -160,6 +160,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                     canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"])))
                 record["canvas"] = str(canvas)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node)
+            graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
             if sim is not None:
                 driver.watch_pose()
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
@@ -212,6 +213,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if driver is not None:
                 driver.event(Event.SCENARIO_ERROR, error=f"{type(exc).__name__}: {exc}")
         finally:
+            record["output_cut"] = graph.output_cuts()
             for name, proc in students.items():
                 crashed = proc.returncode is not None and not proc.stopped_by_grader
                 rc = proc.stop()

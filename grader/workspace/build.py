@@ -8,8 +8,9 @@ depends on failed. A failed package carries the one line that explains it (``dia
 the path of its full log; a skipped one names the package that failed.
 
 Below the workspace cache, packages are cached one by one (``package_cache``): a package whose
-sources and workspace dependencies are identical to one built before (the lab's interface
-package, untouched by most of a class) is taken from that build instead of built again.
+sources and workspace dependencies are identical to one the instructor supplies (the rubric's
+``support:`` packages, e.g. the lab's interface package, untouched by most of a class) is taken
+from that package's own build instead of built again for every submission.
 """
 
 from __future__ import annotations
@@ -19,8 +20,6 @@ import fcntl
 import json
 import os
 import shutil
-import signal
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -28,12 +27,16 @@ from pathlib import Path
 
 from grader.errors import GraderError
 from grader.rosenv import PY_SITE, child_env, ros_mode
+from grader.sandbox.oneshot import run_jailed
 from grader.workspace.colcon_events import JobOutcome, read_events
 from grader.workspace.diagnose import DETAIL_LINES, Availability, Diagnosis, diagnose
-from grader.workspace.package_cache import CachedPackage, PackageCache, copy_installs, package_keys
+from grader.workspace.package_cache import (CachedPackage, PackageCache, copy_installs, package_keys,
+                                            stage_support)
 from grader.workspace.source import PackageSource, stage_sources, tree_digest
 
 BUILD_TIMEOUT_S = 900
+BUILD_MEMORY_MB = 6144     # colcon + compilers of one submission together (cgroup)
+BUILD_PIDS = 2048
 TIMED_OUT = -1
 CACHE_FORMAT = 3          # 3: status from colcon's events; reason, blocked_by, missing_dependencies, log
 
@@ -57,7 +60,7 @@ class PackageBuild:
     blocked_by: list[str] = field(default_factory=list)       # skipped: the failed packages it needs
     missing_dependencies: list[str] = field(default_factory=list)  # neither installed nor submitted
     executables: dict[str, str] = field(default_factory=dict)   # console script -> module:func
-    reused_from: str = ""              # build area whose install of it was reused (package cache)
+    reused_from: str = ""              # build area whose install of it was copied (package cache)
 
     def problem(self) -> str:
         """One line for a student: which package, and why it cannot be run."""
@@ -76,6 +79,7 @@ class BuildResult:
     packages: dict[str, PackageBuild]
     cached: bool = False
     duration_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)   # what staging skipped (not cached: per submission)
 
     @property
     def install(self) -> Path:
@@ -168,6 +172,8 @@ def _colcon_env() -> dict[str, str]:
 
 
 def _run_colcon(root: Path, log_file: Path, skip: list[str] = ()) -> int:
+    """colcon build in the build area; student code (setup.py, CMake) runs here, so in a jail
+    that can write only build/, install/ and log/ and has no network (grader.sandbox)."""
     cmake_args = [f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",
                   "-DCMAKE_BUILD_TYPE=Release"]
     if shutil.which("ninja"):
@@ -179,18 +185,17 @@ def _run_colcon(root: Path, log_file: Path, skip: list[str] = ()) -> int:
            "event_log+", "log+",        # events.log and per-package logs: the status is read from them
            *(["--packages-skip", *skip] if skip else []),     # reused: in install/ already
            "--cmake-args", *cmake_args]
-    with open(log_file, "wb") as log:
-        log.write(("$ " + " ".join(cmd) + "\n").encode())
-        log.flush()
-        proc = subprocess.Popen(cmd, cwd=root, env=_colcon_env(), stdin=subprocess.DEVNULL, stdout=log,
-                                stderr=subprocess.STDOUT, start_new_session=True)
-        try:
-            return proc.wait(timeout=BUILD_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)      # colcon and every cmake/compiler/setup.py it ran
-            proc.wait()
+    log_file.write_bytes(("$ " + " ".join(cmd) + "\n").encode())
+    run = run_jailed(cmd, env=_colcon_env(), cwd=root, stdout=log_file, ro=[root / "src"],
+                     rw=[root / "build", root / "install", root / "log"], timeout_s=BUILD_TIMEOUT_S,
+                     memory_mb=BUILD_MEMORY_MB, pids=BUILD_PIDS, name="build")
+    with open(log_file, "ab") as log:
+        for hit in run.limits_hit:
+            log.write(f"\n[grader] build: {hit}\n".encode())
+        if run.timed_out:
             log.write(f"\ncolcon build timed out after {BUILD_TIMEOUT_S}s\n".encode())
             return TIMED_OUT
+    return run.returncode if run.returncode is not None else TIMED_OUT
 
 
 def _package_log(root: Path, name: str) -> Path:
@@ -287,18 +292,33 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
 
 
 def build_workspace(submission: Path, *, cache_dir: Path | None = None,
-                    support: dict[str, Path] | None = None, force: bool = False) -> BuildResult:
-    """Stage, hash and (unless cached) colcon-build ``submission``; packages an earlier build
-    already built from the same sources are reused from it (``package_cache``; not with ``force``)."""
+                    support: dict[str, Path] | None = None, force: bool = False,
+                    trusted: bool = False) -> BuildResult:
+    """Stage, hash and (unless cached) colcon-build ``submission``.
+
+    Packages identical to a ``support`` package are taken from the support packages' own build
+    (made once, the first time; see ``package_cache``), not with ``force``. ``trusted``: the
+    sources are the instructor's (no student code runs in this build), so its packages may be
+    shared with later builds.
+    """
     cache_dir = Path(cache_dir or default_cache_dir())
     cache_dir.mkdir(parents=True, exist_ok=True)
+    if support and not force:
+        try:
+            with stage_support(support, cache_dir) as support_ws:
+                if support_ws is not None:
+                    build_workspace(support_ws, cache_dir=cache_dir, trusted=True)
+        except GraderError:
+            pass                  # a support package that cannot be staged is built (and reported) below
     staging = cache_dir / f".staging-{os.getpid()}-{time.monotonic_ns()}"
     try:
-        staged = stage_sources(Path(submission), staging / "src", staging, support)
+        staging_result = stage_sources(Path(submission), staging / "src", staging, support)
+        staged = staging_result.packages
         extra = f"{CACHE_FORMAT}:{ros_mode()}:{sys.version_info[:2]}"
         digest = tree_digest(staging / "src", extra=extra)
         keys = package_keys(staged, extra)
         root = cache_dir / digest
+        packages_cache = PackageCache(cache_dir)
         with open(cache_dir / f"{digest}.lock", "w") as lockf:
             fcntl.flock(lockf, fcntl.LOCK_EX)     # parallel graders build one digest once
             result_file = root / "result.json"
@@ -306,29 +326,29 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                 result = load_result(result_file)
                 result.source = str(submission)
                 result.cached = True
+                result.warnings = staging_result.warnings
+                if trusted:
+                    packages_cache.share(result, keys)      # e.g. after the index was cleared
                 return result
-            packages_cache = PackageCache(cache_dir)
-            with packages_cache.locked(list(keys.values())):   # one build of a package at a time
-                if root.exists():
-                    shutil.rmtree(root)
-                root.mkdir(parents=True)
-                shutil.move(str(staging / "src"), root / "src")
-                reused = {} if force else packages_cache.reusable(staged, keys)
-                copy_installs(root, reused)
-                t0 = time.monotonic()
-                if len(reused) < len(staged):
-                    rc = _run_colcon(root, root / "build.log", skip=sorted(reused))
-                else:
-                    rc = 0
-                    (root / "build.log").write_text("every package is reused from an earlier build:\n" + "".join(
-                        f"  {n}: {c.install}\n" for n, c in sorted(reused.items())))
-                packages = _package_results(root, staged, timed_out=rc == TIMED_OUT, reused=reused)
-                result = BuildResult(str(submission), digest, root, packages,
-                                     duration_s=round(time.monotonic() - t0, 2))
-                result_file.write_text(json.dumps(_to_json(result), indent=1))
-                for name, pkg in packages.items():
-                    if pkg.status == "built" and name not in reused:
-                        packages_cache.put(keys[name], root, asdict(pkg))
+            if root.exists():
+                shutil.rmtree(root)
+            root.mkdir(parents=True)
+            shutil.move(str(staging / "src"), root / "src")
+            reused = {} if force else packages_cache.reusable(staged, keys)
+            copy_installs(root, reused)
+            t0 = time.monotonic()
+            if len(reused) < len(staged):
+                rc = _run_colcon(root, root / "build.log", skip=sorted(reused))
+            else:
+                rc = 0
+                (root / "build.log").write_text("every package is reused from an earlier build:\n" + "".join(
+                    f"  {n}: {c.install}\n" for n, c in sorted(reused.items())))
+            packages = _package_results(root, staged, timed_out=rc == TIMED_OUT, reused=reused)
+            result = BuildResult(str(submission), digest, root, packages,
+                                 duration_s=round(time.monotonic() - t0, 2), warnings=staging_result.warnings)
+            result_file.write_text(json.dumps(_to_json(result), indent=1))
+            if trusted:
+                packages_cache.share(result, keys)
             return result
     finally:
         shutil.rmtree(staging, ignore_errors=True)

@@ -1,42 +1,44 @@
-"""Per-package build cache: a package built once is not built again for the next submission.
+"""Per-package build cache: the instructor's packages are built once, not once per submission.
 
 The workspace cache (``build.py``) is keyed by the whole ``src/`` tree, so two students who
 differ in one Python file build everything, including the interface package the lab hands out
 (rosidl generators, CMake and the C compiler). Measured on a 2-core machine for a Lab 3
-submission: the whole colcon build costs ~18-21 s of CPU, of which ~15 s is the untouched
-``turtle_control_interfaces``; with it reused, colcon builds the three Python packages in
-~3.7 s of CPU (``benchmarks/bench_cpu.py``).
+submission (``benchmarks/bench_cpu.py``): the whole colcon build costs ~18-21 s of CPU, of which
+~15 s is the untouched ``turtle_control_interfaces``; with it taken from the cache, colcon builds
+the three Python packages in ~4 s (~1.4 s for one).
+
+Which packages are shared: the rubric's ``support:`` packages, built in a build area of their own
+(:func:`stage_support`) where no student code runs. A package built inside a student's workspace
+is never shared: the student's other packages' build code (``setup.py``, CMake) runs in the same
+jail with write access to the whole ``install/``, so it could have altered it.
 
 A package's key is the content of its own sources, its build type, the keys of the workspace
-packages it depends on (``package.xml``), and the grader's ROS mode and Python, so a change
-anywhere below a package rebuilds it. When every workspace dependency of a package is reused
-too and its key names a package that built in an earlier build area, the new build area gets
-``install/<pkg>`` as hard links to that install's files (see :func:`copy_installs`), and colcon
-is told ``--packages-skip`` it (the documented way to build on top of packages already installed;
-dependants resolve it in the install base as usual). Nothing else in an install names where it
-was built: the libraries carry no RPATH and CMake's export files locate themselves, except for
-two colcon shell scripts, which are rewritten. Only packages that built are reused: a failed one
-is built again and gets its own diagnosis.
-
-``<cache>/packages/<key>.json`` names the build area that holds the package. Per-key locks
-(taken in sorted order, so two builds never wait on each other in a cycle) make a second build
-of the same package wait for the first instead of compiling it twice on the same cores.
+packages it depends on (``package.xml``), and the grader's ROS mode and Python, so a student's
+copy of a support package gets the support build's key only when it and everything it depends on
+in the workspace are byte-identical. Such a package is copied into the new build area's
+``install/<pkg>`` (:func:`copy_installs`: real copies, ~2.4 MB and ~20 ms for the Lab 3 interface
+package, so nothing a student's build does to its own ``install/`` reaches the shared one), and
+colcon is told ``--packages-skip`` it (the documented way to build on top of packages already
+installed; dependants resolve it in the install base as usual). Nothing in an install names
+where it was built except two colcon shell scripts, which are rewritten: the libraries carry no
+RPATH and CMake's export files locate themselves. ``<cache>/packages/<key>.json`` names the build
+area that holds a shared package.
 """
 
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import hashlib
 import json
 import os
 import re
 import shutil
-from dataclasses import dataclass
+import threading
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Iterator
 
-from grader.workspace.source import PackageSource, tree_digest
+from grader.workspace.source import SKIP_DIRS, PackageSource, find_packages, tree_digest
 
 #: bump when what a cached package holds changes meaning
 PACKAGE_CACHE_FORMAT = 1
@@ -99,16 +101,6 @@ class PackageCache:
     def __init__(self, cache_dir: Path) -> None:
         self.dir = Path(cache_dir) / INDEX_DIR
 
-    @contextlib.contextmanager
-    def locked(self, keys: list[str]) -> Iterator[None]:
-        """Hold every key's lock (sorted order: no cycles between concurrent builds)."""
-        self.dir.mkdir(parents=True, exist_ok=True)
-        with contextlib.ExitStack() as stack:
-            for key in sorted(set(keys)):
-                fh = stack.enter_context(open(self.dir / f"{key}.lock", "w"))
-                fcntl.flock(fh, fcntl.LOCK_EX)
-            yield
-
     def get(self, name: str, key: str) -> CachedPackage | None:
         entry = self.dir / f"{key}.json"
         try:
@@ -116,16 +108,22 @@ class PackageCache:
         except (OSError, ValueError):
             return None
         found = CachedPackage(name, key, Path(data["root"]), data["build"])
-        ok = (data.get("name") == name and found.install.is_dir() and not found.install.is_symlink()
-              and (found.root / "result.json").is_file())
+        ok = (data.get("trusted") is True and data.get("name") == name and found.install.is_dir()
+              and not found.install.is_symlink() and (found.root / "result.json").is_file())
         return found if ok else None
 
     def put(self, key: str, root: Path, build: dict) -> None:
-        """Record that ``root`` holds the built package (atomically)."""
+        """Record that ``root`` holds the built package (atomically); only for trusted builds."""
         self.dir.mkdir(parents=True, exist_ok=True)
-        tmp = self.dir / f".{key}.{os.getpid()}.tmp"
-        tmp.write_text(json.dumps({"name": build["name"], "root": str(root), "build": build}))
+        tmp = self.dir / f".{key}.{os.getpid()}.{threading.get_ident()}.tmp"
+        tmp.write_text(json.dumps({"name": build["name"], "root": str(root), "build": build, "trusted": True}))
         os.replace(tmp, self.dir / f"{key}.json")
+
+    def share(self, result, keys: dict[str, str]) -> None:
+        """Offer every package a trusted build built (a ``BuildResult``) to later builds."""
+        for name, pkg in result.packages.items():
+            if pkg.status == "built" and not pkg.reused_from and name in keys:
+                self.put(keys[name], Path(result.root), asdict(pkg))
 
     def reusable(self, staged: list[PackageSource], keys: dict[str, str]) -> dict[str, CachedPackage]:
         """The packages that can be taken instead of built: cached, and so is every workspace
@@ -142,35 +140,36 @@ class PackageCache:
         return found
 
 
-def copy_installs(root: Path, reused: dict[str, CachedPackage]) -> None:
-    """``root/install/<pkg>``: the install of each reused package, as hard links to its files.
+@contextlib.contextmanager
+def stage_support(support: dict[str, Path], cache_dir: Path) -> Iterator[Path | None]:
+    """A workspace holding only the rubric's support packages (the instructor's files), to be
+    built as a trusted build whose packages later builds may take; None when none is found."""
+    ws = Path(cache_dir) / f".support-{os.getpid()}-{threading.get_ident()}"
+    try:
+        for name, path in sorted(support.items()):
+            for pkg in (find_packages(Path(path)) if Path(path).is_dir() else []):
+                if pkg.name == name:
+                    shutil.copytree(pkg.path, ws / "src" / name, ignore=shutil.ignore_patterns(*SKIP_DIRS, "*.pyc"))
+        yield ws if (ws / "src").is_dir() else None
+    finally:
+        shutil.rmtree(ws, ignore_errors=True)
 
-    A real folder inside the build area (not a link out of it), so whatever sees the build area
-    sees the package (a sandbox that binds only this area, a removed earlier area), at no extra
-    disk. The few text files that name the install's own path (colcon's ``package.sh`` and
-    ``local_setup.sh``) are rewritten, as new files, with the new path; ``__pycache__`` is left
-    out so a traceback names this area's files.
-    """
+
+def copy_installs(root: Path, reused: dict[str, CachedPackage]) -> None:
+    """``root/install/<pkg>``: a copy of each reused package's install, with the few text files
+    that name the install's own path (colcon's ``package.sh``, ``local_setup.sh``) rewritten;
+    ``__pycache__`` is left out so a traceback names this area's files."""
     install = root / "install"
     install.mkdir(parents=True, exist_ok=True)
     for name, cached in reused.items():
         src, dest = cached.install, install / name
-        shutil.copytree(src, dest, symlinks=True, copy_function=_link_or_copy,
-                        ignore=shutil.ignore_patterns("__pycache__"))
+        shutil.copytree(src, dest, symlinks=True, ignore=shutil.ignore_patterns("__pycache__"))
         old, new = str(src).encode(), str(dest).encode()
         for f in dest.rglob("*"):
             if f.is_file() and not f.is_symlink() and f.suffix not in _BINARY and f.stat().st_size < 1 << 20:
                 data = f.read_bytes()
                 if old in data and b"\0" not in data:
-                    f.unlink()                  # a new file: the earlier area's copy stays as it was
                     f.write_bytes(data.replace(old, new))
 
 
 _BINARY = {".so", ".a", ".pyc", ".o"}
-
-
-def _link_or_copy(src: str, dest: str) -> None:
-    try:
-        os.link(src, dest)
-    except OSError:                             # another file system, or links not allowed
-        shutil.copy2(src, dest)

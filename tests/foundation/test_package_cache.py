@@ -1,9 +1,9 @@
-"""The per-package build cache: a package built once (the lab's interface package, untouched by
-most students) is taken from that build by the next submission instead of built again."""
+"""The per-package build cache: the instructor's packages (a rubric's ``support:``) are built
+once, in a build of their own, and every submission with an untouched copy takes that build."""
 
 from __future__ import annotations
 
-import os
+import json
 import shutil
 from pathlib import Path
 
@@ -15,6 +15,7 @@ from grader.workspace.package_cache import package_keys
 from grader.workspace.source import find_packages
 
 WS = Path(__file__).parent / "ws"
+SUPPORT = {"demo_interfaces": WS / "src" / "demo_interfaces"}
 
 
 def _copy_ws(dest: Path) -> Path:
@@ -47,37 +48,35 @@ def test_a_package_key_covers_its_sources_and_its_dependencies_not_its_place(tmp
 
 @pytest.mark.slow
 @pytest.mark.ros
-def test_unchanged_package_is_taken_from_the_earlier_build_and_works(tmp_path: Path) -> None:
+def test_support_package_is_built_once_and_taken_by_each_submission(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
-    first = build_workspace(WS, cache_dir=cache)
-    assert first.ok and not any(p.reused_from for p in first.packages.values())
+    first = build_workspace(WS, cache_dir=cache, support=SUPPORT)
+    shared_from = first.packages["demo_interfaces"].reused_from
+    assert first.ok and shared_from and Path(shared_from) != first.root, "built apart, then taken"
+    assert not first.packages["demo_nodes"].reused_from
+    events = (first.root / "log" / "latest_build" / "events.log").read_text()
+    assert "(demo_interfaces) JobStarted" not in events and "(demo_nodes) JobStarted" in events
+    # a copy in the submission's own build area: what its build does there stays there
+    ours, shared = first.install / "demo_interfaces", Path(shared_from) / "install" / "demo_interfaces"
+    assert ours.is_dir() and not ours.is_symlink()
+    lib = next(ours.glob("lib/*.so"))
+    lib.write_bytes(b"overwritten by a hostile setup.py")
+    assert (shared / "lib" / lib.name).read_bytes() != b"overwritten by a hostile setup.py"
+    package_sh = (ours / "share" / "demo_interfaces" / "package.sh").read_text()
+    assert str(ours) in package_sh and str(shared) not in package_sh
 
     student = _copy_ws(tmp_path / "student")
     _append(student / "src" / "demo_nodes" / "demo_nodes" / "hello.py", "# a student's edit\n")
-    second = build_workspace(student, cache_dir=cache)
-    assert second.ok and second.digest != first.digest
-    assert second.packages["demo_interfaces"].reused_from == str(first.root)
-    assert not second.packages["demo_nodes"].reused_from
-    events = (second.root / "log" / "latest_build" / "events.log").read_text()
-    assert "(demo_interfaces) JobStarted" not in events and "(demo_nodes) JobStarted" in events
-    # a real folder of the new build area, its files hard links to the first build's
-    ours, theirs = second.install / "demo_interfaces", first.install / "demo_interfaces"
-    assert ours.is_dir() and not ours.is_symlink()
-    lib = next(ours.glob("lib/*.so"))
-    assert os.stat(lib).st_ino == os.stat(theirs / "lib" / lib.name).st_ino
-    package_sh = (ours / "share" / "demo_interfaces" / "package.sh").read_text()
-    assert str(ours) in package_sh and str(theirs) not in package_sh
-
+    second = build_workspace(student, cache_dir=cache, support=SUPPORT)
+    assert second.ok and second.packages["demo_interfaces"].reused_from == shared_from
     # demo_nodes was built against the taken package, and its node uses the custom action type
     with RosGraph(tmp_path / "run", prefixes=second.prefixes()) as graph:
         proc = graph.start(ProcessSpec("make_goal", second.argv("demo_nodes", "make_goal")))
         assert proc.wait(30) == 0, proc.errors()
     assert "made goal 2.0,7.0" in proc.output()
 
-    # another workspace whose every package was built before: all taken, colcon not run
-    third = _copy_ws(tmp_path / "third")
-    shutil.rmtree(third / "src" / "demo_nodes")
-    all_taken = build_workspace(third, cache_dir=cache)
-    assert all_taken.ok and all(p.reused_from for p in all_taken.packages.values())
-    assert not (all_taken.root / "log").exists()
-    assert "reused from an earlier build" in all_taken.build_log.read_text()
+    # packages built in a student's workspace are never offered to others (its other packages'
+    # build code could have changed them): the index names the support build only
+    index = [json.loads(f.read_text()) for f in (cache / "packages").glob("*.json")]
+    assert index and {e["root"] for e in index} == {shared_from}
+    assert {e["name"] for e in index} == {"demo_interfaces"}
