@@ -7,8 +7,13 @@ done, inclusive of what it imports), ``init`` (``rclpy.init`` returned), ``node`
 ``Node.__init__`` returned: the DDS participant exists), ``finalize`` (``BagWriter.close``: the
 bag's summary and metadata, recorder only) and ``exit`` (``atexit``), plus a timeline sampled every
 0.25 s, so idle CPU per second can be read off. A process killed by SIGKILL or an unhandled
-SIGTERM writes nothing; the benchmark counts that CPU as "not attributed" (the difference to
+SIGTERM writes nothing; the benchmark counts that CPU as "not probed" (the difference to
 ``RUSAGE_CHILDREN``).
+
+Commands the sandbox runs once in a jail (the colcon build, launch-file loading) are not reaped
+into ``RUSAGE_CHILDREN`` (bubblewrap's PID namespace), so their CPU is read from their cgroup
+when the sandbox ends them (``cpu.stat``) and kept as ``jailed_cpu_s``. Files are named by pid
+and a random suffix: a scenario process in its own PID namespace reuses small pids.
 
 Outside the benchmark (no ``GRADER_CPU_PROBE``) it does nothing.
 """
@@ -16,6 +21,25 @@ Outside the benchmark (no ``GRADER_CPU_PROBE``) it does nothing.
 import os
 
 _DIR = os.environ.get("GRADER_CPU_PROBE")
+
+
+def jailed_cpu(end, add):
+    """Wrap ``grader.sandbox.oneshot._end`` so that ``add(cpu_s)`` gets the CPU its cgroup counted."""
+
+    def wrapped(proc, group, *args, **kwargs):
+        if group is not None:
+            counters = group.counters
+
+            def counting():
+                found = counters()
+                if "cpu_s" in found:
+                    add(found["cpu_s"])
+                return found
+
+            group.counters = counting
+        return end(proc, group, *args, **kwargs)
+
+    return wrapped
 
 if _DIR:
     import atexit
@@ -68,7 +92,16 @@ if _DIR:
         except Exception:  # noqa: BLE001
             pass
 
-    _HOOKS = {"rclpy": _after_rclpy, "grader.bag.writer": _after_writer}
+    def _after_oneshot(module) -> None:
+        _record["jailed_cpu_s"] = 0.0
+        try:
+            module._end = jailed_cpu(module._end, lambda cpu: _record.__setitem__(
+                "jailed_cpu_s", _record["jailed_cpu_s"] + cpu))
+        except Exception:  # noqa: BLE001
+            pass
+
+    _HOOKS = {"rclpy": _after_rclpy, "grader.bag.writer": _after_writer,
+              "grader.sandbox.oneshot": _after_oneshot}
 
     class _Finder(importlib.abc.MetaPathFinder):
         def find_spec(self, fullname, path, target=None):
@@ -99,7 +132,7 @@ if _DIR:
     def _write() -> None:
         _record["marks"]["exit"] = [time.time(), _cpu()]
         try:
-            with open(os.path.join(_DIR, f"{os.getpid()}.json"), "w") as f:
+            with open(os.path.join(_DIR, f"{os.getpid()}-{os.urandom(4).hex()}.json"), "w") as f:
                 json.dump(_record, f)
         except OSError:
             pass
