@@ -7,15 +7,19 @@
    ``--no-reuse``, and at ``--jobs 4`` with reuse, each from an empty build cache (a class graded
    from scratch: the first build of the lab's interface package is in every mode). Reported:
    submissions per minute, CPU seconds per submission (the grader and everything it started,
-   from ``RUSAGE_CHILDREN`` of the ``grader`` process). Targets: >= 2.5x from jobs 1 to jobs 4,
+   from ``RUSAGE_CHILDREN`` of the ``grader`` process, plus what the sandbox's jailed builds used,
+   read from their cgroups by ``benchmarks/cpu_probe``). Targets: >= 2.5x from jobs 1 to jobs 4,
    and >= 2.1 submissions/min (2x the 1.05 measured before the work of issue 11).
 
 Every mode's per-item results (status and points) must be identical to the first mode's; a
 difference is printed with whether the fixture's ``expected.yaml`` allows both outcomes (an item
 documented as timing-sensitive) or not. Exit code 1 on a difference ``expected.yaml`` does not
-allow. The machine's load average is printed before and after each run: the machine is shared.
+allow. ``--save-items FILE`` writes every mode's per-item results; ``--baseline FILE`` (such a
+file from another checkout, e.g. before a change) is compared as one more mode. The machine's load
+average is printed before and after each run: the machine is shared.
 
     PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_scale.py [--only check|batch] [--jobs 1 2 4]
+        [--save-items FILE] [--baseline FILE]
 
 Long: about 45 minutes on a 2-core machine (the batch at ``--jobs 1`` alone is ~20 minutes).
 """
@@ -37,6 +41,7 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 LAB3 = REPO / "fixtures" / "submissions" / "enee467_lab3"
 RUBRIC = REPO / "rubrics" / "enee467_lab3.yaml"
+PROBE = Path(__file__).resolve().parent / "cpu_probe"
 BEFORE_PER_MIN = 1.05
 
 
@@ -48,12 +53,15 @@ def grader(*args: str) -> tuple[float, float, int]:
     """Run ``grader ARGS`` in a child process; (wall s, CPU s of it and everything it started, rc)."""
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.monotonic()
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
-    proc = subprocess.run([sys.executable, "-c", "import sys; from grader.cli import main; sys.exit(main())", *args],
-                          env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    with tempfile.TemporaryDirectory(prefix="bench-probe-") as probe:
+        env = {**os.environ, "GRADER_CPU_PROBE": probe, "PYTHONPATH": os.pathsep.join(
+            filter(None, [str(PROBE), str(REPO), os.environ.get("PYTHONPATH")]))}
+        proc = subprocess.run([sys.executable, "-c", "import sys; from grader.cli import main; sys.exit(main())",
+                               *args], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        jailed = sum(json.loads(p.read_text()).get("jailed_cpu_s", 0.0) for p in Path(probe).glob("*.json"))
     wall = time.monotonic() - t0
     ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime) + jailed
     if proc.returncode not in (0, 1):
         print(proc.stdout[-3000:])
     return wall, cpu, proc.returncode
@@ -118,7 +126,7 @@ def bench_check(tmp: Path) -> int:
     return bad
 
 
-def bench_batch(tmp: Path, jobs_list: list[int]) -> int:
+def bench_batch(tmp: Path, jobs_list: list[int], save: Path | None = None, baseline: Path | None = None) -> int:
     subs = sorted(p.name for p in LAB3.iterdir() if (p / "src").is_dir() or p.suffix in (".zip", ".gz"))
     n = len(subs)
     print(f"\n== batch: grader grade of {n} Lab 3 fixtures, each mode from an empty build cache", flush=True)
@@ -137,6 +145,12 @@ def bench_batch(tmp: Path, jobs_list: list[int]) -> int:
         print(f"  {label:24s} {wall:7.1f} s  {n / wall * 60:5.2f} submissions/min  CPU {cpu / n:5.1f} s/submission  "
               f"scenarios reused {reused}  graded {len(modes[label])}/{n}  exit {rc}  load {before} -> {load()}",
               flush=True)
+    if save is not None:
+        save.write_text(json.dumps(modes, indent=1))
+    if baseline is not None:
+        base = json.loads(baseline.read_text())
+        for name, items in list(base.items()):
+            modes[f"baseline {name}"] = {sid: {k: tuple(v) for k, v in its.items()} for sid, its in items.items()}
     diffs, bad = compare(modes)
     first, last = f"--jobs {jobs_list[0]} --no-reuse", f"--jobs {jobs_list[-1]} --no-reuse"
     speedup = rows[first][0] / rows[last][0]
@@ -151,6 +165,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", choices=["check", "batch"])
     ap.add_argument("--jobs", type=int, nargs="+", default=[1, 2, 4])
+    ap.add_argument("--save-items", type=Path, help="write every mode's per-item results here (JSON)")
+    ap.add_argument("--baseline", type=Path, help="per-item results of another run (--save-items) to compare")
     args = ap.parse_args()
     print(f"machine: {os.cpu_count()} cores, load average {load()}", flush=True)
     bad = 0
@@ -158,7 +174,7 @@ def main() -> int:
         if args.only in (None, "check"):
             bad += bench_check(Path(tmp))
         if args.only in (None, "batch"):
-            bad += bench_batch(Path(tmp), sorted(args.jobs))
+            bad += bench_batch(Path(tmp), sorted(args.jobs), args.save_items, args.baseline)
     return 1 if bad else 0
 
 
