@@ -3,6 +3,10 @@
 Why a module of its own: the recorder writes it, ``bag repair`` rebuilds it from the MCAP file,
 ``bag info``/``load_bag_meta`` read it, and replay turns the stored QoS back into publishers. One
 place keeps the field names and the Jazzy spellings (``keep_last``, ``reliable``, ...) consistent.
+
+Parsed with PyYAML's libyaml loader when PyYAML has it (the same safe loader in C: on the 14
+committed Lab 3 scenario bags 0.031 s instead of 0.225 s of CPU, identical results), since every
+analysis reads each bag's metadata twice.
 """
 
 from __future__ import annotations
@@ -20,6 +24,16 @@ VERSION = 9
 ROS_DISTRO = "jazzy"
 #: RMW_DURATION_INFINITE as rosbag2 Jazzy writes it (sec, nsec)
 INFINITE = {"sec": 9223372036, "nsec": 854775807}
+_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def safe_load(text: str) -> Any:
+    """``yaml.safe_load``, with libyaml when available; a document libyaml rejects is parsed
+    again in Python, so the error (and the line it names) is PyYAML's own, as before."""
+    try:
+        return yaml.load(text, Loader=_SAFE_LOADER)  # noqa: S506 - a safe loader
+    except yaml.YAMLError:
+        return yaml.safe_load(text)
 
 
 def default_qos() -> dict[str, Any]:
@@ -37,7 +51,7 @@ def qos_from_any(value: Any) -> list[dict[str, Any]]:
         return []
     if isinstance(value, str):
         try:
-            value = yaml.safe_load(value)
+            value = safe_load(value)
         except yaml.YAMLError as exc:
             raise GraderError(f"offered_qos_profiles is not valid YAML ({exc}); "
                               "the bag metadata is damaged: run `grader bag repair BAG`.") from None
@@ -183,7 +197,7 @@ def _require(d: dict, key: str, where: str) -> Any:
 
 def _load_yaml(text: str, where: str) -> Any:
     try:
-        return yaml.safe_load(text)
+        return safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}" if mark is not None else ""

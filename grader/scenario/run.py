@@ -1,9 +1,10 @@
 """Scenario child process: ``python -m grader.scenario.run RUN.json OUT_DIR``.
 
 Runs one scenario (a :class:`grader.scenario.model.ScenarioRun`) in its own isolated ROS graph:
-recorder first (so it sees everything), then the reference simulator, the driver, the
-student's processes, the steps; then stops the student's processes, the recorder (SIGINT
-finalizes the bag) and the simulator (which saves its canvas). Writes ``OUT_DIR/scenario.json``.
+recorder first (so it sees everything; a thread of this process, see
+``grader.bag.recorder_thread``), then the reference simulator, the driver, the student's
+processes, the steps; then stops the student's processes, the simulator (which saves its canvas)
+and the recorder (which finalizes the bag). Writes ``OUT_DIR/scenario.json``.
 Runs in a child process started with the build's environment, so the student's interface types
 import here and rclpy state never leaks between scenarios.
 """
@@ -11,6 +12,7 @@ import here and rclpy state never leaks between scenarios.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import sys
 import threading
@@ -19,7 +21,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from grader.bag.recorder import recorder_argv, wait_ready
+from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
 from grader.scenario.events import Event
@@ -30,6 +32,21 @@ SIM_READY_S = 15.0
 #: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
 #: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario
 STUDENT_STOP_GRACE_S = 2.0
+
+
+#: what decides how a participant discovers others: this process's own nodes (the recorder thread,
+#: the driver) take the graph's values, like its children (a no-op when the parent already
+#: started this process with the graph's environment, as ``run_scenario`` does)
+DISCOVERY_ENV = ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS",
+                 "FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+
+
+def _discover_like(graph: RosGraph) -> None:
+    for key in DISCOVERY_ENV:
+        if key in graph.env:
+            os.environ[key] = graph.env[key]
+        else:
+            os.environ.pop(key, None)
 
 
 class _EventedProcess(ManagedProcess):
@@ -124,16 +141,17 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                               "bag": str(out / "bag"), "canvas": None}
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
-    driver = None
+    driver = recorder = None
     with RosGraph(out) as graph:
         record["domain_id"] = graph.domain_id
+        _discover_like(graph)
         try:
             topics = None if spec.record == "all" else list(spec.record) + ["/grader/events", "/grader/stdout"]
-            recorder = graph.start(ProcessSpec("recorder", recorder_argv(out / "bag", topics), stop_grace_s=10.0))
+            recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id)
             try:
-                wait_ready(recorder.stdout_path, RECORDER_READY_S, proc=recorder)
+                recorder.start(RECORDER_READY_S)
             except GraderError as exc:
-                record["errors"].append(f"{exc} {recorder.errors()[-500:]}")
+                record["errors"].append(str(exc))
             sim = None
             if spec.sim:
                 from grader.sim import sim_argv
@@ -205,6 +223,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if driver is not None:
                 driver.shutdown()
             graph.stop_all()
+            if recorder is not None:
+                recorder.stop()
     record["active_s"] = round(sum(s["duration_s"] for s in record["steps"]), 3)
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))

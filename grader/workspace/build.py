@@ -6,6 +6,11 @@ broken package does not stop the others (``--continue-on-error``). Each package'
 colcon's own result for it (``colcon_events``): built, failed, or skipped because a package it
 depends on failed. A failed package carries the one line that explains it (``diagnose``) and
 the path of its full log; a skipped one names the package that failed.
+
+Below the workspace cache, packages are cached one by one (``package_cache``): a package whose
+sources and workspace dependencies are identical to one the instructor supplies (the rubric's
+``support:`` packages, e.g. the lab's interface package, untouched by most of a class) is taken
+from that package's own build instead of built again for every submission.
 """
 
 from __future__ import annotations
@@ -25,6 +30,8 @@ from grader.rosenv import PY_SITE, child_env, ros_mode
 from grader.sandbox.oneshot import run_jailed
 from grader.workspace.colcon_events import JobOutcome, read_events
 from grader.workspace.diagnose import DETAIL_LINES, Availability, Diagnosis, diagnose
+from grader.workspace.package_cache import (CachedPackage, PackageCache, copy_installs, package_keys,
+                                            stage_support)
 from grader.workspace.source import PackageSource, stage_sources, tree_digest
 
 BUILD_TIMEOUT_S = 900
@@ -53,6 +60,7 @@ class PackageBuild:
     blocked_by: list[str] = field(default_factory=list)       # skipped: the failed packages it needs
     missing_dependencies: list[str] = field(default_factory=list)  # neither installed nor submitted
     executables: dict[str, str] = field(default_factory=dict)   # console script -> module:func
+    reused_from: str = ""              # build area whose install of it was copied (package cache)
 
     def problem(self) -> str:
         """One line for a student: which package, and why it cannot be run."""
@@ -163,7 +171,7 @@ def _colcon_env() -> dict[str, str]:
     return env
 
 
-def _run_colcon(root: Path, log_file: Path) -> int:
+def _run_colcon(root: Path, log_file: Path, skip: list[str] = ()) -> int:
     """colcon build in the build area; student code (setup.py, CMake) runs here, so in a jail
     that can write only build/, install/ and log/ and has no network (grader.sandbox)."""
     cmake_args = [f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",
@@ -175,6 +183,7 @@ def _run_colcon(root: Path, log_file: Path) -> int:
            "--continue-on-error", "--parallel-workers", str(max(1, os.cpu_count() or 1)),
            "--event-handlers", "console_cohesion+", "console_direct-", "status-",
            "event_log+", "log+",        # events.log and per-package logs: the status is read from them
+           *(["--packages-skip", *skip] if skip else []),     # reused: in install/ already
            "--cmake-args", *cmake_args]
     log_file.write_bytes(("$ " + " ".join(cmd) + "\n").encode())
     run = run_jailed(cmd, env=_colcon_env(), cwd=root, stdout=log_file, ro=[root / "src"],
@@ -236,8 +245,11 @@ def _failure(root: Path, pkg: PackageSource, job: JobOutcome, timed_out: bool,
     return Diagnosis("colcon stopped before it finished (see build.log)"), log
 
 
-def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool) -> dict[str, PackageBuild]:
-    """Each package's result from colcon's events: built, failed (with why) or skipped (by what)."""
+def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool,
+                     reused: dict[str, CachedPackage] | None = None) -> dict[str, PackageBuild]:
+    """Each package's result from colcon's events: built, failed (with why) or skipped (by what);
+    ``reused`` packages were taken from an earlier build (colcon skipped them)."""
+    reused = reused or {}
     env = _colcon_env()
     avail = Availability([p.name for p in staged], env)
     jobs = read_events(root / "log" / "latest_build" / "events.log", [p.name for p in staged])
@@ -245,7 +257,11 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
     for pkg in staged:                 # built and failed first: skipped ones name the failed ones
         job = jobs[pkg.name]
         missing = avail.missing_from_manifest(root / "src" / pkg.name / "package.xml")
-        if job.succeeded:
+        if pkg.name in reused:
+            out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "built", missing_dependencies=missing,
+                                         executables=_console_scripts(root / "install" / pkg.name, pkg.name),
+                                         reused_from=str(reused[pkg.name].root))
+        elif job.succeeded:
             prefix = root / "install" / pkg.name
             out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "built", missing_dependencies=missing,
                                          executables=_console_scripts(prefix, pkg.name))
@@ -276,16 +292,33 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
 
 
 def build_workspace(submission: Path, *, cache_dir: Path | None = None,
-                    support: dict[str, Path] | None = None, force: bool = False) -> BuildResult:
-    """Stage, hash and (unless cached) colcon-build ``submission``."""
+                    support: dict[str, Path] | None = None, force: bool = False,
+                    trusted: bool = False) -> BuildResult:
+    """Stage, hash and (unless cached) colcon-build ``submission``.
+
+    Packages identical to a ``support`` package are taken from the support packages' own build
+    (made once, the first time; see ``package_cache``), not with ``force``. ``trusted``: the
+    sources are the instructor's (no student code runs in this build), so its packages may be
+    shared with later builds.
+    """
     cache_dir = Path(cache_dir or default_cache_dir())
     cache_dir.mkdir(parents=True, exist_ok=True)
+    if support and not force:
+        try:
+            with stage_support(support, cache_dir) as support_ws:
+                if support_ws is not None:
+                    build_workspace(support_ws, cache_dir=cache_dir, trusted=True)
+        except GraderError:
+            pass                  # a support package that cannot be staged is built (and reported) below
     staging = cache_dir / f".staging-{os.getpid()}-{time.monotonic_ns()}"
     try:
         staging_result = stage_sources(Path(submission), staging / "src", staging, support)
         staged = staging_result.packages
-        digest = tree_digest(staging / "src", extra=f"{CACHE_FORMAT}:{ros_mode()}:{sys.version_info[:2]}")
+        extra = f"{CACHE_FORMAT}:{ros_mode()}:{sys.version_info[:2]}"
+        digest = tree_digest(staging / "src", extra=extra)
+        keys = package_keys(staged, extra)
         root = cache_dir / digest
+        packages_cache = PackageCache(cache_dir)
         with open(cache_dir / f"{digest}.lock", "w") as lockf:
             fcntl.flock(lockf, fcntl.LOCK_EX)     # parallel graders build one digest once
             result_file = root / "result.json"
@@ -294,17 +327,28 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                 result.source = str(submission)
                 result.cached = True
                 result.warnings = staging_result.warnings
+                if trusted:
+                    packages_cache.share(result, keys)      # e.g. after the index was cleared
                 return result
             if root.exists():
                 shutil.rmtree(root)
             root.mkdir(parents=True)
             shutil.move(str(staging / "src"), root / "src")
+            reused = {} if force else packages_cache.reusable(staged, keys)
+            copy_installs(root, reused)
             t0 = time.monotonic()
-            rc = _run_colcon(root, root / "build.log")
-            packages = _package_results(root, staged, timed_out=rc == TIMED_OUT)
+            if len(reused) < len(staged):
+                rc = _run_colcon(root, root / "build.log", skip=sorted(reused))
+            else:
+                rc = 0
+                (root / "build.log").write_text("every package is reused from an earlier build:\n" + "".join(
+                    f"  {n}: {c.install}\n" for n, c in sorted(reused.items())))
+            packages = _package_results(root, staged, timed_out=rc == TIMED_OUT, reused=reused)
             result = BuildResult(str(submission), digest, root, packages,
                                  duration_s=round(time.monotonic() - t0, 2), warnings=staging_result.warnings)
             result_file.write_text(json.dumps(_to_json(result), indent=1))
+            if trusted:
+                packages_cache.share(result, keys)
             return result
     finally:
         shutil.rmtree(staging, ignore_errors=True)

@@ -33,7 +33,8 @@ def run(args: argparse.Namespace) -> int:
     state = "cache hit" if result.cached else f"built in {result.duration_s:.1f}s"
     print(f"{args.path}: {state}; build area {result.root}")
     for name, pkg in sorted(result.packages.items()):
-        print(f"  {pkg.status:8} {name} ({pkg.build_type})")
+        reused = "  [reused: an earlier build of the same sources]" if pkg.reused_from else ""
+        print(f"  {pkg.status:8} {name} ({pkg.build_type}){reused}")
         for exe, entry in sorted(pkg.executables.items()):
             print(f"             {exe} -> {entry}")
         if pkg.status != "built":
