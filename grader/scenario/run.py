@@ -11,6 +11,7 @@ import here and rclpy state never leaks between scenarios.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -19,7 +20,7 @@ import threading
 import time
 import traceback
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
@@ -147,7 +148,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
         _discover_like(graph)
         try:
             topics = None if spec.record == "all" else list(spec.record) + ["/grader/events", "/grader/stdout"]
-            recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id)
+            with _interrupt_after():
+                recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id)
             try:
                 recorder.start(RECORDER_READY_S)
             except GraderError as exc:
@@ -231,10 +233,30 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     return record
 
 
+_DEFERRED = {"depth": 0, "pending": False}
+
+
 def _interrupt_once(*_args) -> None:
     """First SIGTERM unwinds the scenario like Ctrl-C; later ones must not break the clean-up."""
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if _DEFERRED["depth"]:
+        _DEFERRED["pending"] = True
+        return
     raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _interrupt_after() -> Iterator[None]:
+    """A SIGTERM inside the block unwinds at its end: the recorder's bag file is created and its
+    owner known before the scenario can be stopped (else nobody would finalize that file)."""
+    _DEFERRED["depth"] += 1
+    try:
+        yield
+    finally:
+        _DEFERRED["depth"] -= 1
+        if not _DEFERRED["depth"] and _DEFERRED["pending"]:
+            _DEFERRED["pending"] = False
+            raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
