@@ -58,6 +58,7 @@ class GradedSubmission:
     errors: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     reused: dict[str, dict] = field(default_factory=dict)     # scenario -> where its recording came from
+    time_scales: dict[str, dict] = field(default_factory=dict)  # scenario -> requested/used/fallback (--time-scale)
     previous: dict | None = None      # a regrade's summary of the result it replaced (class view diff)
 
 
@@ -83,7 +84,11 @@ def scenario_frames(scenario_dir: Path) -> dict:
     bag = scenario_dir / "bag"
     if not bag.exists():
         return {"__meta__": pd.DataFrame(columns=["topic", "type", "count", "publishers"])}
-    frames = load_frames(bag)
+    record_file = scenario_dir / "scenario.json"
+    record = json.loads(record_file.read_text()) if record_file.exists() else None
+    # a run on simulated time: its times are read in simulated seconds (grader.bag.timebase)
+    used = ((record or {}).get("time_scale") or {}).get("used")
+    frames = load_frames(bag, time_scale=float(used) if used else None)
     meta = load_bag_meta(bag)
     publishers: dict[str, set[str]] = {}
     for ev in events(frames, Event.GRAPH):
@@ -96,9 +101,8 @@ def scenario_frames(scenario_dir: Path) -> dict:
     if canvas.exists():
         from grader.bag.frames import canvas_frame
         frames["__canvas__"] = canvas_frame(canvas)
-    record_file = scenario_dir / "scenario.json"
-    if record_file.exists():
-        frames["__meta__"].attrs["scenario"] = json.loads(record_file.read_text())
+    if record is not None:
+        frames["__meta__"].attrs["scenario"] = record
     return frames
 
 
@@ -196,10 +200,13 @@ def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], li
 def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | None = None,
                      public_only: bool = False, sid: str | None = None,
                      progress: Callable[[str], None] | None = None, slots=None,
-                     reuse: bool = True) -> GradedSubmission:
+                     reuse: bool = True, time_scale: float = 1.0) -> GradedSubmission:
     """Build, run the needed scenarios (side by side, within ``slots``), analyze and score one
     submission; writes its folder. ``reuse``: copy a scenario's recording when everything it
-    runs is identical to an earlier run (see grader.grading.reuse)."""
+    runs is identical to an earlier run (see grader.grading.reuse). ``time_scale`` > 1: run
+    scenarios that may on simulated time, that much faster (see grader.grading.timescale)."""
+    from grader.grading.timescale import expected_rates
+
     from grader.grading.schedule import Slots
     from grader.rubric.score import score
     from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
@@ -235,11 +242,13 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     items = selected_items(rubric, public_only)
     recordings = (Path(cache_dir or default_cache_dir()) / "recordings") if reuse else None
     reused: dict[str, dict] = {}
+    time_scales: dict[str, dict] = {}
     t1 = time.monotonic()
     scenario_ids = needed_scenarios(items)
     say(f"{sid}: scenarios {', '.join(scenario_ids)}")
     with ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
-        runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings)
+        runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings,
+                                   time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else ())
                 for sc_id in scenario_ids}
         for sc_id, future in runs.items():
             record = future.result()
@@ -248,6 +257,8 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
             errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]
             if record.get("reused"):
                 reused[sc_id] = record["reused"]
+            if time_scale > 1 and record.get("time_scale"):
+                time_scales[sc_id] = record["time_scale"]
     timings["scenarios_wall_s"] = round(time.monotonic() - t1, 2)
 
     say(f"{sid}: analyzing")
@@ -259,21 +270,24 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
         result = result.for_student()
     graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
                               build_failed=list(build.failed) if build else ["(no build)"],
-                              errors=errors, timings=timings, reused=reused)
+                              errors=errors, timings=timings, reused=reused, time_scales=time_scales)
     write_outputs(graded, rubric, public_only=public_only)
     return graded
 
 
-def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None) -> dict:
+def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None,
+             time_scale: float = 1.0, rates: tuple = ()) -> dict:
     """One scenario: copied from an identical earlier recording, or run (within a slot)."""
     from grader.grading.reuse import RecordingCache, reusable, scenario_key
-    from grader.scenario import resolve, run_scenario
+    from grader.grading.timescale import run_at_scale
+    from grader.scenario import resolve
 
     folder = out / SCENARIOS_DIR / sc_id
-    key = scenario_key(sc_id, scenario, build) if recordings is not None else None
+    settings = f"time_scale={time_scale:g}" if time_scale > 1 else ""
+    key = scenario_key(sc_id, scenario, build, settings) if recordings is not None else None
     if key is None:
         with slots.taken():
-            return run_scenario(resolve(sc_id, scenario, build), folder)
+            return run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
     cache = RecordingCache(recordings)
     with cache.locked(key):
         t0 = time.monotonic()
@@ -286,7 +300,7 @@ def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings
             (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
             return record
         with slots.taken():
-            record = run_scenario(resolve(sc_id, scenario, build), folder)
+            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
         if reusable(record):
             cache.put(key, folder, sid)
         return record
@@ -314,7 +328,8 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
     graded = GradedSubmission(sub_out.name, sub_out, result, build_ok=old.get("build", {}).get("ok", True),
                               build_failed=old.get("build", {}).get("failed", []),
                               errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
-                              timings=old.get("timings", {}), previous=previous_summary(old))
+                              timings=old.get("timings", {}), previous=previous_summary(old),
+                              time_scales=old.get("time_scale", {}))
     write_outputs(graded, rubric, public_only=public_only)
     return graded
 

@@ -4,6 +4,10 @@ Runs one scenario (a :class:`grader.scenario.model.ScenarioRun`) in its own isol
 recorder first (so it sees everything), then the reference simulator, the driver, the
 student's processes, the steps; then stops the student's processes, the recorder (SIGINT
 finalizes the bag) and the simulator (which saves its canvas). Writes ``OUT_DIR/scenario.json``.
+With ``time_scale`` > 1 the simulator (or ``grader_clock``) owns simulated time and every node
+runs with ``use_sim_time`` (see :mod:`grader.scenario.simtime`); the clock is held while a
+student process starts, and the run stops early with ``time_scale.fallback`` in the record when
+the watchdog says it would not grade like 1x (:mod:`grader.scenario.watchdog`).
 Runs in a child process started with the build's environment, so the student's interface types
 import here and rclpy state never leaks between scenarios.
 """
@@ -24,18 +28,37 @@ from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
 from grader.scenario.events import Event
 from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
+from grader.scenario.watchdog import RateWatchdog
+from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
 
 RECORDER_READY_S = 10.0
 SIM_READY_S = 15.0
 #: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
 #: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario
 STUDENT_STOP_GRACE_S = 2.0
+#: on simulated time: wall seconds a starting process may hold the clock until its node is up
+NODE_UP_S = 15.0
+#: then wall seconds until the clock owner has matched the new nodes' /clock readers
+CLOCK_MATCH_S = 5.0
+#: and for the new nodes to take the held /clock (and the recorder to match their publishers:
+#: DDS matching lags the graph) before the clock runs again
+FIRST_CLOCK_S = 0.5
+
+
+class _FallBack(Exception):
+    """The run on simulated time would not grade like 1x (the watchdog's reason)."""
 
 
 class _EventedProcess(ManagedProcess):
     """A student process whose scripted stdin lines are announced on /grader/events."""
 
     driver = None
+
+    def pause_before_line(self, seconds: float) -> bool:
+        """A line's delay in scenario time (simulated when the run is faster than real time)."""
+        if self.driver is None or not self.driver.clock.simulated:
+            return super().pause_before_line(seconds)
+        return self.driver.clock.sleep(seconds, stop=lambda: self.popen.poll() is not None)
 
     def on_stdin_line(self, text: str) -> None:
         if self.driver is not None:
@@ -49,7 +72,7 @@ def _open_gate(driver, proc: ManagedProcess, before: set, gate: threading.Event)
     while time.monotonic() < deadline and proc.alive():
         new = driver.student_nodes() - before
         if new and all(driver.recorder_matched(n) for n in new):
-            time.sleep(0.3)
+            driver.clock.sleep(0.3)
             break
         time.sleep(0.05)
     driver.event(Event.STDIN_READY, process=proc.name,
@@ -73,19 +96,61 @@ class Launcher:
 
     def start(self, name: str) -> list[str]:
         proc = self.run.scenario.process(name)
+        clock = self.driver.clock
         if proc.start_delay:
-            time.sleep(proc.start_delay)
+            clock.sleep(proc.start_delay)
         launched = self.run.launched.get(name, ())
         started: list[str] = []
         launched = [lp for lp in launched if not lp.stand_in]   # the reference sim plays those
         delayed = [lp for lp in launched if lp.start_delay > 0]
-        for lp in launched:
-            if lp.start_delay <= 0 and self._start_one(proc, lp):
-                started.append(lp.name)
+        with clock.held():
+            before = self.driver.student_nodes(), clock.clock_readers()
+            for lp in launched:
+                if lp.start_delay <= 0 and self._start_one(proc, lp):
+                    started.append(lp.name)
+            self._wait_up(before, started)
         for lp in delayed:      # a launch file's TimerAction: start later, without blocking steps
-            threading.Timer(lp.start_delay, self._start_one, args=(proc, lp)).start()
+            if clock.simulated:
+                threading.Thread(target=self._start_later, args=(proc, lp), daemon=True).start()
+            else:
+                threading.Timer(lp.start_delay, self._start_one, args=(proc, lp)).start()
             started.append(lp.name)
         return started
+
+    def _start_later(self, proc: Process, lp: LaunchedProcess) -> None:
+        clock = self.driver.clock
+        clock.sleep(lp.start_delay)
+        with clock.held():
+            before = self.driver.student_nodes(), clock.clock_readers()
+            if self._start_one(proc, lp):
+                self._wait_up(before, [lp.name])
+
+    def _wait_up(self, before: tuple[set, int | None], names: list[str]) -> None:
+        """On simulated time, while the clock is held: wait (wall time) until the started
+        processes' nodes are in the graph with their topics recorded and the clock owner has
+        matched their ``/clock`` readers (or the processes ended), then a moment for their first
+        ``/clock``. ``before``: the student nodes and matched readers before they started."""
+        clock = self.driver.clock
+        if not clock.simulated or not names:
+            return
+        driver = self.driver
+        before, readers = before
+
+        def alive() -> list[str]:
+            return [n for n in names if n in self.students and self.students[n].alive()]
+
+        def up() -> bool:
+            new = driver.student_nodes() - before
+            return not alive() or (len(new) >= len(alive()) and all(driver.recorder_matched(n) for n in new))
+
+        def clocked() -> bool:
+            now = clock.clock_readers()
+            return not alive() or readers is None or now is None or \
+                now >= readers + len(driver.student_nodes() - before)
+
+        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and \
+                driver.wait_until(clocked, CLOCK_MATCH_S, poll=0.02, wall=True):
+            time.sleep(FIRST_CLOCK_S)
 
     def _start_one(self, proc: Process, lp: LaunchedProcess) -> bool:
         driver = self.driver
@@ -96,8 +161,11 @@ class Launcher:
         script = list(proc.stdin or ()) if proc.launch is None else []
         gate = threading.Event() if script else None
         before = driver.student_nodes()
+        argv = list(lp.argv)
+        if self.run.time_scale > 1:     # every node of the process follows /clock
+            argv += ["--ros-args", "-p", "use_sim_time:=true"]
         managed = self.graph.start(ProcessSpec(
-            lp.name, list(lp.argv), env={**proc.env, **lp.env} or None,
+            lp.name, argv, env={**proc.env, **lp.env} or None,
             stdin=script if (script or proc.stdin is not None) else None,
             close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.scenario.time_limit_s),
             nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0),
@@ -119,9 +187,13 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     from grader.scenario.steps import Runtime, action_name, prepare, run_step
 
     spec = run.scenario
+    scale = run.time_scale if run.time_scale > 1 else None
+    clock_node = (run.sim_node if spec.sim else CLOCK_NODE) if scale else None
     out.mkdir(parents=True, exist_ok=True)
     record: dict[str, Any] = {"scenario": run.id, "steps": [], "processes": {}, "errors": [],
                               "bag": str(out / "bag"), "canvas": None}
+    if scale:
+        record["time_scale"] = {"used": scale}
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
     driver = None
@@ -129,7 +201,10 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
         record["domain_id"] = graph.domain_id
         try:
             topics = None if spec.record == "all" else list(spec.record) + ["/grader/events", "/grader/stdout"]
-            recorder = graph.start(ProcessSpec("recorder", recorder_argv(out / "bag", topics), stop_grace_s=10.0))
+            if topics is not None and scale:
+                topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
+            recorder = graph.start(ProcessSpec("recorder", recorder_argv(
+                out / "bag", topics, extra=["--time-scale", repr(scale)] if scale else ()), stop_grace_s=10.0))
             try:
                 wait_ready(recorder.stdout_path, RECORDER_READY_S, proc=recorder)
             except GraderError as exc:
@@ -139,9 +214,19 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 from grader.sim import sim_argv
                 canvas = out / "canvas.png"
                 sim = graph.start(ProcessSpec("turtlesim", sim_argv(
-                    canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"])))
+                    canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale)))
                 record["canvas"] = str(canvas)
-            driver = Driver(graph.domain_id, students, sim_node=run.sim_node)
+            elif scale:
+                from grader.sim import sim_argv
+                graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
+            driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
+                            clock_node=clock_node)
+            if scale:
+                if not driver.clock.wait_for_clock(SIM_READY_S):
+                    raise RuntimeError(f"no {CLOCK_TOPIC} from the grader's clock within {SIM_READY_S:.0f}s")
+                driver.watchdog = RateWatchdog(run.expected_rates, clock_owner=clock_node)
+                for expect in run.expected_rates:
+                    driver.count_messages(expect.topic, None, wait_s=0.0)
             if sim is not None:
                 driver.watch_pose()
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
@@ -176,12 +261,16 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                     continue
                 outcome = run_step(rt, step)
                 record["steps"].append(outcome)
+                _check_watchdog(driver)
                 if outcome["ended_by"] == "timeout" and step.on_timeout == "abort":
                     driver.event(Event.SCENARIO_ABORTED, step=step.id)
                     break
-            time.sleep(0.5)            # let the last messages reach the recorder
+            driver.clock.sleep(0.5)    # let the last messages reach the recorder
+            _check_watchdog(driver)
             driver.graph_snapshot()
             driver.event(Event.SCENARIO_END, scenario=run.id)
+        except _FallBack as exc:
+            record["time_scale"]["fallback"] = str(exc)
         except KeyboardInterrupt:
             # SIGTERM from the parent (batch Ctrl-C or time limit): stop, but keep what was recorded
             record["errors"].append("interrupted: the scenario was stopped before it finished")
@@ -201,12 +290,22 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                                              "exited_early": crashed, "timed_out": proc.timed_out,
                                              "killed": proc.killed}
             if driver is not None:
+                if scale:
+                    record["time_scale"].update(sim_s=round(driver.clock.sim_s(), 3),
+                                                held_s=round(driver.clock.held_s, 3))
                 driver.shutdown()
             graph.stop_all()
     record["active_s"] = round(sum(s["duration_s"] for s in record["steps"]), 3)
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
+
+
+def _check_watchdog(driver) -> None:
+    if driver.watchdog is not None:
+        reason = driver.watchdog.verdict(driver.node)
+        if reason:
+            raise _FallBack(reason)
 
 
 def _interrupt_once(*_args) -> None:
