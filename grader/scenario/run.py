@@ -232,6 +232,13 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
+            if scale:
+                # at K x a recorder still discovering the clock owner's topics would miss K times
+                # more of the scenario's start: hold the clock until it records them
+                with driver.clock.held():
+                    driver.wait_until(lambda: driver.recorder_matched((clock_node, "/")), RECORDER_READY_S,
+                                      wall=True)
+                    time.sleep(FIRST_CLOCK_S)
             launcher = Launcher(run, graph, driver, students)
             rt = Runtime(driver, run, launcher.start, launcher.members)
             prepare(rt)
@@ -303,7 +310,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
 
 def _check_watchdog(driver) -> None:
     if driver.watchdog is not None:
-        reason = driver.watchdog.verdict(driver.node)
+        reason = driver.watchdog.verdict(driver.node, driver.clock.sim_s(), driver.student_publishes)
         if reason:
             raise _FallBack(reason)
 

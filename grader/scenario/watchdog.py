@@ -1,22 +1,26 @@
 """Is a faster-than-real-time run still faithful? The run-time signals that send it back to 1x.
 
-ROS timers and ``create_rate`` follow ``/clock``; ``time.sleep`` and ``time.time`` do not. A node
-that paces itself with the wall clock publishes K times too slowly in simulated time, and its
-grade would change with the speed. The static scan (:mod:`grader.grading.timescale`) finds the
-usual ways to do that before the run; at run time this watchdog compares each rate the rubric
-expects (``ScenarioRun.expected_rates``) with the student's messages, timed both ways:
+ROS timers and ``create_rate`` follow ``/clock``; ``time.sleep``, ``time.time`` and the timeout
+of ``spin_once`` do not. A node paced by the wall clock publishes K times too slowly in
+simulated time (or, woken by every ``/clock``, far too fast), and its grade would change with
+the speed. The static scan (:mod:`grader.grading.timescale`) finds the usual ways before the
+run; at run time this watchdog checks every rate the rubric expects
+(``ScenarioRun.expected_rates``, from its ``publish_rate`` items) in simulated time, with pauses
+(intervals over ``GAP_FACTOR`` expected periods, e.g. between two goals) left out. The arrival
+times are the driver's, so delivery in bursts on a busy machine averages out; the analyzer later
+measures the recorded times.
 
-* the rate in simulated time is off by more than the expectation's tolerance, **and**
-* the rate in wall time is closer to the expectation (in ratio) than the simulated one.
+* measured: off by more than the expectation's tolerance (the item's partial-credit band);
+* too few messages: a student node advertises the topic, yet fewer than two messages arrived
+  in ``QUIET_PERIODS`` expected periods of simulated time.
 
-A node that is simply wrong (10 Hz instead of 1 Hz on its ROS timer) is as wrong at 1x, fails
-the first test's partner and keeps its fast run; one paced by the wall clock matches in wall
-time and is sent back. A second signal: anyone but the grader's clock publishing ``/clock``.
+Either one sends the scenario back to 1x. A node that is simply wrong (10 Hz instead of 1 Hz)
+is then graded at 1x too, which only costs time: the grade is never taken from a run that might
+differ from 1x. A third signal: anyone but the grader's clock publishing ``/clock``.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -24,31 +28,38 @@ from typing import Any
 from grader.scenario.model import RateExpectation
 from grader.sim.clock import CLOCK_TOPIC
 
-#: intervals needed before a rate is judged
-MIN_INTERVALS = 4
+#: intervals longer than this many expected periods are pauses, not the rate
+GAP_FACTOR = 5.0
+#: expected periods a published topic may stay silent before that alone is a signal
+QUIET_PERIODS = 4.0
 
 
-def rate(times: list[float]) -> float:
-    """Messages per second over the span of ``times`` (nan with fewer than two)."""
-    if len(times) < 2 or times[-1] <= times[0]:
+def rate(times: list[float], max_gap: float) -> float:
+    """Messages per second: 1 / mean interval, intervals over ``max_gap`` left out (0 when every
+    interval is one); nan with fewer than two messages."""
+    gaps = [b - a for a, b in zip(times, times[1:])]
+    if not gaps:
         return float("nan")
-    return (len(times) - 1) / (times[-1] - times[0])
+    kept = [g for g in gaps if g <= max_gap]
+    if not kept:
+        return 0.0
+    mean = sum(kept) / len(kept)
+    return 1.0 / mean if mean > 0 else float("inf")
 
 
-def wall_paced(expect: RateExpectation, sim_times: list[float], wall_times: list[float]) -> str | None:
-    """Why the topic looks paced by the wall clock, or None (see the module docstring)."""
-    if len(sim_times) < MIN_INTERVALS + 1:
+def off_rate(expect: RateExpectation, sim_times: list[float], wall_times: list[float]) -> str | None:
+    """Why the measured rate would not grade like 1x, or None."""
+    max_gap = GAP_FACTOR / expect.expected_hz
+    r_sim = rate(sim_times, max_gap)
+    if r_sim != r_sim or abs(r_sim / expect.expected_hz - 1.0) <= expect.rel_tol:
         return None
-    r_sim, r_wall = rate(sim_times), rate(wall_times)
-    if not (math.isfinite(r_sim) and math.isfinite(r_wall)):
-        return None
-    off_sim = abs(math.log(r_sim / expect.expected_hz))
-    off_wall = abs(math.log(r_wall / expect.expected_hz))
-    if abs(r_sim / expect.expected_hz - 1.0) > expect.rel_tol and off_wall < off_sim:
-        return (f"{expect.topic} was published at {r_sim:.3g} Hz in simulated time but {r_wall:.3g} Hz "
-                f"in wall time (expected {expect.expected_hz:g} Hz): the node paces itself with the "
-                "wall clock")
-    return None
+    r_wall = rate(wall_times, max_gap)
+    return (f"{expect.topic} was published at {_hz(r_sim)} of simulated time ({_hz(r_wall)} of wall "
+            f"time) where {expect.expected_hz:g} Hz is expected: not paced by the ROS clock alone")
+
+
+def _hz(value: float) -> str:
+    return f"{value:.3g} Hz" if value != float("inf") else "several messages per clock tick"
 
 
 @dataclass
@@ -58,6 +69,7 @@ class RateWatchdog:
     expected: tuple[RateExpectation, ...]
     clock_owner: str
     arrivals: dict[str, tuple[list[float], list[float]]] = field(default_factory=dict)
+    advertised_at: dict[str, float] = field(default_factory=dict)   # sim time a student publisher was seen
 
     def __post_init__(self) -> None:
         self.arrivals = {e.topic: ([], []) for e in self.expected}
@@ -68,20 +80,29 @@ class RateWatchdog:
             lists[0].append(sim_s)
             lists[1].append(time.monotonic())
 
-    def verdict(self, node: Any = None) -> str | None:
-        """The first reason to rerun at 1x, or None. ``node``: an rclpy node to ask who
-        publishes ``/clock``."""
-        if node is not None:
-            try:
-                others = sorted({i.node_name for i in node.get_publishers_info_by_topic(CLOCK_TOPIC)}
-                                - {self.clock_owner})
-            except Exception:  # noqa: BLE001 - graph queries can race with shutdown
-                others = []
-            if others:
-                return f"{', '.join(others)} published {CLOCK_TOPIC}, which only the grader's clock may"
+    def verdict(self, node: Any, sim_now: float, student_publishes: Any = None) -> str | None:
+        """The first reason to rerun at 1x, or None. ``node``: an rclpy node of the graph;
+        ``student_publishes(topic)``: does a student node advertise it."""
+        try:
+            others = sorted({i.node_name for i in node.get_publishers_info_by_topic(CLOCK_TOPIC)}
+                            - {self.clock_owner})
+        except Exception:  # noqa: BLE001 - graph queries can race with shutdown
+            others = []
+        if others:
+            return f"{', '.join(others)} published {CLOCK_TOPIC}, which only the grader's clock may"
         for expect in self.expected:
             sim_times, wall_times = self.arrivals[expect.topic]
-            reason = wall_paced(expect, sim_times, wall_times)
+            reason = off_rate(expect, sim_times, wall_times)
             if reason:
                 return reason
+            if len(sim_times) >= 2 or student_publishes is None:
+                continue
+            if expect.topic not in self.advertised_at:
+                if student_publishes(expect.topic):
+                    self.advertised_at[expect.topic] = sim_now
+                continue
+            quiet = sim_now - max([self.advertised_at[expect.topic], *sim_times])
+            if quiet >= QUIET_PERIODS / expect.expected_hz:
+                return (f"{expect.topic} is advertised but only {len(sim_times)} message(s) arrived in "
+                        f"{quiet:.3g} s of simulated time where {expect.expected_hz:g} Hz is expected")
         return None
