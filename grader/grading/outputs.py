@@ -111,8 +111,9 @@ def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:
     notes = []
     if fast:
         used = {float(time_scales[sc]["used"]) for sc in fast}
-        speed = f"{used.pop():g}x" if len(used) == 1 else "faster"
-        notes.append(f"scenarios {', '.join(fast)} ran {speed} than real time (on simulated time)")
+        speed = f"{used.pop():g}x faster" if len(used) == 1 else "faster"
+        notes.append(f"scenario{'s' if len(fast) > 1 else ''} {', '.join(fast)} ran {speed} than real time "
+                     "(on simulated time)")
     notes += [describe(sc, ts) for sc, ts in sorted(time_scales.items()) if float(ts.get("used", 1)) <= 1]
     return notes
 

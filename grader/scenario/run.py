@@ -14,6 +14,7 @@ import here and rclpy state never leaks between scenarios.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import signal
 import sys
@@ -42,7 +43,7 @@ NODE_UP_S = 15.0
 CLOCK_MATCH_S = 5.0
 #: and for the new nodes to take the held /clock (and the recorder to match their publishers:
 #: DDS matching lags the graph) before the clock runs again
-FIRST_CLOCK_S = 0.5
+FIRST_CLOCK_S = 0.3
 
 
 class _FallBack(Exception):
@@ -205,20 +206,15 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
             recorder = graph.start(ProcessSpec("recorder", recorder_argv(
                 out / "bag", topics, extra=["--time-scale", repr(scale)] if scale else ()), stop_grace_s=10.0))
+            # on simulated time the clock owner starts alongside the recorder: the clock is held
+            # below until the recorder records it, so nothing is missed
+            sim = _start_clock_owner(graph, run, out, record, scale) if scale else None
             try:
                 wait_ready(recorder.stdout_path, RECORDER_READY_S, proc=recorder)
             except GraderError as exc:
                 record["errors"].append(f"{exc} {recorder.errors()[-500:]}")
-            sim = None
-            if spec.sim:
-                from grader.sim import sim_argv
-                canvas = out / "canvas.png"
-                sim = graph.start(ProcessSpec("turtlesim", sim_argv(
-                    canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale)))
-                record["canvas"] = str(canvas)
-            elif scale:
-                from grader.sim import sim_argv
-                graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
+            if not scale:
+                sim = _start_clock_owner(graph, run, out, record, scale)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
                             clock_node=clock_node)
             if scale:
@@ -232,13 +228,14 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
+            start_hold = contextlib.ExitStack()
             if scale:
-                # at K x a recorder still discovering the clock owner's topics would miss K times
-                # more of the scenario's start: hold the clock until it records them
-                with driver.clock.held():
-                    driver.wait_until(lambda: driver.recorder_matched((clock_node, "/")), RECORDER_READY_S,
-                                      wall=True)
-                    time.sleep(FIRST_CLOCK_S)
+                # the clock is held from here until the autostarted processes are up: a recorder
+                # still discovering the clock owner's topics would miss K times more of the start
+                start_hold.enter_context(driver.clock.held())
+                driver.wait_until(lambda: driver.recorder_matched((clock_node, "/")), RECORDER_READY_S,
+                                  wall=True)
+                time.sleep(FIRST_CLOCK_S)
             launcher = Launcher(run, graph, driver, students)
             rt = Runtime(driver, run, launcher.start, launcher.members)
             prepare(rt)
@@ -257,6 +254,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             for proc in spec.processes:
                 if proc.autostart:
                     launcher.start(proc.name)
+            start_hold.close()
             for step in spec.steps:
                 if spec.processes and step.start is None and not any(p.alive() for p in students.values()):
                     # nobody left to grade (build failed, crashed on start-up): waiting for this
@@ -306,6 +304,22 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
+
+
+def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dict[str, Any],
+                       scale: float | None) -> ManagedProcess | None:
+    """The reference simulator (with the clock on simulated time), or without one on simulated
+    time ``grader_clock``; returns the simulator's process (None without a simulator)."""
+    from grader.sim import sim_argv
+
+    if run.scenario.sim:
+        canvas = out / "canvas.png"
+        record["canvas"] = str(canvas)
+        return graph.start(ProcessSpec("turtlesim", sim_argv(
+            canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale)))
+    if scale:
+        graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
+    return None
 
 
 def _check_watchdog(driver) -> None:
