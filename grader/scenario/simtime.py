@@ -20,6 +20,8 @@ import threading
 import time
 from typing import Any, Callable, Iterator
 
+from grader.sim.clock import HOLD_SERVICE, STOP_SERVICE
+
 #: wall seconds to wait for the clock owner's hold service and for the clock to reach the hold
 HOLD_WAIT_S = 10.0
 
@@ -39,6 +41,7 @@ class ScenarioClock:
         self.held_s = 0.0                       # wall seconds the clock was held, finished holds
         self._held_since: float | None = None   # monotonic time the current hold froze the clock
         self._holds = 0
+        self.requests = 0                       # hold/stop requests made to the clock owner
         self._lock = threading.Lock()
         self._client: Any = None
 
@@ -124,6 +127,26 @@ class ScenarioClock:
                 if self._holds == 0:
                     self._release()
 
+    def stop(self) -> bool:
+        """Stop the clock for good (the scenario ended; a no-op at 1x). False when the clock
+        owner served more hold requests than this driver made: someone else held the clock."""
+        if not self.simulated or self.hold_service is None:
+            return True
+        from std_srvs.srv import Trigger
+
+        client = self.node.create_client(Trigger, self.hold_service.replace(HOLD_SERVICE, STOP_SERVICE))
+        if not client.wait_for_service(timeout_sec=HOLD_WAIT_S):
+            return True
+        self.requests += 1
+        future = client.call_async(Trigger.Request())
+        end = time.monotonic() + HOLD_WAIT_S
+        while not future.done() and time.monotonic() < end:
+            time.sleep(0.002)
+        try:
+            return int(future.result().message.split()[1]) <= self.requests
+        except (AttributeError, IndexError, ValueError):
+            return True
+
     def _call(self, on: bool) -> tuple[int, int] | None:
         """Ask the clock owner to hold (or run); its reply: (time in ns, matched readers)."""
         from std_srvs.srv import SetBool
@@ -132,6 +155,7 @@ class ScenarioClock:
             self._client = self.node.create_client(SetBool, self.hold_service)
         if not self._client.wait_for_service(timeout_sec=HOLD_WAIT_S):
             return None
+        self.requests += 1
         future = self._client.call_async(SetBool.Request(data=on))
         end = time.monotonic() + HOLD_WAIT_S
         while not future.done() and time.monotonic() < end:

@@ -33,6 +33,8 @@ from grader.sim.physics import TICK_MS
 CLOCK_TOPIC = "/clock"
 #: relative to the node that owns the clock (the simulator, or ``grader_clock`` without one)
 HOLD_SERVICE = "hold_clock"
+#: ``std_srvs/srv/Trigger``: stop the clock at once, for good (the scenario has ended)
+STOP_SERVICE = "stop_clock"
 #: node name of the clock publisher of scenarios without a simulator (``sim: false``)
 CLOCK_NODE = "grader_clock"
 TICK_NS = TICK_MS * 1_000_000
@@ -61,6 +63,7 @@ class SimClock:
         self.now_ns = 0
         self.held = False
         self.hold_at: int | None = None
+        self.requests = 0          # hold/stop requests served (the driver compares with its own)
         self._pub: Any = None
         self._msg: Any = None
 
@@ -76,6 +79,12 @@ class SimClock:
         self.now_ns += TICK_NS
         if self.hold_at is not None and self.now_ns >= self.hold_at:
             self.held = True
+        return self.now_ns
+
+    def stop(self) -> int:
+        """No tick after this one: the scenario ended. Its shutdown takes wall time, which must
+        not become K times more simulated time (a turtle stopping, nodes timing out)."""
+        self.held = True
         return self.now_ns
 
     def hold(self, on: bool) -> int:
@@ -97,17 +106,26 @@ class SimClock:
         node's ``~/hold_clock`` service."""
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from rosgraph_msgs.msg import Clock
-        from std_srvs.srv import SetBool
+        from std_srvs.srv import SetBool, Trigger
 
         self._msg = Clock()
         self._pub = node.create_publisher(Clock, CLOCK_TOPIC,
                                           QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
         node.create_service(SetBool, f"~/{HOLD_SERVICE}", self._on_hold)
+        node.create_service(Trigger, f"~/{STOP_SERVICE}", self._on_stop)
 
     def _on_hold(self, req: Any, res: Any) -> Any:
         """``message``: "<time it holds at (or runs from), ns> <matched /clock readers>": the
         driver asks again while holding until a starting node's reader is matched."""
+        self.requests += 1
         res.message = f"{self.hold(bool(req.data))} {self._pub.get_subscription_count()}"
+        res.success = True
+        return res
+
+    def _on_stop(self, _req: Any, res: Any) -> Any:
+        """``message``: "<time it stopped at, ns> <hold/stop requests served, this one included>"."""
+        self.requests += 1
+        res.message = f"{self.stop()} {self.requests}"
         res.success = True
         return res
 
