@@ -6,6 +6,8 @@ sooner. What does not follow ``/clock`` is the wall clock: a node that paces its
 ``time.sleep`` or reads ``time.time()`` would behave differently, and its grade would depend on
 the speed. So a scenario only runs faster when
 
+0. its rubric does not pin it to real time (``real_time: true``, for a scenario that judges
+   wall-clock behaviour), and
 1. the static scan of the Python packages it runs (their installed modules) finds no wall-clock
    pacing (:data:`WALL_CLOCK`), and
 2. at run time the watchdog (:mod:`grader.scenario.watchdog`) sees every rate the rubric expects
@@ -38,6 +40,8 @@ WALL_CLOCK = frozenset({
 WALL_CLOCK_TYPES = ("ClockType.STEADY_TIME", "ClockType.SYSTEM_TIME")
 #: the analyzer whose expectations the watchdog checks
 RATE_ANALYZER = "publish_rate"
+#: why a scenario marked ``real_time: true`` in its rubric runs at 1x
+REAL_TIME = "the rubric runs this scenario in real time (real_time: true)"
 
 
 def _dotted(node: ast.AST) -> str | None:
@@ -148,7 +152,7 @@ def run_at_scale(run: ScenarioRun, folder: Path, time_scale: float, build: Any,
 
     if time_scale <= 1:
         return run_scenario(run, folder)
-    reason = pacing_reason(build, run)
+    reason = REAL_TIME if run.scenario.real_time else pacing_reason(build, run)
     attempt: dict[str, Any] = {}
     if reason is None:
         record = run_scenario(run.model_copy(update={"time_scale": time_scale, "expected_rates": rates}),

@@ -480,6 +480,8 @@ class Scenario(Model):
     processes: Annotated[tuple[Process, ...], Field(strict=False)] = ()
     steps: Annotated[tuple[Step, ...], Field(min_length=1, strict=False)]
     limits: Limits = Limits()
+    real_time: bool = Field(False, description="run at 1x even with --time-scale (the scenario judges "
+                            "wall-clock behaviour; say why in a comment)")
 
     @model_validator(mode="after")
     def _goal_publishing(self) -> "Scenario":

@@ -202,3 +202,16 @@ def test_wall_paced_node_the_scan_misses_is_caught_at_run_time(pacing_build, tmp
     assert ts["attempt_wall_s"] > 0
     ticks = scenario_frames(tmp_path / "ticks")["/ticks"]       # the 1x recording: 2 Hz
     assert np.median(np.diff(ticks.index.to_numpy())) == pytest.approx(0.5, abs=0.05)
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+@pytest.mark.timeout(400)
+def test_a_node_using_the_clock_service_sends_the_run_back_to_1x(pacing_build, tmp_path: Path) -> None:
+    """The clock owner counts the hold requests it serves; any beyond the driver's own means a
+    student node reached for simulated time itself."""
+    run = resolve("ticks", ticks_scenario("pacers", "meddler"), pacing_build)
+    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,))
+    assert record["errors"] == []
+    ts = record["time_scale"]
+    assert ts["used"] == 1.0 and "held or stopped the simulated clock" in ts["fallback"], ts

@@ -11,5 +11,6 @@ setup(
     entry_points={"console_scripts": [
         "timer_node = pacers.timer_node:main",
         "spin_node = pacers.spin_node:main",
+        "meddler = pacers.meddler:main",
     ]},
 )
