@@ -1,5 +1,5 @@
 # Two commands for a fresh machine:
-#   make demo   grade the bundled example submissions (fixtures/) into demo-out/
+#   make demo   grade the bundled example submissions of every lab (fixtures/) into demo-out/<lab>/
 #   make test   run the test suite (what .ci/run calls)
 PYTHON ?= python3
 VENV   := .venv
@@ -10,10 +10,15 @@ GRADER := $(VENV)/bin/grader
 bootstrap:
 	@$(PYTHON) -m grader.bootstrap
 
+LABS := enee467_lab3 goal_setter wall_pen first_nodes
+
 demo: bootstrap
 	$(GRADER) doctor
-	$(GRADER) grade fixtures/submissions/enee467_lab3 --rubric rubrics/enee467_lab3.yaml -o demo-out --jobs 2
-	@echo "open demo-out/index.html (one report per submission) and demo-out/grades.csv"
+	@for lab in $(LABS); do \
+	  echo "== $$lab"; \
+	  $(GRADER) grade fixtures/submissions/$$lab --rubric rubrics/$$lab.yaml -o demo-out/$$lab || exit $$?; \
+	done
+	@echo "open demo-out/<lab>/index.html (the class view, one report per submission) and demo-out/<lab>/grades.csv"
 
 test: bootstrap
 	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)

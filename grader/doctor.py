@@ -55,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
     mode = {"wheels": "PyPI wheels in this venv", "system": "system install (sourced)",
             "missing": "NOT FOUND"}[info["mode"]]
     print(f"ROS 2    {info['distro']} from {mode}; rclpy {info['rclpy']}; RMW {info['rmw']}")
-    discovery = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET (default; runs use LOCALHOST)")
+    discovery = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE",
+                               "SUBNET (default; runs use LOCALHOST, or SUBNET in a scenario's own network namespace)")
     print(f"network  discovery range {discovery}")
     if info["mode"] == "missing":
         print("FAIL rclpy is not importable: run `grader setup` (`make bootstrap` in a checkout), "
@@ -69,5 +70,29 @@ def run(args: argparse.Namespace) -> int:
     passed, detail = live_selftest(args.timeout)
     ok &= passed
     print(f"{'PASS' if passed else 'FAIL'} live pub/sub self-test between two processes: {detail}")
+    ok &= _sandbox_report(args.timeout)
     print("doctor: everything works" if ok else "doctor: problems found (see FAIL lines)")
     return 0 if ok else 1
+
+
+def _sandbox_report(timeout: float) -> bool:
+    """The protections of student code (each probed for real), then a sandboxed node in a real
+    scenario. Missing protections are warnings (the grader falls back), not failures, unless
+    GRADER_SANDBOX=require."""
+    from grader.errors import GraderError
+    from grader.sandbox import protections, sandbox_mode
+    from grader.sandbox.scenario import require_complete
+    from grader.sandbox.selftest import sandbox_selftest
+
+    mode = sandbox_mode()
+    print(f"sandbox for student code (GRADER_SANDBOX={mode}):")
+    for row in protections(enabled=mode != "off"):
+        print(f"  {row.line()}")
+    try:
+        require_complete()
+    except GraderError as exc:
+        print(f"FAIL {exc}")
+        return False
+    passed, detail = sandbox_selftest(timeout)
+    print(f"{'PASS' if passed else 'FAIL'} sandboxed student node in a scenario: {detail}")
+    return passed

@@ -4,6 +4,10 @@ Every scenario starts the simulator, the recorder, the student's nodes and helpe
 :class:`RosGraph`, which leases its own ROS_DOMAIN_ID and guarantees that no process it started
 outlives the ``with`` block: stop is SIGINT (what Ctrl-C in a terminal sends, so well-behaved
 rclpy nodes shut down cleanly), then SIGTERM, then SIGKILL, always to the whole process group.
+
+A process marked ``untrusted`` (student code) runs in the graph's sandbox when the scenario
+has one (:mod:`grader.sandbox`: bubblewrap view, unprivileged user, minimal environment, the
+scenario's cgroup) and its stdout/stderr logs are capped.
 """
 
 from __future__ import annotations
@@ -16,13 +20,17 @@ import subprocess
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 from grader.domain import DomainLease, lease_domain
 from grader.errors import GraderError
 from grader.rosenv import child_env
+from grader.sandbox.capture import CappedLog
+from grader.sandbox.jail import Prepared, prepare
+from grader.sandbox.scenario import ChildConfig, child_config
+from grader.sandbox.watch import LimitWatch
 from grader.scenario.model import Limits, StdinLine
 
 _PR_SET_PDEATHSIG = 1
@@ -53,6 +61,7 @@ class ProcessSpec:
     nofile: int | None = NOFILE
     stop_grace_s: float = 3.0                    # SIGINT -> SIGTERM after this
     term_grace_s: float = 2.0                    # SIGTERM -> SIGKILL after this
+    untrusted: bool = False                      # student code: the graph's sandbox, capped logs
 
 
 def python_argv(module: str, *args: str) -> list[str]:
@@ -60,8 +69,9 @@ def python_argv(module: str, *args: str) -> list[str]:
     return [sys.executable, "-m", module, *args]
 
 
-def _preexec(spec: "ProcessSpec") -> None:
-    """Runs in the child between fork and exec: new session, die with parent, rlimits."""
+def _preexec(spec: "ProcessSpec", prepared: Prepared | None = None) -> None:
+    """Runs in the child between fork and exec: new session, die with parent, rlimits, and the
+    sandbox's own steps (join the scenario's cgroup)."""
     os.setsid()
     if _LIBC is not None:
         _LIBC.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
@@ -75,6 +85,8 @@ def _preexec(spec: "ProcessSpec") -> None:
             soft, hard = resource.getrlimit(res)
             cap = value if hard == resource.RLIM_INFINITY else min(value, hard)
             resource.setrlimit(res, (cap, cap))
+    if prepared is not None:
+        prepared.preexec()
 
 
 class ManagedProcess:
@@ -85,7 +97,8 @@ class ManagedProcess:
     stdin_gate_timeout_s: float = 20.0
 
     def __init__(self, spec: ProcessSpec, env: Mapping[str, str], logdir: Path,
-                 stdin_gate: threading.Event | None = None) -> None:
+                 stdin_gate: threading.Event | None = None, *, prepared: Prepared | None = None,
+                 output_cap: int | None = None) -> None:
         self.spec = spec
         self.stdin_gate = stdin_gate
         self.name = spec.name
@@ -95,18 +108,36 @@ class ManagedProcess:
         self.stopped_by_grader = False
         self.killed = False
         self.started_at = time.monotonic()
+        self.prepared = prepared
+        self.output_cut: dict[str, int] = {}     # stream -> cap, once the log was cut
         self._out = open(self.stdout_path, "wb")
         self._err = open(self.stderr_path, "wb")
+        self._capped: list[CappedLog] = []
+        stdout, stderr = self._out, self._err
+        pipes: list[tuple[int, int, Path, str]] = []
+        if output_cap:
+            for path, stream in ((self.stdout_path, "stdout"), (self.stderr_path, "stderr")):
+                r, w = os.pipe()
+                pipes.append((r, w, path, stream))
+            stdout, stderr = pipes[0][1], pipes[1][1]
+        argv = prepared.argv if prepared is not None else list(spec.argv)
         try:
             self.popen = subprocess.Popen(
-                list(spec.argv), env=dict(env), cwd=spec.cwd,
+                argv, env=dict(prepared.env if prepared is not None else env),
+                cwd=prepared.cwd if prepared is not None else spec.cwd,
                 stdin=subprocess.PIPE if spec.stdin is not None else subprocess.DEVNULL,
-                stdout=self._out, stderr=self._err,
-                preexec_fn=lambda: _preexec(spec), close_fds=True)
+                stdout=stdout, stderr=stderr,
+                preexec_fn=lambda: _preexec(spec, prepared), close_fds=True)
         except OSError as exc:
             self._out.close()
             self._err.close()
-            raise GraderError(f"cannot start {spec.name} ({spec.argv[0]}): {exc.strerror}") from exc
+            for r, w, _path, _stream in pipes:
+                os.close(r)
+                os.close(w)
+            raise GraderError(f"cannot start {spec.name} ({argv[0]}): {exc.strerror}") from exc
+        for r, w, path, stream in pipes:
+            os.close(w)
+            self._capped.append(CappedLog(r, path, output_cap or 0, stream=stream, on_cut=self._cut))
         self.pid = self.popen.pid
         self.pgid = self.pid
         self._lock = threading.Lock()
@@ -148,6 +179,13 @@ class ManagedProcess:
         scenario waits in simulated time when it runs faster than real time)."""
         return self._sleep_unless_exited(seconds)
 
+    def on_output_cut(self, stream: str, cap: int) -> None:
+        """Hook: called once per stream when its log reached the cap (the scenario reports it)."""
+
+    def _cut(self, stream: str, cap: int) -> None:
+        self.output_cut[stream] = cap
+        self.on_output_cut(stream, cap)
+
     def _sleep_unless_exited(self, seconds: float) -> bool:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
@@ -165,16 +203,18 @@ class ManagedProcess:
     # -- public API -----------------------------------------------------------------------
     @property
     def returncode(self) -> int | None:
-        return self.popen.poll()
+        rc = self.popen.poll()
+        return self.prepared.exit_code(rc) if self.prepared is not None else rc
 
     def alive(self) -> bool:
         return self.popen.poll() is None
 
     def wait(self, timeout: float | None = None) -> int | None:
         try:
-            return self.popen.wait(timeout)
+            self.popen.wait(timeout)
         except subprocess.TimeoutExpired:
             return None
+        return self.returncode
 
     def _signal_group(self, sig: int) -> None:
         try:
@@ -201,12 +241,16 @@ class ManagedProcess:
                     self.popen.wait()
             self._signal_group(signal.SIGKILL)  # stragglers left in the group
             self._close_files()
-            return self.popen.returncode
+            return self.returncode
 
     def _close_files(self) -> None:
+        for log in self._capped:
+            log.join(timeout=2.0)       # EOF once the group is gone; a detached holder ends with the scenario
         for f in (self._out, self._err):
             if not f.closed:
                 f.close()
+        if self.prepared is not None:
+            self.prepared.cleanup()
         if self.popen.stdin and not self.popen.stdin.closed:
             try:
                 self.popen.stdin.close()
@@ -233,27 +277,44 @@ class RosGraph:
 
     def __init__(self, workdir: Path, *, prefixes: Iterable[Path] = (),
                  extra_env: Mapping[str, str] | None = None,
-                 lease: DomainLease | None = None) -> None:
+                 lease: DomainLease | None = None, sandbox: ChildConfig | None = None) -> None:
         self.workdir = Path(workdir)
         self.logdir = self.workdir / "logs"
         self.logdir.mkdir(parents=True, exist_ok=True)
+        #: the scenario's sandbox for ``untrusted`` processes (from run_scenario), else None
+        self.sandbox = sandbox if sandbox is not None else child_config()
         self._lease = lease or lease_domain()
         self.domain_id = self._lease.domain_id
         ros_log = self.workdir / "ros_log"
-        self.env = child_env(domain_id=self.domain_id, prefixes=prefixes,
-                             extra={"ROS_LOG_DIR": str(ros_log), **(extra_env or {})})
+        extra = {"ROS_LOG_DIR": str(ros_log)}
+        if self.sandbox is not None and self.sandbox.netns:
+            extra["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"   # the namespace is the boundary
+        self.env = child_env(domain_id=self.domain_id, prefixes=prefixes, extra={**extra, **(extra_env or {})})
         self.processes: list[ManagedProcess] = []
+        self.limits = LimitWatch(self.sandbox)
 
     def start(self, spec: ProcessSpec, process_class: type[ManagedProcess] = ManagedProcess,
               **kwargs) -> ManagedProcess:
         if any(p.name == spec.name for p in self.processes):
             raise ValueError(f"process name {spec.name!r} already used in this graph")
         env = dict(self.env)
-        if spec.env:
+        if spec.untrusted and self.sandbox is not None:
+            kwargs["prepared"] = prepare(self.sandbox.jail, spec.argv, env, extra_env=spec.env,
+                                         cwd=str(spec.cwd) if spec.cwd else None)
+            kwargs["output_cap"] = self.sandbox.policy.output_cap_bytes
+        elif spec.env:
             env.update(spec.env)
         proc = process_class(spec, env, self.logdir, **kwargs)
+        if kwargs.get("output_cap"):
+            self.limits.watch_output(proc)
         self.processes.append(proc)
         return proc
+
+    def output_cuts(self) -> list[dict]:
+        """Every log that reached its cap: ``{"process", "stream", "cap_bytes", "detail"}``."""
+        return [{"process": p.name, "stream": stream, "cap_bytes": cap,
+                 "detail": f"{p.name}: {stream} cut at {cap / 2**20:g} MiB (output limit)"}
+                for p in self.processes for stream, cap in sorted(p.output_cut.items())]
 
     def stop_all(self) -> None:
         """Stop in reverse start order (student nodes before the recorder and the sim)."""
@@ -264,6 +325,7 @@ class RosGraph:
         try:
             self.stop_all()
         finally:
+            self.limits.stop()
             self._lease.release()
 
     def __enter__(self) -> "RosGraph":
@@ -271,3 +333,4 @@ class RosGraph:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+

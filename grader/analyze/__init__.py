@@ -60,6 +60,7 @@ _MODULES = (
     "random_numbers",
     "boxmuller",
     "controller",
+    "control_law",
     "goal_publisher",
     "action_server",
     "integrity",

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import re
-from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
 import numpy as np
@@ -78,6 +77,17 @@ def topic(frames: Frames, name: str) -> pd.DataFrame | None:
     if isinstance(df, pd.DataFrame) and len(df) > 0:
         return df
     return None
+
+
+def sim_pose(frames: Frames, pose_topic: str) -> pd.DataFrame | None:
+    """The simulator's own poses for ``pose_topic``: its grader-only copy
+    (``/grader/sim/turtle1/pose``, published by the reference simulator alone), else — in bags
+    recorded before the copy existed — the public topic. A node that publishes its own
+    ``/turtle1/pose`` therefore cannot move the turtle a grade is judged on."""
+    from grader.sim import truth_pose_topic
+
+    return topic(frames, truth_pose_topic(pose_topic)) if topic(frames, truth_pose_topic(pose_topic)) is not None \
+        else topic(frames, pose_topic)
 
 
 def topic_or_student_topic(frames: Frames, name: str, type_name: str | None
@@ -287,120 +297,6 @@ def stdout_lines(frames: Frames) -> pd.DataFrame:
     return out[cols]
 
 
-# --------------------------------------------------------------------------- goals
-def goal_xy(obj: Any) -> tuple[float, float] | None:
-    """Extract (x, y) from the shapes the driver may use: [x, y], {"x","y"}, {"goal": {...}}."""
-    if obj is None:
-        return None
-    if isinstance(obj, (list, tuple)) and len(obj) >= 2:
-        try:
-            return float(obj[0]), float(obj[1])
-        except (TypeError, ValueError):
-            return None
-    if isinstance(obj, Mapping):
-        if "x" in obj and "y" in obj:
-            try:
-                return float(obj["x"]), float(obj["y"])
-            except (TypeError, ValueError):
-                return None
-        for k in ("goal", "data", "position", "target"):
-            if k in obj:
-                r = goal_xy(obj[k])
-                if r is not None:
-                    return r
-    return None
-
-
-def parse_xy_line(line: str) -> tuple[float, float] | None:
-    """The lab's stdin format "x,y" (two floats separated by a comma); None when malformed."""
-    parts = str(line).strip().split(",")
-    if len(parts) != 2:
-        return None
-    try:
-        x, y = float(parts[0]), float(parts[1])
-    except ValueError:
-        return None
-    if not (math.isfinite(x) and math.isfinite(y)):
-        return None
-    return x, y
-
-
-@dataclass
-class Goal:
-    t: float
-    x: float
-    y: float
-    source: str
-    t_end: float = float("nan")
-    extra: dict = field(default_factory=dict)
-
-
-def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal") -> list[Goal]:
-    """Goals in time order: ``goal_sent`` events (auto/events) or Float32MultiArray on goal_topic.
-
-    Consecutive identical goals are merged (re-sending the same goal does not restart it).
-    ``t_end`` is the next goal's time (or NaN for the last goal).
-    """
-    out: list[Goal] = []
-    if source in ("auto", "events"):
-        for e in events(frames, Event.GOAL_SENT):
-            if e.get("topic") not in (None, goal_topic):
-                continue                      # a Float32MultiArray published elsewhere
-            xy = goal_xy(e.get("goal"))
-            if xy is None:
-                xy = goal_xy(e)
-            if xy is not None:
-                out.append(Goal(e["t"], xy[0], xy[1], "events", extra={"step": e.get("step")}))
-    if not out and source in ("auto", "topic"):
-        df = topic(frames, goal_topic)
-        if df is not None and "data[0]" in df.columns and "data[1]" in df.columns:
-            for t, x, y in zip(times(df), df["data[0]"], df["data[1]"]):
-                if np.isfinite(x) and np.isfinite(y):
-                    out.append(Goal(float(t), float(x), float(y), "topic"))
-    out.sort(key=lambda g: g.t)
-    merged: list[Goal] = []
-    for g in out:
-        if merged and abs(merged[-1].x - g.x) < 1e-3 and abs(merged[-1].y - g.y) < 1e-3:
-            continue
-        merged.append(g)
-    for a, b in zip(merged, merged[1:]):
-        a.t_end = b.t
-    return merged
-
-
-def wrap(a: np.ndarray | float) -> np.ndarray | float:
-    """Wrap angles to [-pi, pi)."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
-def heading_error(x, y, theta, xd, yd):
-    """theta_e of the lab's eq. (3): signed angle from the heading to the goal, in (-pi, pi]."""
-    dx, dy = np.asarray(xd) - np.asarray(x), np.asarray(yd) - np.asarray(y)
-    c, s = np.cos(theta), np.sin(theta)
-    return np.arctan2(dy * c - dx * s, dx * c + dy * s)
-
-
-def r2(y: np.ndarray, yhat: np.ndarray) -> float:
-    """Centred coefficient of determination (can be negative for a bad no-intercept fit)."""
-    y = np.asarray(y, float)
-    ss_tot = float(np.sum((y - y.mean()) ** 2))
-    ss_res = float(np.sum((y - yhat) ** 2))
-    if ss_tot <= 1e-12:
-        return 1.0 if ss_res <= 1e-12 else float("-inf")
-    return 1.0 - ss_res / ss_tot
-
-
-def fit_gain(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """Least squares y = K x without intercept; returns (K, R^2)."""
-    x = np.asarray(x, float)
-    y = np.asarray(y, float)
-    den = float(np.dot(x, x))
-    if den <= 1e-12:
-        return float("nan"), float("nan")
-    k = float(np.dot(x, y) / den)
-    return k, r2(y, k * x)
-
-
 def fmt(v: float, nd: int = 2) -> str:
     return "n/a" if v is None or not np.isfinite(v) else f"{v:.{nd}f}"
 
@@ -440,3 +336,25 @@ def service_calls(df: pd.DataFrame) -> list[dict]:
         elif not calls[key]["request"]:
             calls[key]["request"] = _request(df, i)
     return sorted(calls.values(), key=lambda c: c["t"])
+
+
+#: services that move the turtle without driving it
+TELEPORT_SERVICES = ("teleport_absolute", "teleport_relative", "reset")
+
+
+def teleport_times(frames: Frames, driver_match_s: float = 2.0) -> list[float]:
+    """When something other than the grader's driver teleported or reset a turtle (from the
+    simulator's service introspection): a goal "reached" through one of those earns nothing."""
+    driver = [e["t"] for e in events(frames, Event.SERVICE_CALL)
+              if str(e.get("service", "")).rsplit("/", 1)[-1] in TELEPORT_SERVICES]
+    out = []
+    for key, df in frames.items():
+        if not key.endswith("/_service_event") or not isinstance(df, pd.DataFrame) or len(df) == 0:
+            continue
+        service = key[: -len("/_service_event")].rsplit("/", 1)[-1]
+        if service not in TELEPORT_SERVICES:
+            continue
+        for call in service_calls(df):
+            if not any(abs(call["t"] - d) <= driver_match_s for d in driver):
+                out.append(call["t"])
+    return sorted(out)

@@ -20,8 +20,9 @@ import numpy as np
 
 from grader.analyze.evidence import SHARE
 from grader.analyze import Finding, graded, register
-from grader.analyze._common import (WORLD_MAX, Frames, events, goal_xy, meta, parse_xy_line,
-                                    rosout_lines, since_start, stdout_lines, thin, times, topic)
+from grader.analyze._common import (WORLD_MAX, Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
+from grader.analyze.goal_publisher import parse_xy_line
+from grader.analyze.goals import goal_xy
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -146,8 +147,27 @@ def _is_timeout_probe(g: dict, p: dict) -> bool:
     return g["time_out"] is not None and 0 < g["time_out"] <= p["short_timeout_s"]
 
 
+class _Unanswered(Finding):
+    def with_evidence(self, ev: dict) -> Finding:
+        return Finding(self.value, 0.0, "error", self.feedback, ev)
+
+
+def _unanswered(rows: list[dict]) -> _Unanswered | None:
+    """A goal the server neither accepted nor rejected, as far as the grader could tell (no goal
+    response, and the server's status topic never named it): not graded as the student's
+    failure but reported as something to check (status error), never a silent 0."""
+    for r in rows:
+        if r.get("accepted") is None:
+            gx, gy = r["goal"]
+            return _Unanswered("no answer", 0.0, "error",
+                               f"The grader got no answer to goal ({gx:g}, {gy:g}): no goal response, and the "
+                               "server's status never mentioned the goal. This is not counted against the "
+                               "submission; check the server's log (logs/) or regrade it.")
+    return None
+
+
 def _pose_at(frames: Frames, pose_topic: str, t: float) -> tuple[float, float] | None:
-    df = topic(frames, pose_topic)
+    df = sim_pose(frames, pose_topic)
     if df is None:
         return None
     i = int(np.searchsorted(times(df), t, side="right")) - 1
@@ -160,7 +180,7 @@ def _timeline(frames: Frames, pose_topic: str, max_points: int = 150) -> dict:
     """Every action goal over time (s since the scenario start): sent, answered, result, and the
     turtle's distance to it while it ran, plus feedback messages (the report's timeline figure)."""
     gs = action_goals(frames)
-    df = topic(frames, pose_topic)
+    df = sim_pose(frames, pose_topic)
     rows = []
     for k, g in enumerate(gs, 1):
         row = {"goal": k, "label": g["label"] or g["id"] or f"goal {k}", "x": g["x"], "y": g["y"],
@@ -279,6 +299,9 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
     frac = ok_n / len(gs)
     ev = {"goals": rows, "timeline": _timeline(frames, p["pose_topic"])}
     value = f"{ok_n}/{len(gs)} succeeded"
+    unanswered = _unanswered(rows)
+    if unanswered:
+        return unanswered.with_evidence(ev)
     if ok_n == len(gs):
         return Finding(value, 1.0, "pass", f"All {len(gs)} reachable goals were accepted and reached.", ev)
     bad = next(r for r in rows if not r["ok"])
@@ -306,6 +329,9 @@ def action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
     value = f"{ok_n}/{len(gs)} rejected"
     if ok_n == len(gs):
         return Finding(value, 1.0, "pass", f"All {len(gs)} out-of-bounds goals were rejected.", ev)
+    unanswered = _unanswered(rows)
+    if unanswered:
+        return unanswered.with_evidence(ev)
     bad = next(g for g in gs if g["accepted"] is not False)
     what = "got no response" if bad["accepted"] is None else "was accepted"
     return Finding(value, frac, graded(frac),

@@ -8,16 +8,29 @@ scenario rather than hard-coding it.
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
 
-from grader.analyze.evidence import SHARE
 from grader.analyze import Finding, register
-from grader.analyze.evidence import TIME
-from grader.analyze._common import (Frames, events, missing_topic_feedback, parse_xy_line, stdout_lines,
-                                    times, topic)
+from grader.analyze.evidence import SHARE, TIME
+from grader.analyze._common import (Frames, events, missing_topic_feedback, stdout_lines, times, topic)
 from grader.scenario.events import Event
+
+
+def parse_xy_line(line: str) -> tuple[float, float] | None:
+    """The lab's stdin format "x,y" (two floats separated by a comma); None when malformed."""
+    parts = str(line).strip().split(",")
+    if len(parts) != 2:
+        return None
+    try:
+        x, y = float(parts[0]), float(parts[1])
+    except ValueError:
+        return None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        return None
+    return x, y
 
 
 def _stdin(frames: Frames, process: str | None) -> tuple[str | None, list[dict]]:

@@ -19,6 +19,7 @@ from grader.analyze import Finding, register
 from grader.analyze._common import (Frames, end_time, events, meta, publishers_of, rosout_lines,
                                     service_calls, times, topic)
 from grader.analyze.rate import rate_stats
+from grader.sim import truth_pose_topic
 from grader.scenario.events import Event
 
 DT = 0.016
@@ -26,6 +27,7 @@ DT = 0.016
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    "truth_poses": ("poses the simulator published", ""), "public_poses": ("poses on the public topic", ""),
     "flag_services": ('services a student must not call', ''),
     "list_services": ('services whose calls are listed', ''),
     "driver_match_s": ("a call this close to the grader's own is the grader's", 's'),
@@ -72,6 +74,14 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
     foreign = [q for q in pubs if str(q).strip("/").rsplit("/", 1)[-1] not in allowed]
     if foreign:
         problems.append(f"{name} was also published by {', '.join(foreign)}")
+    truth = topic(frames, truth_pose_topic(name))
+    public = topic(frames, name)
+    if truth is not None and public is not None:
+        # the simulator publishes each pose on both; more on the public topic = someone else's
+        extra = len(public) - len(truth)
+        ev.update(truth_poses=len(truth), public_poses=len(public))
+        if extra > 10:
+            problems.append(f"{extra} more poses on {name} than the simulator published")
     df = topic(frames, name)
     if df is not None and len(df) >= 3 and {"x", "y"} <= set(df.columns):
         t = times(df)

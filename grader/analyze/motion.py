@@ -20,9 +20,9 @@ import math
 import numpy as np
 import pandas as pd
 
-from grader.analyze import REQUIRED, Finding, graded, register
+from grader.analyze import REQUIRED, Finding, register
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
+from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
                                     thin, times, topic)
 from grader.analyze.rate import rate_stats
 
@@ -50,7 +50,7 @@ _POSE = {"pose_topic": "/turtle1/pose", "min_speed": 0.05}
 
 def _moving_pose(frames: Frames, p: dict) -> tuple[pd.DataFrame | None, Finding | None]:
     """The poses from the moment the turtle first moved (plus ``skip_s``)."""
-    df = topic(frames, p["pose_topic"])
+    df = sim_pose(frames, p["pose_topic"])
     if df is None or not {"x", "y", "theta", "linear_velocity"} <= set(df.columns):
         return None, Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
     moving = np.nonzero(np.abs(df["linear_velocity"].to_numpy(float)) > p["min_speed"])[0]
@@ -146,7 +146,7 @@ def circle_period(frames: Frames, p: dict) -> Finding:
 })
 def keeps_moving(frames: Frames, p: dict) -> Finding:
     """Commands arrive before the simulator's command timeout and the turtle never stalls."""
-    pose = topic(frames, p["pose_topic"])
+    pose = sim_pose(frames, p["pose_topic"])
     cmd = topic(frames, p["cmd_topic"])
     if pose is None or "linear_velocity" not in pose.columns:
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
@@ -206,7 +206,7 @@ def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
     "min_clearance": 0.0,             # m: closer than this to a wall also counts as contact
 })
 def no_wall_contact(frames: Frames, p: dict) -> Finding:
-    pose = topic(frames, p["pose_topic"])
+    pose = sim_pose(frames, p["pose_topic"])
     if pose is None or not {"x", "y"} <= set(pose.columns):
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)

@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from grader.analyze import REQUIRED, Finding, graded, register
-from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (Frames, missing_topic_feedback, scenario_end_time, service_calls,
+from grader.analyze import Finding, graded, register
+from grader.analyze.evidence import SHARE, SINCE_START
+from grader.analyze._common import (sim_pose, Frames, missing_topic_feedback, scenario_end_time, service_calls,
                                     thin, times, topic)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -70,7 +70,7 @@ def _color(request: dict) -> list[int] | None:
     "max_delay_s": 0.1,              # s from the crossing pose to the call reaching the simulator
 })
 def pen_on_crossings(frames: Frames, p: dict) -> Finding:
-    pose = topic(frames, p["pose_topic"])
+    pose = sim_pose(frames, p["pose_topic"])
     if pose is None or "x" not in pose.columns:
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
     t0 = float(times(pose)[0])

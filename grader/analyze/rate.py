@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from grader.analyze import REQUIRED, Finding, register
-from grader.analyze._common import (Frames, missing_topic_feedback, since_start, thin, times, topic,
+from grader.analyze._common import (Frames, missing_topic_feedback, since_start, thin, times,
                                     topic_or_student_topic)
 from grader.analyze.evidence import SHARE
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -129,14 +128,12 @@ class Progress:
 
 
 def run_grade(args: argparse.Namespace) -> int:
-    from concurrent.futures import ThreadPoolExecutor, as_completed
-
+    from grader.grading.batch import grade_batch
     from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import discover_submissions, grade_submission, submission_id
-    from grader.rubric.load import load_rubric
-
+    from grader.grading.pipeline import discover_submissions, submission_id
     from grader.grading.schedule import Slots, default_jobs
     from grader.grading.shards import in_shard, write_shard_note
+    from grader.rubric.load import load_rubric
 
     rubric = load_rubric(args.rubric)
     subs = discover_submissions(args.submissions)
@@ -149,38 +146,21 @@ def run_grade(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     if args.shard:
         write_shard_note(args.out, rubric, *args.shard)
-    jobs = args.jobs or default_jobs()
-    slots = Slots(jobs)
     todo = [s for s in subs if not (args.resume and (args.out / submission_id(s) / "result.json").exists())]
     progress = Progress(len(subs))
     progress.done = len(subs) - len(todo)
+
+    def done(sid: str, graded, error: str | None) -> None:
+        progress.advance(f"{sid}: ERROR {error}" if error and graded is None and "interrupted" not in error
+                         else f"{sid}: {graded.result.auto_score:g}/{graded.result.auto_max:g}" if graded
+                         else f"{sid}: {error}")
+
     failures: dict[str, str] = {}
     interrupted = False
     try:
-        # more submissions in flight than slots: one builds or analyzes while others' scenarios run
-        with ThreadPoolExecutor(max_workers=jobs + 1) as pool:
-            futures = {pool.submit(grade_submission, s, rubric, args.out, cache_dir=args.cache_dir,
-                                   progress=progress.status if len(todo) == 1 else None, slots=slots,
-                                   reuse=not args.no_reuse, time_scale=args.time_scale): s for s in todo}
-            try:
-                for fut in as_completed(futures):
-                    sid = submission_id(futures[fut])
-                    try:
-                        graded = fut.result()
-                        progress.advance(f"{sid}: {graded.result.auto_score:g}/{graded.result.auto_max:g}")
-                    except GraderError as exc:
-                        failures[sid] = str(exc)
-                        progress.advance(f"{sid}: ERROR {exc}")
-                    except KeyboardInterrupt:
-                        failures[sid] = "interrupted before it finished (no result written)"
-                    write_batch_outputs(args.out, rubric)     # grades.csv is current after each one
-            except KeyboardInterrupt:
-                from grader.scenario import cancel_all
-                interrupted = True
-                for f in futures:
-                    f.cancel()
-                cancel_all()          # running scenarios finalize their bags and stop
-                raise
+        failures = grade_batch(todo, rubric, args.out, slots=Slots(args.jobs or default_jobs()),
+                               cache_dir=args.cache_dir, reuse=not args.no_reuse, on_done=done,
+                               progress=progress.status, time_scale=args.time_scale)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -189,7 +169,7 @@ def run_grade(args: argparse.Namespace) -> int:
     for sid, msg in failures.items():
         print(f"grader: {sid}: {msg}", file=sys.stderr)
     print(f"wrote {args.out / 'grades.csv'} and {args.out / 'index.html'}")
-    if interrupted:
+    if interrupted or any("interrupted" in m for m in failures.values()):
         print("grader: interrupted; finished submissions are saved; rerun with --resume to continue",
               file=sys.stderr)
         return 130

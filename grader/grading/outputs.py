@@ -35,25 +35,37 @@ def effective_params(rubric) -> dict[str, dict]:
     return out
 
 
-def write_submission_outputs(graded, rubric, *, public_only: bool) -> None:
+def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[str, str] | None = None) -> None:
     """result.json (+ build, errors, timings, previous grading) and report.html for one submission."""
     from grader.report.html import write_html
     from grader.report.result import write_result
+    from grader.sandbox.scenario import recorded_summary
 
     ver = versions()
+    # which protections student code ran under, and each limit it reached (from the scenario
+    # records, so a regrade reports the grading run): a line each in errors and the report
+    sandbox = recorded_summary(sorted(p for p in (graded.out / "scenarios").glob("*") if p.is_dir()))
+    problems = list(graded.errors)
+    if sandbox is not None:
+        if sandbox.get("warning"):
+            problems.append(f"sandbox: {sandbox['warning']}")
+        problems += [f"limit reached: {hit}" for hit in sandbox.get("limits_hit", [])]
+    problems = list(dict.fromkeys(problems))         # a regrade that keeps stored errors adds none twice
     extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
-             "errors": graded.errors, "timings": graded.timings,
+             "errors": problems, "timings": graded.timings,
              "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir()),
              "scenarios_reused": dict(getattr(graded, "reused", {}) or {})}
+    if sandbox is not None:
+        extra["sandbox"] = sandbox
     if getattr(graded, "previous", None):
         extra["previous"] = graded.previous
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
     if time_scales:                 # --time-scale: how each scenario ran, and why not faster
         extra["time_scale"] = time_scales
     out_dir, sid = graded.out.parent, graded.out.name
-    write_result(out_dir, sid, graded.result, versions=ver, extra=extra)
+    write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
-               problems=graded.errors, params=effective_params(rubric), notes=time_scale_notes(time_scales))
+               problems=problems, params=effective_params(rubric), notes=time_scale_notes(time_scales))
 
 
 def write_batch_outputs(out: Path, rubric) -> None:

@@ -86,9 +86,11 @@ def scenario_frames(scenario_dir: Path) -> dict:
         return {"__meta__": pd.DataFrame(columns=["topic", "type", "count", "publishers"])}
     record_file = scenario_dir / "scenario.json"
     record = json.loads(record_file.read_text()) if record_file.exists() else None
-    # a run on simulated time: its times are read in simulated seconds (grader.bag.timebase)
+    # a run on simulated time is read in simulated seconds (grader.bag.timebase): the bag's own
+    # metadata says so (sealed with it); the record speaks only for a bag never finalised
     used = ((record or {}).get("time_scale") or {}).get("used")
-    frames = load_frames(bag, time_scale=float(used) if used else None)
+    finalized = (bag / "metadata.yaml").exists()
+    frames = load_frames(bag, time_scale=None if finalized or not used else float(used))
     meta = load_bag_meta(bag)
     publishers: dict[str, set[str]] = {}
     for ev in events(frames, Event.GRAPH):
@@ -166,15 +168,23 @@ def combine_findings(item, per_scenario: list):
     return worst_finding(per_scenario) if per_scenario else None
 
 
-def analyze_bags(rubric, items: list, sub_out: Path) -> tuple[dict[str, Any], list[str]]:
-    """Run every item's analyzer on its scenario bags (offline). Returns findings and problems."""
+def analyze_bags(rubric, items: list, sub_out: Path,
+                 unusable: dict[str, str] | None = None) -> tuple[dict[str, Any], list[str]]:
+    """Run every item's analyzer on its scenario bags (offline). Returns findings and problems.
+    ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
+    finalised): its items become errors saying so."""
     from grader.analyze import Finding
 
     frames_cache: dict[str, dict | Exception] = {}
     problems: list[str] = []
+    unusable = unusable or {}
 
     def frames_for(sc: str):
         if sc not in frames_cache:
+            if sc in unusable:
+                frames_cache[sc] = GraderError(unusable[sc])
+                problems.append(f"scenario {sc}: {unusable[sc]}")
+                return frames_cache[sc]
             try:
                 frames_cache[sc] = scenario_frames(sub_out / SCENARIOS_DIR / sc)
             except GraderError as exc:
@@ -231,6 +241,7 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
         with slots.taken():
             build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support))
         shutil.copy(build.build_log, out / "build.log") if build.build_log.exists() else None
+        errors += [f"submission: {w}" for w in build.warnings]
         if not build.ok:
             errors += [f"package {n} did not build ({build.packages[n].status}):\n{build.packages[n].log_excerpt}"
                        for n in build.failed]
@@ -315,14 +326,20 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
     if not (sub_out / SCENARIOS_DIR).is_dir():
         raise GraderError(f"{sub_out} has no {SCENARIOS_DIR}/ folder; point at OUT/<submission> "
                           "written by `grader grade`.")
+    from grader.report.result import previous_summary
+    from grader.report.seal import input_digests, mac_ok
+
     items = selected_items(rubric, public_only)
-    findings, problems = analyze_bags(rubric, items, sub_out)
-    result, kept = apply_saved_manual_scores(sub_out, score(rubric, findings))   # merged manual scores
-    problems += kept
-    old = {}
+    old: dict = {}
     if (sub_out / "result.json").exists():
         old = json.loads((sub_out / "result.json").read_text())
-    from grader.report.result import previous_summary
+    unusable, notes = recordings_to_refuse(sub_out, old)
+    findings, problems = analyze_bags(rubric, items, sub_out, unusable)
+    result, kept = apply_saved_manual_scores(sub_out, score(rubric, findings))   # merged manual scores
+    problems = notes + problems + kept
+    # the seal keeps the digests of what was graded; a result without one is sealed as it is now
+    recorded = (old.get("seal") or {}).get("inputs")
+    inputs = recorded if recorded is not None and mac_ok(old) else input_digests(sub_out)
 
     # the run's build/scenario problems and timings still describe the bags; keep them
     graded = GradedSubmission(sub_out.name, sub_out, result, build_ok=old.get("build", {}).get("ok", True),
@@ -330,11 +347,46 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
                               errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
                               timings=old.get("timings", {}), previous=previous_summary(old),
                               time_scales=old.get("time_scale", {}))
-    write_outputs(graded, rubric, public_only=public_only)
+    write_outputs(graded, rubric, public_only=public_only, inputs=inputs)
     return graded
 
 
-def write_outputs(graded: GradedSubmission, rubric, *, public_only: bool) -> None:
+def recordings_to_refuse(sub_out: Path, old: dict) -> tuple[dict[str, str], list[str]]:
+    """Scenarios whose recordings a regrade must not grade (changed since they were graded, or
+    a bag that was not finalised cleanly), with why; and notes about the seal itself."""
+    from grader.bag.frames import load_bag_meta
+    from grader.report.seal import changed_inputs, mac_ok
+
+    refuse: dict[str, str] = {}
+    notes: list[str] = []
+    if old.get("seal") is None:
+        notes.append("result.json had no seal (an older grader wrote it): regraded from the bags as they are")
+    elif not mac_ok(old):
+        notes.append("result.json's seal does not match this grader's key (changed, or sealed on another "
+                     "machine): the recorded bag digests cannot be trusted; regraded from the bags as they are")
+    else:
+        for rel in changed_inputs(old, sub_out):
+            parts = Path(rel).parts
+            if len(parts) >= 2 and parts[0] == SCENARIOS_DIR:
+                refuse[parts[1]] = (f"the recording changed since it was graded ({rel} differs from the digest in "
+                                    "result.json's seal); not regraded")
+    for bag in sorted((sub_out / SCENARIOS_DIR).glob("*/bag")):
+        sc = bag.parent.name
+        if sc in refuse:
+            continue
+        try:
+            meta = load_bag_meta(bag)
+        except GraderError as exc:
+            refuse[sc] = f"the bag cannot be read: {exc}"
+            continue
+        if not meta.finalized:
+            refuse[sc] = ("the bag was not finalised cleanly (a cut or crashed recording): not regraded; "
+                          "`grader bag repair` recovers what it can")
+    return refuse, notes
+
+
+def write_outputs(graded: GradedSubmission, rubric, *, public_only: bool,
+                  inputs: dict[str, str] | None = None) -> None:
     from grader.grading.outputs import write_submission_outputs
 
-    write_submission_outputs(graded, rubric, public_only=public_only)
+    write_submission_outputs(graded, rubric, public_only=public_only, inputs=inputs)

@@ -70,12 +70,18 @@ def describe_launch(path: Path, arguments: dict[str, str], env: dict[str, str]) 
                           "grader's launch loader; write it as a Python launch file (*.launch.py)")
     argv = [sys.executable, "-m", "grader.launch.describe", str(path),
             *(f"{k}:={v}" for k, v in arguments.items())]
-    try:
-        proc = subprocess.run(argv, env=env, cwd=path.parent, capture_output=True, text=True,
-                              timeout=DESCRIBE_TIMEOUT_S, start_new_session=True, stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
+    # the launch file is student code: jailed (grader.sandbox), seeing only its builds and the
+    # grader package (the launch/launch_ros stand-ins), with no network
+    from grader.sandbox.oneshot import build_trees, run_jailed_capture
+
+    package = Path(__file__).resolve().parents[1]
+    run, stdout, stderr = run_jailed_capture(
+        argv, env=env, cwd=path.parent, ro=[*build_trees(env), path.parent, package],
+        python_path=[package.parent], timeout_s=DESCRIBE_TIMEOUT_S, memory_mb=2048, pids=256, name="launch")
+    if run.timed_out:
         raise GraderError(f"{path.name}: loading the launch file took longer than "
-                          f"{DESCRIBE_TIMEOUT_S:.0f} s") from None
+                          f"{DESCRIBE_TIMEOUT_S:.0f} s")
+    proc = subprocess.CompletedProcess(argv, run.returncode, stdout, stderr)
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
     try:
         doc = json.loads(lines[-1])

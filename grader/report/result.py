@@ -160,12 +160,17 @@ def previous_summary(doc: Mapping[str, Any]) -> dict[str, Any] | None:
     })
 
 
-def read_result(path: str | os.PathLike[str]) -> tuple[str, Result]:
-    """``(submission id, Result)`` from a result.json file."""
+def read_result(path: str | os.PathLike[str], *, verify: bool = True) -> tuple[str, Result]:
+    """``(submission id, Result)`` from a result.json file; with ``verify``, only when its seal
+    shows the grader wrote it as it is (a GraderError naming the file otherwise)."""
+    from grader.report.seal import check_doc
+
     try:
         doc = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise GraderError(f"cannot read {path}: {exc}") from None
+    if verify:
+        check_doc(doc, Path(path))
     try:
         result = result_from_dict(doc)
         return str(doc["submission"]), result
@@ -185,14 +190,20 @@ def atomic_write(path: Path, text: str) -> None:
 
 def write_result(out_dir: str | os.PathLike[str], submission: str, result: Result, *,
                  versions: Mapping[str, str] | None = None, extra: Mapping[str, Any] | None = None,
-                 filename: str = "result.json") -> Path:
-    """Write ``out_dir/<submission>/result.json``; ``versions`` come from the caller (grader
-    version, ROS distro, rmw, python...) because only it knows what actually ran.
-    ``filename`` lets a student view sit next to it (e.g. ``student.json``)."""
+                 filename: str = "result.json", inputs: Mapping[str, str] | None = None) -> Path:
+    """Write ``out_dir/<submission>/result.json``, sealed (``grader.report.seal``); ``versions``
+    come from the caller (grader version, ROS distro, rmw, python...) because only it knows what
+    actually ran. ``inputs``: digests of the files the grade was computed from (default: the
+    bags and canvases in the submission's folder now). ``filename`` lets a student view sit next
+    to it (e.g. ``student.json``)."""
+    from grader.report.seal import input_digests, sealed
+
     check_submission_id(submission)
     path = Path(out_dir) / submission / plain_file_name(filename)
     doc = result_to_dict(result, submission, versions=versions, extra=extra)
-    atomic_write(path, dumps(doc))
+    if inputs is None:
+        inputs = input_digests(path.parent)
+    atomic_write(path, dumps(sealed(doc, inputs)))
     return path
 
 

@@ -8,6 +8,7 @@ wall-clock limit.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -90,9 +91,14 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
     if CANCELLED.is_set():
         raise KeyboardInterrupt
     t0 = time.monotonic()
-    with open(out / "scenario.log", "wb") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "grader.scenario.run", str(run_file), str(out)],
-                                env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    from grader.sandbox import ScenarioSandbox     # namespaces + cgroups; see grader/sandbox
+
+    sandbox = ScenarioSandbox(prefixes=run.prefixes, env=env, memory_mb=run.scenario.limits.memory_mb,
+                              name=run.id)
+    with sandbox, open(out / "scenario.log", "wb") as log:
+        argv = sandbox.argv([sys.executable, "-m", "grader.scenario.run", str(run_file), str(out)])
+        proc = subprocess.Popen(argv, env=sandbox.env(env), stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=True)
         with _RUNNING_LOCK:
             _RUNNING.add(proc)
         try:
@@ -111,8 +117,6 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
                 pass
     if CANCELLED.is_set():
         raise KeyboardInterrupt
-    import json
-
     record_path = out / "scenario.json"
     if record_path.exists():
         record = json.loads(record_path.read_text())
@@ -120,7 +124,10 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
         tail = (out / "scenario.log").read_text(errors="replace")[-1500:]
         record = {"scenario": run.id, "steps": [], "processes": {}, "bag": str(out / "bag"),
                   "errors": [f"scenario process ended with code {proc.returncode} without a record:\n{tail}"]}
+    record["sandbox"] = sandbox.report(record)
+    record["limits_hit"] = [hit["detail"] for hit in record["sandbox"]["limits_hit"]]
     record["parent_wall_s"] = round(time.monotonic() - t0, 3)
+    record_path.write_text(json.dumps(record, indent=1, default=str))
     return record
 
 

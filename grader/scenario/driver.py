@@ -7,13 +7,14 @@ process exits) is also published on ``/grader/events``, and student stdout/stder
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
 import math
 import threading
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from grader.executors import make_executor
 from grader.runner import ManagedProcess
@@ -102,6 +103,7 @@ class Driver:
         self.pose: Any = None                      # latest pose of the first watched topic
         self.pose_topic: str | None = None
         self.poses: dict[str, Any] = {}            # topic -> latest pose
+        self.goal_status: dict[bytes, int] = {}    # action goal id -> last status the server sent
         self.last_output = time.monotonic()
         self.counts: dict[str, int] = {}
         self._subs: dict[str, Any] = {}
@@ -121,6 +123,8 @@ class Driver:
             self.node.create_timer(0.05, self._tail_outputs)
         self.executor = make_executor(self.ctx)   # EventsExecutor: the CPU goes to student nodes
         self.executor.add_node(self.node)
+        self._spin_lock = threading.Lock()
+        self._paused_waiters = 0
         self._spin = threading.Thread(target=self._spin_forever, name="driver-spin", daemon=True)
         self._spin.start()
 
@@ -128,10 +132,31 @@ class Driver:
     def _import(self, name: str):
         return import_type(name)
 
+    @contextlib.contextmanager
+    def executor_paused(self) -> Iterator[None]:
+        """Hold the executor between two of its spins.
+
+        rclpy's ActionClient (7.1.x, Jazzy) registers the future of ``send_goal_async`` and
+        ``cancel_goal_async`` only after the request is sent; when the executor, spinning in
+        another thread, takes the response before that, the response is dropped and the future
+        never completes (ros2/rclpy#1123). That is how a correct server's accepted goal showed up
+        as "no response from the server" under load. Sending with the executor paused closes
+        the window.
+        """
+        self._paused_waiters += 1
+        try:
+            with self._spin_lock:
+                yield
+        finally:
+            self._paused_waiters -= 1
+
     def _spin_forever(self) -> None:
         while self.rclpy.ok(context=self.ctx):
+            if self._paused_waiters:
+                time.sleep(0.001)          # let a caller of executor_paused() in
             try:
-                self.executor.spin_once(timeout_sec=0.05)
+                with self._spin_lock:
+                    self.executor.spin_once(timeout_sec=0.05)
             except Exception:  # noqa: BLE001 - shutdown races end the loop
                 if not self.rclpy.ok(context=self.ctx):
                     break
@@ -301,6 +326,27 @@ class Driver:
             if not any(i.node_name.startswith(GRADER_NODE_PREFIX) for i in subs):
                 return False
         return True
+
+    def watch_action_status(self, action: str) -> None:
+        """Keep the latest status of every goal of ``action`` (its ``_action/status`` topic)."""
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+        topic = action.rstrip("/") + "/_action/status"
+        if topic in self._subs:
+            return
+
+        def on_status(msg: Any) -> None:
+            for st in msg.status_list:
+                self.goal_status[bytes(st.goal_info.goal_id.uuid)] = int(st.status)
+
+        self._subs[topic] = self.node.create_subscription(
+            self._import("action_msgs/msg/GoalStatusArray"), topic, on_status,
+            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
+    def action_status(self, action: str, goal_id: bytes) -> int | None:
+        """The last status the server published for ``goal_id`` (None: it never mentioned it)."""
+        return self.goal_status.get(goal_id)
 
     def student_publishes(self, topic: str) -> bool:
         return self._student_endpoint(topic, publisher=True)

@@ -32,7 +32,8 @@ class Event(StrEnum):
     ACTION_SERVER_FOUND = "action_server_found"      # step, action
     ACTION_SERVER_MISSING = "action_server_missing"  # step, action
     ACTION_GOAL_SENT = "action_goal_sent"    # step, action, goal
-    ACTION_GOAL_RESPONSE = "action_goal_response"    # step, action, accepted
+    ACTION_GOAL_RESPONSE = "action_goal_response"    # step, action, accepted (recovered_from_status)
+    ACTION_GOAL_UNANSWERED = "action_goal_unanswered"  # step, action, waited_s (no response, no status)
     ACTION_RESULT = "action_result"          # step, action, status, result
     ACTION_CANCEL_SENT = "action_cancel_sent"        # step
     REPLAY_START = "replay_start"            # step, topics, count, rate_hz, bag
@@ -45,5 +46,6 @@ class Event(StrEnum):
     STDIN_READY = "stdin_ready"              # process, nodes
     STDIN_LINE = "stdin_line"                # process, line, delivered
     LAUNCH_RESOLVED = "launch_resolved"      # process, launch, installed, nodes (declared), notes
+    LIMIT_HIT = "limit_hit"                  # limit (memory|processes|cpu|output), detail; process, stream (output)
     # the ROS graph
     GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services

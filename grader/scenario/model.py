@@ -11,6 +11,10 @@ The classes mirror the YAML a rubric author writes (``Step.publish``, ``Step.unt
 is also why ``grader rubric schema`` can hand editors a JSON Schema generated from them.
 pydantic is used because it gives typed, frozen models, strict validation with located errors,
 JSON round-trips and JSON Schema from one declaration.
+
+The module is longer than the project's usual ~400 lines on purpose: it is the whole scenario
+language of a rubric (names, actions, conditions, steps, processes, scenarios) in the order a
+rubric author reads it, and splitting it would scatter one declaration across files.
 """
 
 from __future__ import annotations
@@ -247,6 +251,8 @@ class ActionGoal(Model):
     type: ActionType
     goal: dict[str, Any] = Field({}, description="goal field values, nested as in the goal message")
     server_timeout: PositiveFloat = Field(5.0, description="s to wait for the action server")
+    response_timeout: PositiveFloat = Field(10.0, description="s to wait for the server to accept or "
+                                            "reject the goal")
 
 
 class Replay(Model):

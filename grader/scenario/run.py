@@ -169,7 +169,7 @@ class Launcher:
             lp.name, argv, env={**proc.env, **lp.env} or None,
             stdin=script if (script or proc.stdin is not None) else None,
             close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.scenario.time_limit_s),
-            nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0),
+            nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0, untrusted=True),
             process_class=_EventedProcess, stdin_gate=gate)
         managed.driver = driver
         if gate is not None:
@@ -217,6 +217,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 sim = _start_clock_owner(graph, run, out, record, scale)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
                             clock_node=clock_node)
+            graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
             if scale:
                 if not driver.clock.wait_for_clock(SIM_READY_S):
                     raise RuntimeError(f"no {CLOCK_TOPIC} from the grader's clock within {SIM_READY_S:.0f}s")
@@ -288,6 +289,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if driver is not None:
                 driver.event(Event.SCENARIO_ERROR, error=f"{type(exc).__name__}: {exc}")
         finally:
+            record["output_cut"] = graph.output_cuts()
             # on simulated time the shutdown's wall time must not run the simulation on
             if scale and driver is not None and not driver.clock.stop():
                 record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "

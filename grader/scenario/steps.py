@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import re
 import time
+import uuid
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -111,11 +112,13 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
 
 def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> dict[str, Any]:
     from rclpy.action import ActionClient
+    from unique_identifier_msgs.msg import UUID
 
     driver = rt.driver
     key = (spec.name, spec.type)
     if key not in rt.action_clients:
         rt.action_clients[key] = ActionClient(driver.node, import_type(spec.type), spec.name)
+        driver.watch_action_status(spec.name)
     client = rt.action_clients[key]
     found = client.wait_for_server(timeout_sec=spec.server_timeout)
     driver.event(Event.ACTION_SERVER_FOUND if found else Event.ACTION_SERVER_MISSING,
@@ -124,6 +127,7 @@ def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> 
         state.action_done = True
         return {"server": False}
     goal = fill(import_type(spec.type).Goal(), spec.goal)
+    goal_uuid = UUID(uuid=list(uuid.uuid4().bytes))
     driver.event(Event.ACTION_GOAL_SENT, step=step.id, action=spec.name, goal=to_plain(goal))
     result: dict[str, Any] = {"server": True}
 
@@ -134,18 +138,31 @@ def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> 
                      result=to_plain(res.result))
         state.action_done = True
 
-    def on_response(future: Any) -> None:
-        handle = future.result()
+    def accepted(handle: Any, **extra: Any) -> None:
         result["accepted"] = bool(handle.accepted)
         driver.event(Event.ACTION_GOAL_RESPONSE, step=step.id, action=spec.name,
-                     accepted=bool(handle.accepted))
+                     accepted=bool(handle.accepted), **extra)
         if handle.accepted:
             state.goal_handle = handle
             handle.get_result_async().add_done_callback(on_result)
         else:
             state.action_done = True
 
-    client.send_goal_async(goal).add_done_callback(on_response)
+    with driver.executor_paused():           # see Driver.executor_paused (a lost goal response)
+        client.send_goal_async(goal, goal_uuid=goal_uuid).add_done_callback(lambda f: accepted(f.result()))
+    if not driver.wait_until(lambda: "accepted" in result, spec.response_timeout):
+        # no goal response: the server's status topic says whether it accepted the goal anyway
+        status = driver.action_status(spec.name, bytes(goal_uuid.uuid))
+        if status is None:
+            driver.event(Event.ACTION_GOAL_UNANSWERED, step=step.id, action=spec.name,
+                         waited_s=spec.response_timeout)
+            state.action_done = True
+        else:
+            from rclpy.action.client import ClientGoalHandle
+
+            response = client._action_type.Impl.SendGoalService.Response(accepted=True)
+            with driver.executor_paused():
+                accepted(ClientGoalHandle(client, goal_uuid, response), recovered_from_status=status)
     return result
 
 

@@ -157,9 +157,11 @@ def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
         (stage / g.sid / MANUAL_SCORES).write_text(manual_scores_text(result.lab, g.sid, scores),
                                                     encoding="utf-8")
     standard = result_to_dict(result, g.sid)
-    extra = {k: v for k, v in g.doc.items() if k not in standard}
+    extra = {k: v for k, v in g.doc.items() if k not in standard and k != "seal"}
     versions = g.doc.get("versions") or {}
-    path = write_result(stage, g.sid, result, versions=versions, extra=extra)
+    # the grade still rests on the bags that were graded: keep their recorded digests
+    inputs = (g.doc.get("seal") or {}).get("inputs") or {}
+    path = write_result(stage, g.sid, result, versions=versions, extra=extra, inputs=inputs)
     if (sub_out / "result.json").read_bytes() == path.read_bytes() and (sub_out / "report.html").exists():
         return
     canvases = {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}

@@ -1,8 +1,10 @@
 """Reference headless turtlesim (node ``turtlesim``) for recording and grading.
 
-A faithful rclpy re-implementation of ROS 2 Jazzy's ``turtlesim_node`` (spec:
-``/work/shared/specs/turtlesim.md``) plus two grader additions: service introspection on every
-simulator service and a PNG of the canvas.  Start it as its own process (``sim_argv``); this
+A faithful rclpy re-implementation of ROS 2 Jazzy's ``turtlesim_node`` (the behaviour it follows
+is written down in docs/turtlesim.md) plus three grader additions: service introspection on every
+simulator service, a PNG of the canvas, and a copy of each turtle's pose on a grader topic
+(``truth_pose_topic``) that only the simulator publishes, so a grade never rests on a pose some
+other node published on ``/turtle1/pose``.  Start it as its own process (``sim_argv``); this
 module only holds names and the argv helper, so importing it never imports rclpy.
 
 Public API::
@@ -31,6 +33,15 @@ TURTLE_TOPICS = {"cmd_vel": "geometry_msgs/msg/Twist", "pose": "turtlesim/msg/Po
 TURTLE_ACTION = "rotate_absolute"
 #: log text of the wall warning (printf format, internal screen coordinates)
 WALL_WARNING_PREFIX = "Oh no! I hit the wall!"
+
+
+#: the simulator's own copy of each pose: ``/grader/sim/<turtle>/pose``
+TRUTH_PREFIX = "/grader/sim"
+
+
+def truth_pose_topic(pose_topic: str) -> str:
+    """``/turtle1/pose`` -> ``/grader/sim/turtle1/pose`` (published by the simulator only)."""
+    return TRUTH_PREFIX + "/" + pose_topic.lstrip("/")
 
 
 def service_event_topic(service: str) -> str:
@@ -90,6 +101,6 @@ def sim_argv(canvas_out: str | Path | None = None, extra: Sequence[str] = (), *,
             *extra]
 
 
-__all__ = ["NODE_NAME", "SAVE_CANVAS_SERVICE", "GLOBAL_SERVICES", "TURTLE_SERVICES",
+__all__ = ["NODE_NAME", "TRUTH_PREFIX", "truth_pose_topic", "SAVE_CANVAS_SERVICE", "GLOBAL_SERVICES", "TURTLE_SERVICES",
            "TURTLE_TOPICS", "TURTLE_ACTION", "WALL_WARNING_PREFIX", "service_event_topic",
            "turtle_service_events", "all_service_event_topics", "sim_args", "sim_argv"]

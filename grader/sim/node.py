@@ -44,6 +44,7 @@ from turtlesim.msg import Color, Pose
 from turtlesim.srv import Kill, SetPen, Spawn, TeleportAbsolute, TeleportRelative
 
 from grader.executors import make_executor as shared_make_executor
+from grader.sim import truth_pose_topic
 from grader.sim.canvas import Canvas
 from grader.sim.clock import SimClock, make_clock_node
 from grader.sim.physics import DEFAULT_BACKGROUND, METER, TICK_MS, RotateGoal, Turtle, World
@@ -80,6 +81,7 @@ class _Endpoints:
 
     cmd_vel: Any
     pose_pub: Any
+    truth_pub: Any          # the grader's copy of the pose (only this node publishes it)
     color_pub: Any
     services: list[Any]
     action: ActionServer
@@ -187,6 +189,7 @@ class TurtlesimNode(Node):
             cmd_vel=self.create_subscription(
                 Twist, f"{name}/cmd_vel", lambda msg: self._on_cmd_vel(turtle, msg), TOPIC_QOS),
             pose_pub=self.create_publisher(Pose, f"{name}/pose", TOPIC_QOS),
+            truth_pub=self.create_publisher(Pose, truth_pose_topic(f"/{name.lstrip('/')}/pose"), TOPIC_QOS),
             color_pub=self.create_publisher(Color, f"{name}/color_sensor", TOPIC_QOS),
             services=[
                 self._service(SetPen, f"{name}/set_pen",
@@ -205,6 +208,7 @@ class TurtlesimNode(Node):
         turtle.endpoints = None
         self.destroy_subscription(ep.cmd_vel)
         self.destroy_publisher(ep.pose_pub)
+        self.destroy_publisher(ep.truth_pub)
         self.destroy_publisher(ep.color_pub)
         for srv in ep.services:
             self.destroy_service(srv)
@@ -372,6 +376,7 @@ class TurtlesimNode(Node):
         pose.linear_velocity = turtle.pose_linear
         pose.angular_velocity = turtle.pose_angular
         ep.pose_pub.publish(pose)
+        ep.truth_pub.publish(pose)
         color = ep.color_msg
         color.r, color.g, color.b = turtle.color
         ep.color_pub.publish(color)

@@ -1,6 +1,6 @@
 """Pure turtlesim physics (no ROS): turtle state and the exact per-tick update of Jazzy's turtlesim.
 
-Everything here mirrors the C++ ``turtlesim`` 1.8.x code (see /work/shared/specs/turtlesim.md)
+Everything here mirrors the C++ ``turtlesim`` 1.8.x code (the behaviour is written down in docs/turtlesim.md)
 down to the float32 casts, so that a bag recorded against this simulator carries the same pose
 numbers a student would see with the real one.  Keeping it free of rclpy makes every rule unit
 testable with synthetic clocks; ``grader.sim.node`` only wires ROS endpoints to these objects.

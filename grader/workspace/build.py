@@ -15,8 +15,6 @@ import fcntl
 import json
 import os
 import shutil
-import signal
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -24,11 +22,14 @@ from pathlib import Path
 
 from grader.errors import GraderError
 from grader.rosenv import PY_SITE, child_env, ros_mode
+from grader.sandbox.oneshot import run_jailed
 from grader.workspace.colcon_events import JobOutcome, read_events
 from grader.workspace.diagnose import DETAIL_LINES, Availability, Diagnosis, diagnose
 from grader.workspace.source import PackageSource, stage_sources, tree_digest
 
 BUILD_TIMEOUT_S = 900
+BUILD_MEMORY_MB = 6144     # colcon + compilers of one submission together (cgroup)
+BUILD_PIDS = 2048
 TIMED_OUT = -1
 CACHE_FORMAT = 3          # 3: status from colcon's events; reason, blocked_by, missing_dependencies, log
 
@@ -70,6 +71,7 @@ class BuildResult:
     packages: dict[str, PackageBuild]
     cached: bool = False
     duration_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)   # what staging skipped (not cached: per submission)
 
     @property
     def install(self) -> Path:
@@ -162,6 +164,8 @@ def _colcon_env() -> dict[str, str]:
 
 
 def _run_colcon(root: Path, log_file: Path) -> int:
+    """colcon build in the build area; student code (setup.py, CMake) runs here, so in a jail
+    that can write only build/, install/ and log/ and has no network (grader.sandbox)."""
     cmake_args = [f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",
                   "-DCMAKE_BUILD_TYPE=Release"]
     if shutil.which("ninja"):
@@ -172,18 +176,17 @@ def _run_colcon(root: Path, log_file: Path) -> int:
            "--event-handlers", "console_cohesion+", "console_direct-", "status-",
            "event_log+", "log+",        # events.log and per-package logs: the status is read from them
            "--cmake-args", *cmake_args]
-    with open(log_file, "wb") as log:
-        log.write(("$ " + " ".join(cmd) + "\n").encode())
-        log.flush()
-        proc = subprocess.Popen(cmd, cwd=root, env=_colcon_env(), stdin=subprocess.DEVNULL, stdout=log,
-                                stderr=subprocess.STDOUT, start_new_session=True)
-        try:
-            return proc.wait(timeout=BUILD_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)      # colcon and every cmake/compiler/setup.py it ran
-            proc.wait()
+    log_file.write_bytes(("$ " + " ".join(cmd) + "\n").encode())
+    run = run_jailed(cmd, env=_colcon_env(), cwd=root, stdout=log_file, ro=[root / "src"],
+                     rw=[root / "build", root / "install", root / "log"], timeout_s=BUILD_TIMEOUT_S,
+                     memory_mb=BUILD_MEMORY_MB, pids=BUILD_PIDS, name="build")
+    with open(log_file, "ab") as log:
+        for hit in run.limits_hit:
+            log.write(f"\n[grader] build: {hit}\n".encode())
+        if run.timed_out:
             log.write(f"\ncolcon build timed out after {BUILD_TIMEOUT_S}s\n".encode())
             return TIMED_OUT
+    return run.returncode if run.returncode is not None else TIMED_OUT
 
 
 def _package_log(root: Path, name: str) -> Path:
@@ -279,7 +282,8 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
     cache_dir.mkdir(parents=True, exist_ok=True)
     staging = cache_dir / f".staging-{os.getpid()}-{time.monotonic_ns()}"
     try:
-        staged = stage_sources(Path(submission), staging / "src", staging, support)
+        staging_result = stage_sources(Path(submission), staging / "src", staging, support)
+        staged = staging_result.packages
         digest = tree_digest(staging / "src", extra=f"{CACHE_FORMAT}:{ros_mode()}:{sys.version_info[:2]}")
         root = cache_dir / digest
         with open(cache_dir / f"{digest}.lock", "w") as lockf:
@@ -289,6 +293,7 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                 result = load_result(result_file)
                 result.source = str(submission)
                 result.cached = True
+                result.warnings = staging_result.warnings
                 return result
             if root.exists():
                 shutil.rmtree(root)
@@ -298,7 +303,7 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
             rc = _run_colcon(root, root / "build.log")
             packages = _package_results(root, staged, timed_out=rc == TIMED_OUT)
             result = BuildResult(str(submission), digest, root, packages,
-                                 duration_s=round(time.monotonic() - t0, 2))
+                                 duration_s=round(time.monotonic() - t0, 2), warnings=staging_result.warnings)
             result_file.write_text(json.dumps(_to_json(result), indent=1))
             return result
     finally:

@@ -22,8 +22,6 @@ from __future__ import annotations
 import importlib.util
 import os
 import re
-import signal
-import subprocess
 import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -341,17 +339,16 @@ def _setup_py(pkg_dir: Path, log: str, env: Mapping[str, str]) -> Diagnosis | No
 
 
 def _run_setup_py(pkg_dir: Path, env: Mapping[str, str]) -> str:
-    """stderr of ``setup.py --name``: colcon ran it the same way but kept no per-package copy."""
-    proc = subprocess.Popen([sys.executable, "setup.py", "--name"], cwd=pkg_dir, env=dict(env),
-                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True, errors="replace", start_new_session=True)
-    try:
-        _out, err = proc.communicate(timeout=SETUP_PY_TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
+    """stderr of ``setup.py --name``: colcon ran it the same way but kept no per-package copy.
+    Student code: run in a jail that sees the package read-only (grader.sandbox)."""
+    from grader.sandbox.oneshot import run_jailed_capture
+
+    run, _out, err = run_jailed_capture([sys.executable, "setup.py", "--name"], env=env, cwd=pkg_dir,
+                                        ro=[pkg_dir], timeout_s=SETUP_PY_TIMEOUT_S, memory_mb=1024,
+                                        pids=256, name="setup-py")
+    if run.timed_out:
         return f"TimeoutError: setup.py did not finish within {SETUP_PY_TIMEOUT_S}s"
-    return err if proc.returncode else ""
+    return err if run.returncode else ""
 
 
 def diagnose(name: str, build_type: str, pkg_dir: Path, log: str, avail: Availability,

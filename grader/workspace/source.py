@@ -1,14 +1,19 @@
 """Turn whatever a student handed in into a clean ``src/`` tree of ROS packages.
 
 Accepted: a colcon workspace (with ``src/``), a folder of packages, a single package, or a
-``.zip`` / ``.tar.gz`` / ``.tgz`` / ``.tar`` of any of these. Archives are extracted safely (no
-absolute paths, no ``..``, no links out of the tree, bounded size), and build products that
-students often zip along (``build/``, ``install/``, ``log/``) are dropped.
+``.zip`` / ``.tar.gz`` / ``.tgz`` / ``.tar`` of any of these. Build products that students often
+zip along (``build/``, ``install/``, ``log/``) are dropped. A submission is untrusted input, so
+nothing in it can reach outside the staged tree: archive members with absolute paths or ``..``,
+symbolic and hard links (in archives and in folders: a ``leak -> /etc/passwd`` link is never
+followed), device files and files over ``MAX_FILE_BYTES`` are skipped, and each skip is a
+warning that reaches the result (``Staged.warnings``); more than ``MAX_UNPACKED_BYTES`` in all
+refuses the submission.
 """
 
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 import tarfile
 import zipfile
@@ -21,6 +26,7 @@ from grader.errors import GraderError
 SKIP_DIRS = {"build", "install", "log", ".git", "__pycache__", ".pytest_cache", ".mypy_cache",
              ".venv", "venv", "node_modules", ".idea", ".vscode"}
 MAX_UNPACKED_BYTES = 200 * 2**20
+MAX_FILE_BYTES = 20 * 2**20          # no source file of a ROS package comes near this
 ARCHIVE_SUFFIXES = (".zip", ".tar.gz", ".tgz", ".tar", ".tar.xz", ".tar.bz2")
 
 
@@ -35,44 +41,86 @@ def is_archive(path: Path) -> bool:
     return path.is_file() and path.name.lower().endswith(ARCHIVE_SUFFIXES)
 
 
-def _check_member(name: str) -> None:
+def _outside(name: str) -> bool:
     p = PurePosixPath(name)
-    if p.is_absolute() or ".." in p.parts:
-        raise GraderError(f"archive member {name!r} points outside the archive; "
-                          "re-create the archive from inside your workspace folder.")
+    return p.is_absolute() or ".." in p.parts
 
 
-def extract_archive(archive: Path, dest: Path) -> Path:
-    """Extract ``archive`` into ``dest`` safely; returns ``dest``."""
+def _too_big(total: int, archive: Path) -> GraderError:
+    return GraderError(f"{archive.name} unpacks to more than {MAX_UNPACKED_BYTES >> 20} MiB; "
+                       "submit sources only.")
+
+
+def extract_archive(archive: Path, dest: Path, warnings: list[str] | None = None) -> Path:
+    """Extract ``archive`` into ``dest`` safely; returns ``dest``. Members that would land
+    outside it, links, devices and oversized files are skipped, each with a warning."""
+    warnings = warnings if warnings is not None else []
     dest.mkdir(parents=True, exist_ok=True)
     total = 0
     try:
         if archive.name.lower().endswith(".zip"):
             with zipfile.ZipFile(archive) as zf:
+                members = []
                 for info in zf.infolist():
-                    _check_member(info.filename)
-                    total += info.file_size
-                    if total > MAX_UNPACKED_BYTES:
-                        raise GraderError(f"{archive.name} unpacks to more than "
-                                          f"{MAX_UNPACKED_BYTES >> 20} MiB; submit sources only.")
-                zf.extractall(dest)
+                    mode = info.external_attr >> 16
+                    if _outside(info.filename):
+                        warnings.append(f"{archive.name}: skipped {info.filename!r}: its path points "
+                                        "outside the archive")
+                    elif (mode & 0o170000) == 0o120000:
+                        warnings.append(f"{archive.name}: skipped the symbolic link {info.filename!r}")
+                    elif info.file_size > MAX_FILE_BYTES:
+                        warnings.append(f"{archive.name}: skipped {info.filename!r} "
+                                        f"({info.file_size >> 20} MiB, over {MAX_FILE_BYTES >> 20} MiB)")
+                    else:
+                        total += info.file_size
+                        if total > MAX_UNPACKED_BYTES:
+                            raise _too_big(total, archive)
+                        members.append(info)
+                zf.extractall(dest, members=members)
         else:
             with tarfile.open(archive) as tf:
                 members = []
                 for m in tf.getmembers():
-                    _check_member(m.name)
-                    if m.issym() or m.islnk() or m.isdev():
-                        continue  # links and devices are never needed to build a ROS package
-                    total += m.size
-                    if total > MAX_UNPACKED_BYTES:
-                        raise GraderError(f"{archive.name} unpacks to more than "
-                                          f"{MAX_UNPACKED_BYTES >> 20} MiB; submit sources only.")
-                    members.append(m)
+                    if _outside(m.name):
+                        warnings.append(f"{archive.name}: skipped {m.name!r}: its path points outside "
+                                        "the archive")
+                    elif m.issym() or m.islnk():
+                        warnings.append(f"{archive.name}: skipped the link {m.name!r} -> {m.linkname!r}")
+                    elif not (m.isfile() or m.isdir()):
+                        warnings.append(f"{archive.name}: skipped the special file {m.name!r}")
+                    elif m.size > MAX_FILE_BYTES:
+                        warnings.append(f"{archive.name}: skipped {m.name!r} ({m.size >> 20} MiB, over "
+                                        f"{MAX_FILE_BYTES >> 20} MiB)")
+                    else:
+                        total += m.size
+                        if total > MAX_UNPACKED_BYTES:
+                            raise _too_big(total, archive)
+                        members.append(m)
                 tf.extractall(dest, members=members, filter="data")
     except (zipfile.BadZipFile, tarfile.TarError, EOFError) as exc:
         raise GraderError(f"{archive} is not a readable archive ({exc}); "
                           "re-create it with `zip -r` or `tar czf`.") from exc
     return dest
+
+
+def copy_tree(src: Path, dest: Path, warnings: list[str], root: Path) -> None:
+    """Copy a package folder without following links: a symbolic link (to a file or a folder,
+    inside or outside the submission) is skipped with a warning, as are special and huge files."""
+    dest.mkdir(parents=True, exist_ok=True)
+    for entry in sorted(src.iterdir()):
+        rel = entry.relative_to(root)
+        if entry.name in SKIP_DIRS or entry.name.endswith(".pyc"):
+            continue
+        if entry.is_symlink():
+            warnings.append(f"skipped the symbolic link {rel} -> {os.readlink(entry)}")
+        elif entry.is_dir():
+            copy_tree(entry, dest / entry.name, warnings, root)
+        elif not entry.is_file():
+            warnings.append(f"skipped the special file {rel}")
+        elif entry.stat().st_size > MAX_FILE_BYTES:
+            warnings.append(f"skipped {rel} ({entry.stat().st_size >> 20} MiB, over {MAX_FILE_BYTES >> 20} MiB)")
+        else:
+            shutil.copy2(entry, dest / entry.name, follow_symlinks=False)
 
 
 def _build_type(package_xml: Path) -> str:
@@ -117,15 +165,22 @@ def find_packages(root: Path) -> list[PackageSource]:
     return found
 
 
+@dataclass
+class Staged:
+    packages: list[PackageSource]
+    warnings: list[str]          # what was skipped, for the result
+
+
 def stage_sources(submission: Path, dest_src: Path, scratch: Path,
-                  support: dict[str, Path] | None = None) -> list[PackageSource]:
+                  support: dict[str, Path] | None = None) -> Staged:
     """Copy the submission's packages (plus missing ``support`` packages) into ``dest_src``."""
     submission = Path(submission)
     if not submission.exists():
         raise GraderError(f"{submission} does not exist.")
+    warnings: list[str] = []
     root = submission
     if is_archive(submission):
-        root = extract_archive(submission, scratch / "unpacked")
+        root = extract_archive(submission, scratch / "unpacked", warnings)
     elif not submission.is_dir():
         raise GraderError(f"{submission} is neither a folder nor a .zip/.tar.gz archive.")
     packages = find_packages(root)
@@ -142,10 +197,9 @@ def stage_sources(submission: Path, dest_src: Path, scratch: Path,
     staged = []
     for pkg in packages:
         target = dest_src / pkg.name
-        shutil.copytree(pkg.path, target, symlinks=False,
-                        ignore=shutil.ignore_patterns(*SKIP_DIRS, "*.pyc"))
+        copy_tree(pkg.path, target, warnings, pkg.path.parent)
         staged.append(PackageSource(pkg.name, target, pkg.build_type))
-    return staged
+    return Staged(staged, warnings)
 
 
 def tree_digest(src: Path, extra: str = "") -> str:

@@ -1,6 +1,6 @@
 """Synthetic frames in the exact format of docs/ARCHITECTURE.md ("Bag → DataFrames").
 
-The unicycle simulator follows /work/shared/specs/turtlesim.md §3-5: a 16 ms tick with dt = 0.016,
+The unicycle simulator follows docs/turtlesim.md ("The 16 ms tick", "Walls"): a 16 ms tick with dt = 0.016,
 rotate first then translate with the new heading, 1 s command timeout, walls clamped (velocity not
 zeroed), a pose published every tick with linear_velocity = |vx| and angular_velocity = w.
 """

@@ -31,15 +31,26 @@ pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(3000)]
 
 @pytest.fixture(scope="session")
 def batches(tmp_path_factory) -> dict[str, Path]:
-    """Every lab graded in one `grader grade` call each, sharing one build cache."""
+    """Every lab's fixtures graded side by side within one budget of 3 concurrent scenarios
+    (`grade_batch`, what `grader grade` runs), sharing one build cache."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from grader.grading.batch import grade_batch
+    from grader.grading.pipeline import discover_submissions
+    from grader.grading.schedule import Slots
+
     root = tmp_path_factory.mktemp("labs")
-    out = {}
-    for lab, rubric in LABS.items():
-        out[lab] = root / lab
-        rc = grader_main(["grade", str(REPO / "fixtures" / "submissions" / lab), "--rubric",
-                          str(REPO / "rubrics" / rubric), "-o", str(out[lab]), "--jobs", "3",
-                          "--cache-dir", str(root / "build-cache")])
-        assert rc == 0, f"grader grade {lab} exited {rc}"
+    slots = Slots(3)
+    out = {lab: root / lab for lab in LABS}
+
+    def grade(lab: str) -> dict[str, str]:
+        return grade_batch(discover_submissions(REPO / "fixtures" / "submissions" / lab),
+                           load_rubric(REPO / "rubrics" / LABS[lab]), out[lab], slots=slots,
+                           cache_dir=root / "build-cache")
+
+    with ThreadPoolExecutor(max_workers=len(LABS)) as pool:
+        failures = dict(zip(LABS, pool.map(grade, LABS)))
+    assert not any(failures.values()), failures
     return out
 
 

@@ -84,10 +84,38 @@ def test_not_a_workspace_is_a_clear_error(tmp_path: Path, capsys) -> None:
         build_workspace(bad, cache_dir=tmp_path / "c")
 
 
-def test_archive_with_path_traversal_is_refused(tmp_path: Path) -> None:
+def test_archive_members_outside_the_tree_are_skipped_with_a_warning(tmp_path: Path) -> None:
+    """Zip-slip, absolute paths and links: never written outside, never followed, each reported."""
+    import tarfile
     import zipfile
+
+    from grader.workspace.source import stage_sources
     evil = tmp_path / "evil.zip"
     with zipfile.ZipFile(evil, "w") as zf:
         zf.writestr("../../etc/x/package.xml", "<package><name>x</name></package>")
-    with pytest.raises(GraderError, match="points outside the archive"):
-        build_workspace(evil, cache_dir=tmp_path / "c")
+        zf.writestr("/tmp/grader-abs-evil.txt", "absolute")
+        zf.writestr("ws/src/p/package.xml", "<package><name>p</name><export><build_type>ament_python</build_type></export></package>")
+    staged = stage_sources(evil, tmp_path / "s1" / "src", tmp_path / "s1")
+    assert [p.name for p in staged.packages] == ["p"]
+    assert any("'../../etc/x/package.xml'" in w and "outside" in w for w in staged.warnings)
+    assert any("/tmp/grader-abs-evil.txt" in w for w in staged.warnings)
+    assert not Path("/tmp/grader-abs-evil.txt").exists() and not (tmp_path.parent / "etc").exists()
+    with pytest.raises(GraderError, match="no ROS package"):     # nothing usable left: one clear error
+        only_evil = tmp_path / "only.zip"
+        with zipfile.ZipFile(only_evil, "w") as zf:
+            zf.writestr("../../etc/x/package.xml", "<package><name>x</name></package>")
+        build_workspace(only_evil, cache_dir=tmp_path / "c")
+    # a link in a folder submission and in a .tar.gz is skipped, not followed
+    pkg = tmp_path / "folder" / "src" / "p"
+    pkg.mkdir(parents=True)
+    (pkg / "package.xml").write_text("<package><name>p</name></package>")
+    (pkg / "leak").symlink_to("/etc/passwd")
+    staged = stage_sources(tmp_path / "folder", tmp_path / "s2" / "src", tmp_path / "s2")
+    assert not (tmp_path / "s2" / "src" / "p" / "leak").exists()
+    assert any("symbolic link" in w and "leak" in w for w in staged.warnings)
+    tgz = tmp_path / "sub.tar.gz"
+    with tarfile.open(tgz, "w:gz") as tf:
+        tf.add(tmp_path / "folder", arcname="ws")
+    staged = stage_sources(tgz, tmp_path / "s3" / "src", tmp_path / "s3")
+    assert any("link" in w and "/etc/passwd" in w for w in staged.warnings)
+    assert not (tmp_path / "s3" / "src" / "p" / "leak").exists()

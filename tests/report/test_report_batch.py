@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 
 import pytest
@@ -55,5 +56,31 @@ def test_unreadable_result_is_a_clear_error(tmp_path):
     with pytest.raises(GraderError, match="cannot read"):
         read_result(bad)
     bad.write_text(json.dumps({"schema": 99}))
-    with pytest.raises(GraderError, match="schema 99"):
+    with pytest.raises(GraderError, match="no seal"):
         read_result(bad)
+    with pytest.raises(GraderError, match="schema 99"):
+        read_result(bad, verify=False)
+
+
+def test_a_result_changed_after_grading_is_refused(tmp_path, monkeypatch, lab3_result):
+    """A result.json edited by anything but the grader (a student process, a hand) is an error
+    naming the file, and the batch's grades.csv is not rebuilt from it."""
+    from grader.report.batch import load_results
+    from grader.report.result import write_result
+    from grader.report.seal import changed_inputs
+
+    monkeypatch.setenv("GRADER_SEAL_KEY", str(tmp_path / "key"))
+    result = lab3_result
+    bag = tmp_path / "out" / "s1" / "scenarios" / "a" / "bag"
+    bag.mkdir(parents=True)
+    (bag / "x.mcap").write_bytes(b"recorded")
+    path = write_result(tmp_path / "out", "s1", result)
+    assert load_results(tmp_path / "out")                      # sealed: fine
+    doc = json.loads(path.read_text())
+    assert doc["seal"]["inputs"] == {"scenarios/a/bag/x.mcap": hashlib.sha256(b"recorded").hexdigest()}
+    doc["auto_score"] = 1000
+    path.write_text(json.dumps(doc))
+    with pytest.raises(GraderError, match=r"s1/result.json was changed after the grader wrote it"):
+        load_results(tmp_path / "out")
+    (bag / "x.mcap").write_bytes(b"edited")                   # and a changed bag is noticed
+    assert changed_inputs(doc, path.parent) == ["scenarios/a/bag/x.mcap"]

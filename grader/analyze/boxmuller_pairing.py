@@ -1,0 +1,459 @@
+"""How the numbers a student's Box-Muller subscriber printed are paired with the (u1, u2) inputs
+that produced them, and which formula (the right one or a classic mistake) explains them.
+The analyzers in ``grader.analyze.boxmuller`` use it; the method is described there."""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from grader.analyze import Finding
+from grader.analyze._common import (ROSOUT, STDOUT, Frames, end_time, meta_row, rosout_lines, stdout_lines,
+                                    thin, times, topic)
+
+
+TWO_PI = 2.0 * math.pi
+
+
+def _sqrt_m2ln(u: np.ndarray) -> np.ndarray:
+    return np.sqrt(-2.0 * np.log(u))
+
+
+#: name -> (formula text, function, feedback when the student's values match it)
+FORMULAS: dict[str, tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray], str]] = {
+    "correct": ("sqrt(-2 ln u1) cos(2 pi u2)",
+                lambda a, b: _sqrt_m2ln(a) * np.cos(TWO_PI * b), ""),
+    "log10": ("sqrt(-2 log10 u1) cos(2 pi u2)",
+              lambda a, b: np.sqrt(-2.0 * np.log10(a)) * np.cos(TWO_PI * b),
+              "Your values match z computed with log10 instead of the natural log: use math.log / np.log "
+              "(natural logarithm), not math.log10."),
+    "log2": ("sqrt(-2 log2 u1) cos(2 pi u2)",
+             lambda a, b: np.sqrt(-2.0 * np.log2(a)) * np.cos(TWO_PI * b),
+             "Your values match z computed with log2 instead of the natural log: use math.log / np.log."),
+    "missing_2": ("sqrt(-ln u1) cos(2 pi u2)",
+                  lambda a, b: np.sqrt(-np.log(a)) * np.cos(TWO_PI * b),
+                  "Your values match sqrt(-ln u1)·cos(2πu2): the factor 2 under the square root is missing; "
+                  "use math.sqrt(-2 * math.log(u1))."),
+    "missing_sqrt": ("-2 ln u1 cos(2 pi u2)",
+                     lambda a, b: -2.0 * np.log(a) * np.cos(TWO_PI * b),
+                     "Your values match -2·ln(u1)·cos(2πu2): the square root is missing; "
+                     "use math.sqrt(-2 * math.log(u1))."),
+    "power_precedence": ("(-2 ln u1)/2 cos(2 pi u2)",
+                         lambda a, b: -np.log(a) * np.cos(TWO_PI * b),
+                         "Your values match (-2·ln u1)/2·cos(2πu2): '** 1/2' is parsed as (x**1)/2 in Python; "
+                         "write x ** 0.5 or math.sqrt(x)."),
+    "sin_for_cos": ("sqrt(-2 ln u1) sin(2 pi u2)",
+                    lambda a, b: _sqrt_m2ln(a) * np.sin(TWO_PI * b),
+                    "Your values match sqrt(-2 ln u1)·sin(2πu2): that is the other Box-Muller output and is "
+                    "also Normal, but the lab's formula (†) uses cos(2πu2)."),
+    "swapped": ("sqrt(-2 ln u2) cos(2 pi u1)",
+                lambda a, b: _sqrt_m2ln(b) * np.cos(TWO_PI * a),
+                "Your values match the formula with u1 and u2 swapped: the logarithm takes u1 = msg.data[0] "
+                "and the cosine takes u2 = msg.data[1]."),
+    "u1_twice": ("sqrt(-2 ln u1) cos(2 pi u1)",
+                 lambda a, b: _sqrt_m2ln(a) * np.cos(TWO_PI * a),
+                 "Your values match a formula that uses u1 in both places: the cosine must take u2."),
+    "u2_twice": ("sqrt(-2 ln u2) cos(2 pi u2)",
+                 lambda a, b: _sqrt_m2ln(b) * np.cos(TWO_PI * b),
+                 "Your values match a formula that uses u2 in both places: the logarithm must take u1."),
+    "degrees_radians": ("sqrt(-2 ln u1) cos(radians(2 pi u2))",
+                        lambda a, b: _sqrt_m2ln(a) * np.cos(np.radians(TWO_PI * b)),
+                        "Your values match cos(radians(2πu2)): 2πu2 is already in radians, so do not convert it; "
+                        "use math.cos(2 * math.pi * u2)."),
+    "cos_360": ("sqrt(-2 ln u1) cos(360 u2)",
+                lambda a, b: _sqrt_m2ln(a) * np.cos(360.0 * b),
+                "Your values match cos(360·u2): math.cos expects radians, so the angle is 2·math.pi·u2, not 360·u2."),
+    "missing_2_in_2pi": ("sqrt(-2 ln u1) cos(pi u2)",
+                         lambda a, b: _sqrt_m2ln(a) * np.cos(math.pi * b),
+                         "Your values match cos(π·u2): the angle must be 2·π·u2."),
+    "missing_pi": ("sqrt(-2 ln u1) cos(2 u2)",
+                   lambda a, b: _sqrt_m2ln(a) * np.cos(2.0 * b),
+                   "Your values match cos(2·u2): π is missing; the angle must be 2·math.pi·u2."),
+    "cos_precedence": ("sqrt(-2 ln u1) cos(2 pi) u2",
+                       lambda a, b: _sqrt_m2ln(a) * b,
+                       "Your values match sqrt(-2 ln u1)·cos(2π)·u2: u2 must be inside the cosine, "
+                       "math.cos(2 * math.pi * u2)."),
+    "negated": ("-sqrt(-2 ln u1) cos(2 pi u2)",
+                lambda a, b: -_sqrt_m2ln(a) * np.cos(TWO_PI * b),
+                "Your values have the wrong sign: z = +sqrt(-2 ln u1)·cos(2πu2)."),
+}
+
+_NUM = re.compile(
+    r"(?<![\w.])([-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf(?:inity)?)\b)(?![\w])(?!\.\d)",
+    re.IGNORECASE,
+)
+
+COMMON_DEFAULTS = {
+    "topic": "/random_numbers",     # where the uniform pairs are (recorded in the bag)
+    "logger": None,                 # student's logger name on /rosout; None = detect
+    "process": None,                # runner process name for /grader/stdout; None = detect
+    "exclude_loggers": ["turtlesim", "rosbag2_recorder", "rosbag2_player", "grader", "simple_publisher"],
+    "max_lag_s": 2.0,               # a printed value may answer inputs up to this much earlier
+    "lead_s": 0.25,                 # ... or this much later (clock skew log stamp vs recorder)
+}
+
+
+def parse_numbers(text: str) -> list[tuple[float, float]]:
+    """Numbers in a free-text line with half a unit in their last printed digit.
+
+    '0.123' -> (0.123, 0.0005); '1.2e-05' -> (1.2e-05, 5e-07); 'nan' -> (nan, 0).
+    """
+    out = []
+    for m in _NUM.finditer(str(text)):
+        tok = m.group(1)
+        low = tok.lower().lstrip("+-")
+        if low.startswith(("nan", "inf")):
+            out.append((float("nan"), 0.0))
+            continue
+        mant, _, exp = tok.lower().partition("e")
+        decimals = len(mant.split(".", 1)[1]) if "." in mant else 0
+        e = int(exp) if exp else 0
+        try:
+            out.append((float(tok), 0.5 * 10.0 ** (e - decimals)))
+        except ValueError:
+            continue
+    return out
+
+
+@dataclass
+class Source:
+    kind: str            # "rosout" | "stdout"
+    name: str            # logger or process name
+    time: np.ndarray     # per line
+    text: list[str]
+    numbers: list[list[tuple[float, float]]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.numbers = [parse_numbers(t) for t in self.text]
+
+    @property
+    def n_numeric(self) -> int:
+        return sum(1 for n in self.numbers if n)
+
+    def column(self, pos: int) -> tuple[np.ndarray, np.ndarray]:
+        """Value and half-ulp of the pos-th number of each line (NaN where the line has none)."""
+        v = np.full(len(self.numbers), np.nan)
+        h = np.zeros(len(self.numbers))
+        for j, nums in enumerate(self.numbers):
+            if -len(nums) <= pos < len(nums):
+                v[j], h[j] = nums[pos]
+        return v, h
+
+
+def _sources(frames: Frames, p: dict) -> list[Source]:
+    """Candidate output streams: each /rosout logger, then each process's stdout/stderr."""
+    out: list[Source] = []
+    excl = {str(x).lstrip("/") for x in (p.get("exclude_loggers") or [])}
+    ro = rosout_lines(frames)
+    if len(ro):
+        for name, g in ro.groupby("logger", sort=False):
+            if p.get("logger"):
+                if str(name).lstrip("/") != str(p["logger"]).lstrip("/"):
+                    continue
+            elif str(name).lstrip("/") in excl or str(name).startswith("grader"):
+                continue
+            g = g.sort_values("time", kind="stable")
+            out.append(Source("rosout", str(name), g["time"].to_numpy(float), g["text"].tolist()))
+    so = stdout_lines(frames)
+    if len(so):
+        for name, g in so.groupby("process", sort=False):
+            if p.get("process") and str(name) != str(p["process"]):
+                continue
+            g = g.sort_values("time", kind="stable")
+            out.append(Source("stdout", str(name), g["time"].to_numpy(float), g["text"].tolist()))
+    return [s for s in out if s.n_numeric > 0]
+
+
+@dataclass
+class Inputs:
+    t: np.ndarray
+    u1: np.ndarray
+    u2: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def _inputs(frames: Frames, name: str) -> Inputs | None:
+    df = topic(frames, name)
+    if df is None or "data[0]" not in df.columns or "data[1]" not in df.columns:
+        return None
+    u1 = df["data[0]"].to_numpy(float)
+    u2 = df["data[1]"].to_numpy(float)
+    t = times(df)
+    if "pub_t" in df.columns:
+        # send time: a subscriber can only print after it, whatever the recorder's own delay
+        pt = df["pub_t"].to_numpy(float)
+        t = np.where(np.isfinite(pt), pt, t)
+    ok = np.isfinite(u1) & np.isfinite(u2)
+    order = np.argsort(t[ok], kind="stable")
+    return Inputs(t[ok][order], u1[ok][order], u2[ok][order])
+
+
+def _predict(inp: Inputs) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per formula: predicted z and its sensitivity to one float32 ulp on each input."""
+    eps = 2.0 ** -23
+    out = {}
+    with np.errstate(all="ignore"):
+        for name, (_, f, _) in FORMULAS.items():
+            z = f(inp.u1, inp.u2)
+            s = np.abs(f(inp.u1 * (1 + eps), inp.u2) - z) + np.abs(f(inp.u1, inp.u2 * (1 + eps)) - z)
+            out[name] = (z, np.where(np.isfinite(s), s, 0.0))
+    return out
+
+
+@dataclass
+class Pairing:
+    source: Source
+    pos: int
+    formula: str
+    pairs: list[tuple[int, int, bool]]   # (output line j, input i, matched)
+    matched: int
+    expected: int
+    first_i: int | None
+    lag_window: tuple[float, float] = (0.0, 0.0)   # accepted (output time - input time), s
+    chance: float = 0.0                            # share of lines a random input would match
+
+    @property
+    def raw_ratio(self) -> float:
+        return min(1.0, self.matched / self.expected) if self.expected else 0.0
+
+    @property
+    def ratio(self) -> float:
+        """Matched share corrected for chance: (raw - c) / (1 - c), 0 when chance explains it all."""
+        if self.chance >= 1.0:
+            return 0.0
+        return max(0.0, (self.raw_ratio - self.chance) / (1.0 - self.chance))
+
+
+def _windows(inp: Inputs, t_out: np.ndarray, p: dict, lag: tuple[float, float] | None = None,
+             shift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Index range of inputs each line may answer: t_in in [t_out - lag_max, t_out - lag_min]."""
+    lag_min, lag_max = lag if lag is not None else (-p["lead_s"], p["max_lag_s"])
+    lo = np.searchsorted(inp.t, t_out + shift - lag_max, side="left")
+    hi = np.searchsorted(inp.t, t_out + shift - lag_min, side="right")
+    return lo, hi
+
+
+def _count_any(z: np.ndarray, sens: np.ndarray, v: np.ndarray, h: np.ndarray,
+               lo: np.ndarray, hi: np.ndarray) -> int:
+    """Number of output lines with at least one matching input in their window (vectorised)."""
+    width = int((hi - lo).max()) if len(lo) else 0
+    if width <= 0 or len(z) == 0:
+        return 0
+    idx = lo[:, None] + np.arange(width)[None, :]
+    valid = idx < hi[:, None]
+    idx = np.minimum(idx, len(z) - 1)
+    zz = z[idx]
+    tol = h[:, None] + sens[idx] + 1e-6 * np.abs(zz) + 1e-12
+    with np.errstate(invalid="ignore"):
+        m = valid & (np.abs(zz - v[:, None]) <= tol)
+    return int(m.any(axis=1).sum())
+
+
+def _pair(inp: Inputs, src: Source, pos: int, z: np.ndarray, sens: np.ndarray, v: np.ndarray,
+          h: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[tuple[int, int, bool]]:
+    """Largest set of (line, input) matches increasing in both (longest increasing subsequence).
+
+    Why not greedy: with coarse printing and a fast replay a line can also match an unrelated input
+    by coincidence; a greedy choice of such a later input would push every following line off its
+    own input. The longest chain keeps the true pairs, which all line up.
+    """
+    cand_j: list[int] = []
+    cand_i: list[int] = []
+    present: list[int] = []
+    for j in range(len(v)):
+        nums = src.numbers[j]
+        if not -len(nums) <= pos < len(nums):
+            continue          # no number at this position: a banner or unrelated line
+        present.append(j)
+        if lo[j] >= hi[j] or not np.isfinite(v[j]):
+            continue
+        cand = np.arange(lo[j], hi[j])
+        tol = h[j] + sens[cand] + 1e-6 * np.abs(z[cand]) + 1e-12
+        with np.errstate(invalid="ignore"):
+            ok = cand[np.abs(z[cand] - v[j]) <= tol]
+        for i in ok[::-1]:            # descending i within a line: at most one per line in a chain
+            cand_j.append(j)
+            cand_i.append(int(i))
+    # longest strictly increasing subsequence of cand_i (patience sorting with back-pointers)
+    tails: list[int] = []            # tails[k] = index into cand of the smallest tail of a chain of length k+1
+    tail_vals: list[int] = []
+    back = [-1] * len(cand_i)
+    for n, i in enumerate(cand_i):
+        k = int(np.searchsorted(tail_vals, i, side="left"))
+        back[n] = tails[k - 1] if k > 0 else -1
+        if k == len(tails):
+            tails.append(n)
+            tail_vals.append(i)
+        else:
+            tails[k] = n
+            tail_vals[k] = i
+    chain: dict[int, int] = {}
+    n = tails[-1] if tails else -1
+    while n >= 0:
+        chain[cand_j[n]] = cand_i[n]
+        n = back[n]
+    pairs: list[tuple[int, int, bool]] = []
+    for j in present:
+        if j in chain:
+            pairs.append((j, chain[j], True))
+        elif lo[j] < hi[j]:
+            k = np.arange(lo[j], hi[j])
+            pairs.append((j, int(k[np.argmin(np.abs(src.time[j] - inp.t[k]))]), False))
+    return pairs
+
+
+def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred, p: dict, t_cut: float) -> Pairing:
+    """Pair lines with inputs (see _pair) and measure the share matched, corrected for chance.
+
+    Two passes: the first uses the full window; when it finds real matches their time lags are
+    tight (a node logs within milliseconds of receiving), so the second pass only accepts lags in
+    that band (+-50 ms). Then the chance that a random input in the band matches a line is
+    measured on windows shifted far away in time, and the matched share is corrected for it, so
+    coarse printing ("%.1f") against a fast replay cannot earn credit by coincidence.
+    """
+    z, sens = pred[formula]
+    v, h = src.column(pos)
+    full = (-p["lead_s"], p["max_lag_s"])
+    lo, hi = _windows(inp, src.time, p)
+    pairs = _pair(inp, src, pos, z, sens, v, h, lo, hi)
+    lag = full
+    lags = np.array([src.time[j] - inp.t[i] for j, i, m in pairs if m])
+    if len(lags) >= 5:
+        lag = (max(full[0], float(np.quantile(lags, 0.02)) - 0.05),
+               min(full[1], float(np.quantile(lags, 0.98)) + 0.05))
+        lo, hi = _windows(inp, src.time, p, lag)
+        pairs = _pair(inp, src, pos, z, sens, v, h, lo, hi)
+    # chance level: the same lines against inputs far away in time
+    span = lag[1] - lag[0] + 1.0
+    have = np.array([-len(n) <= pos < len(n) for n in src.numbers]) & np.isfinite(v)
+    hits = tot = 0
+    width = max(1.0, 0.8 * float(np.median(hi - lo))) if len(hi) else 1.0
+    for shift in (-3 * span, -2 * span, 2 * span, 3 * span):
+        slo, shi = _windows(inp, src.time, p, lag, shift)
+        ok = have & (shi - slo >= width)      # full windows only (not cut by the bag's ends)
+        if ok.sum():
+            hits += _count_any(z, sens, v[ok], h[ok], slo[ok], shi[ok])
+            tot += int(ok.sum())
+    chance = hits / tot if tot else 0.0
+    matched_i = [i for _, i, m in pairs if m]
+    if matched_i:
+        first_i = min(matched_i)
+        t0 = inp.t[first_i]
+        t_cut = max(t_cut, float(inp.t[max(matched_i)]))
+    else:
+        first_i = None
+        t0 = float(src.time[0]) - p["max_lag_s"] if len(src.time) else float("inf")
+    expected = int(((inp.t >= t0 - 1e-9) & (inp.t <= t_cut)).sum())
+    expected = max(expected, len(matched_i))
+    return Pairing(src, pos, formula, pairs, len(matched_i), expected, first_i, lag, chance)
+
+
+@dataclass
+class Selection:
+    inputs: Inputs | None
+    sources: list[Source]
+    best: Pairing | None                      # best (source, pos, formula)
+    correct: Pairing | None                   # correct formula at best (source, pos)
+    counts: dict[str, int]                    # per formula, best count over sources/positions (<= 300 lines)
+
+
+_POSITIONS = (-1, 0, -2, 1, -3, 2)
+
+
+def select(frames: Frames, p: dict, sources: list[Source] | None = None) -> Selection:
+    """Find the (source, number position, formula) that explains most printed lines."""
+    inp = _inputs(frames, p["topic"])
+    srcs = _sources(frames, p) if sources is None else sources
+    if inp is None or len(inp) == 0 or not srcs:
+        return Selection(inp, srcs, None, None, {})
+    pred = _predict(inp)
+    order = list(FORMULAS)
+    best_key = None
+    best = None
+    counts = {f: 0 for f in order}
+    for si, src in enumerate(srcs):
+        maxlen = max(len(n) for n in src.numbers)
+        # choosing (source, position, formula) needs no more than ~300 evenly spaced lines
+        rows = np.unique(np.linspace(0, len(src.numbers) - 1, min(len(src.numbers), 300)).astype(int))
+        lo, hi = _windows(inp, src.time[rows], p)
+        for pi, pos in enumerate(_POSITIONS):
+            if pos >= maxlen or -pos > maxlen:
+                continue
+            v, h = src.column(pos)
+            v, h = v[rows], h[rows]
+            for fi, f in enumerate(order):
+                c = _count_any(pred[f][0], pred[f][1], v, h, lo, hi)
+                counts[f] = max(counts[f], c)
+                key = (c, -fi, -si, -pi)
+                if best_key is None or key > best_key:
+                    best_key, best = key, (src, pos, f)
+    assert best is not None
+    t_cut = end_time(frames) - p.get("tail_grace_s", 2.0)
+    src, pos, f = best
+    if best_key[0] == 0:
+        # Nothing matches anything: pair the busiest source's last number for evidence.
+        src = max(srcs, key=lambda s: (s.kind == "rosout", s.n_numeric))
+        pos, f = -1, "correct"
+    bp = _pairing(inp, src, pos, f, pred, p, t_cut)
+    cp = bp if f == "correct" else _pairing(inp, src, pos, "correct", pred, p, t_cut)
+    return Selection(inp, srcs, bp, cp, counts)
+
+
+def _examples(sel: Selection, pairing: Pairing, k: int = 5, only_unmatched: bool = False) -> list[dict]:
+    inp = sel.inputs
+    assert inp is not None
+    v, _ = pairing.source.column(pairing.pos)
+    zc = FORMULAS["correct"][1]
+    out = []
+    for j, i, m in pairing.pairs:
+        if only_unmatched and m:
+            continue
+        with np.errstate(all="ignore"):
+            z = float(zc(np.array([inp.u1[i]]), np.array([inp.u2[i]]))[0])
+        out.append({"u1": float(inp.u1[i]), "u2": float(inp.u2[i]), "printed": float(v[j]),
+                    "line": pairing.source.text[j][:120], "expected_z": z, "matched": bool(m)})
+        if len(out) >= k:
+            break
+    return out
+
+
+def _pair_series(sel: Selection, pairing: Pairing, max_points: int = 300) -> dict:
+    """Printed value against the correct z of the input it answers (the report's scatter plot);
+    ``formula``: the formula the pairing followed (a named mistake, or "correct")."""
+    inp = sel.inputs
+    assert inp is not None
+    v, _ = pairing.source.column(pairing.pos)
+    pairs = pairing.pairs
+    keep = thin(len(pairs), max_points)
+    j = np.array([pairs[k][0] for k in keep], dtype=int)
+    i = np.array([pairs[k][1] for k in keep], dtype=int)
+    with np.errstate(all="ignore"):
+        z = FORMULAS["correct"][1](inp.u1[i], inp.u2[i]) if len(i) else np.array([])
+    return {"formula": pairing.formula, "expected_z": np.round(z, 5).tolist(),
+            "printed": np.round(v[j], 6).tolist() if len(j) else [],
+            "matched": [bool(pairs[k][2]) for k in keep]}
+
+
+def _no_output_finding(frames: Frames, p: dict, sel: Selection) -> Finding | None:
+    if sel.inputs is None or len(sel.inputs) == 0:
+        row = meta_row(frames, p["topic"])
+        return Finding.error(
+            f"No (u1, u2) pairs were recorded on {p['topic']}, so the subscriber could not be tested "
+            "(scenario problem).", {"topic": p["topic"], "meta": row})
+    if topic(frames, ROSOUT) is None and topic(frames, STDOUT) is None:
+        return Finding.error("Neither /rosout nor /grader/stdout was recorded: the subscriber's output "
+                             "cannot be checked (scenario problem).", {"n_inputs": len(sel.inputs)})
+    if not sel.sources:
+        return Finding.fail(
+            f"Your subscriber printed no numbers while {len(sel.inputs)} pairs were published on "
+            f"{p['topic']}: subscribe to /random_numbers and log z with self.get_logger().info(...).",
+            {"n_inputs": len(sel.inputs)})
+    return None
+
+

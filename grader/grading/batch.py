@@ -1,0 +1,60 @@
+"""A batch: many submissions graded within one budget of concurrent scenarios (``Slots``).
+
+``grade_batch`` is what ``grader grade`` runs after choosing the submissions; it is also the
+Python API for grading several labs at once within one budget (the fixture test grades every
+lab's fixtures side by side this way). Ctrl-C cancels what has not started and stops running
+scenarios cleanly (their bags are finalised); finished submissions and ``grades.csv`` are kept.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from pathlib import Path
+from typing import Any, Callable
+
+from grader.errors import GraderError
+from grader.grading.schedule import Slots
+
+
+def grade_batch(submissions: list[Path], rubric: Any, out: Path, *, slots: Slots,
+                cache_dir: Path | None = None, reuse: bool = True,
+                on_done: Callable[[str, Any, str | None], None] | None = None,
+                progress: Callable[[str], None] | None = None, time_scale: float = 1.0) -> dict[str, str]:
+    """Grade ``submissions`` into ``out``; returns ``{submission id: why it has no result}``.
+
+    ``on_done(id, graded or None, error or None)`` is called as each one finishes; ``progress``
+    gets status lines when there is a single submission; ``time_scale`` as for
+    ``grade_submission``. ``grades.csv``/``index.html`` are
+    rewritten after each submission, so they are current even if the batch is interrupted.
+    """
+    from grader.grading.outputs import write_batch_outputs
+    from grader.grading.pipeline import grade_submission, submission_id
+
+    out.mkdir(parents=True, exist_ok=True)
+    failures: dict[str, str] = {}
+    # more submissions in flight than slots: one builds or analyzes while others' scenarios run
+    with ThreadPoolExecutor(max_workers=slots.n + 1) as pool:
+        futures = {pool.submit(grade_submission, s, rubric, out, cache_dir=cache_dir,
+                               progress=progress if len(submissions) == 1 else None, slots=slots,
+                               reuse=reuse, time_scale=time_scale): s for s in submissions}
+        try:
+            for fut in as_completed(futures):
+                sid = submission_id(futures[fut])
+                try:
+                    graded, error = fut.result(), None
+                except GraderError as exc:
+                    graded, error = None, str(exc)
+                except KeyboardInterrupt:
+                    graded, error = None, "interrupted before it finished (no result written)"
+                if error:
+                    failures[sid] = error
+                if on_done:
+                    on_done(sid, graded, error)
+                write_batch_outputs(out, rubric)
+        except KeyboardInterrupt:
+            from grader.scenario import cancel_all
+            for f in futures:
+                f.cancel()
+            cancel_all()          # running scenarios finalize their bags and stop
+            raise
+    return failures

@@ -1,0 +1,78 @@
+"""`grader doctor`'s proof that the sandbox works here: a real scenario (reference simulator,
+recorder, driver) with one sandboxed student-like rclpy node that must hear the simulator's
+poses over the scenario's loopback, and must not see or change anything it should not."""
+
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+LISTENER = r"""
+import json, os, sys, time
+report = {"uid": os.getuid(), "sees": [p for p in sys.argv[1:] if os.path.exists(p)], "wrote": []}
+for p in sys.argv[1:]:
+    try:
+        with open(os.path.join(p, "sandbox-selftest"), "w") as f:
+            f.write("x")
+        report["wrote"].append(p)
+    except OSError:
+        pass
+import rclpy
+from turtlesim.msg import Pose
+rclpy.init()
+node = rclpy.create_node("sandbox_selftest")
+got = []
+t0 = time.monotonic()
+node.create_subscription(Pose, "/turtle1/pose", lambda m: got.append(time.monotonic()), 10)
+while len(got) < 10 and time.monotonic() - t0 < 20:
+    rclpy.spin_once(node, timeout_sec=0.1)
+report["poses"] = len(got)
+report["first_pose_s"] = round(got[0] - t0, 3) if got else None
+print("SELFTEST " + json.dumps(report), flush=True)
+sys.exit(0 if len(got) >= 10 else 1)
+"""
+
+
+def sandbox_selftest(timeout_s: float = 30.0) -> tuple[bool, str]:
+    from grader.scenario import run_scenario
+    from grader.scenario.model import LaunchedProcess, Scenario, ScenarioRun
+
+    from grader.sandbox.probe import protections
+
+    fs_on = next(p.active for p in protections() if p.name == "filesystem")
+    package = Path(__file__).resolve().parents[1]
+    hidden = [str(p) for p in (package, package.parent / "rubrics") if p.exists()]
+    scenario = Scenario.model_validate({
+        "processes": [{"name": "listener", "package": "selftest", "module": "selftest:main"}],
+        "steps": [{"id": "listen", "until": {"condition": "process_exit", "process": "listener"},
+                   "timeout": timeout_s}]})
+    with tempfile.TemporaryDirectory(prefix="grader-doctor-sandbox-") as tmp:
+        argv = (sys.executable, "-c", LISTENER, *hidden, tmp)
+        run = ScenarioRun(id="sandbox-selftest", scenario=scenario, launched={"listener": (
+            LaunchedProcess(name="listener", process="listener", argv=argv),)})
+        t0 = time.monotonic()
+        record = run_scenario(run, Path(tmp) / "out")
+        wall = time.monotonic() - t0
+        log = (Path(tmp) / "out" / "logs" / "listener.stdout.log")
+        lines = [ln for ln in (log.read_text(errors="replace") if log.exists() else "").splitlines()
+                 if ln.startswith("SELFTEST ")]
+        if not lines:
+            err = Path(tmp) / "out" / "logs" / "listener.stderr.log"
+            tail = (err.read_text(errors="replace").strip().splitlines() if err.exists() else [])[-1:]
+            return False, f"the sandboxed node reported nothing ({'; '.join(record.get('errors', []) + tail)})"
+        report = json.loads(lines[-1][len("SELFTEST "):])
+    problems = []
+    if report["poses"] < 10:
+        problems.append(f"heard {report['poses']} poses from the simulator")
+    if fs_on and report["sees"]:
+        problems.append("could see " + ", ".join(report["sees"]))
+    if fs_on and report["wrote"]:
+        problems.append("could write into " + ", ".join(report["wrote"]))
+    if problems:
+        return False, "; ".join(problems)
+    seen = ("grader sources, rubrics and outputs invisible" if fs_on
+            else "NOT isolated: it could see " + ", ".join(report["sees"]))
+    return True, f"first simulator pose after {report['first_pose_s']} s; uid {report['uid']}; {seen} ({wall:.1f} s)"

@@ -1,0 +1,131 @@
+"""The fault corpus: hostile and broken submissions graded in one batch beside an honest one.
+
+Each gets its expected result (fixtures/faults/expected.yaml) in bounded time; afterwards no
+process of the batch is alive, and nothing outside the batch's output folder changed: not the
+repository (rubrics, fixtures, the grader's sources), not an earlier batch's results, not HOME or
+/tmp. See fixtures/faults/README.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+
+from grader.cli import main as grader_main
+
+REPO = Path(__file__).resolve().parents[2]
+FAULTS = REPO / "fixtures" / "faults"
+SPEC = yaml.safe_load((FAULTS / "expected.yaml").read_text())
+MARK = "grader-fault-"
+
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
+
+
+def tree_state(*roots: Path) -> dict[str, str]:
+    out = {}
+    for root in roots:
+        for f in sorted(root.rglob("*")):
+            if f.is_file() and not f.is_symlink() and "__pycache__" not in f.parts:
+                out[str(f)] = hashlib.sha256(f.read_bytes()).hexdigest()
+    return out
+
+
+def fault_processes() -> list[str]:
+    found = []
+    for proc in Path("/proc").iterdir():
+        if proc.name.isdigit():
+            try:
+                cmd = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if MARK in cmd and "pytest" not in cmd:
+                found.append(f"{proc.name}: {cmd[:120]}")
+    return found
+
+
+@pytest.fixture(scope="module")
+def batch(tmp_path_factory) -> dict:
+    root = tmp_path_factory.mktemp("faults")
+    subs = root / "subs"
+    shutil.copytree(FAULTS, subs, symlinks=True, ignore=shutil.ignore_patterns("*.md", "*.yaml", "*.py"))
+    huge = subs / "huge_file"
+    shutil.copytree(FAULTS / "honest", huge)
+    with open(huge / "src" / "turtle_goal" / "recording.bag", "wb") as f:     # 300 MB, sparse
+        f.truncate(300 * 2**20)
+    earlier = root / "earlier_batch"                         # an earlier batch's results nearby
+    (earlier / "alice").mkdir(parents=True)
+    (earlier / "alice" / "result.json").write_text('{"auto_score": 3}')
+    (earlier / "grades.csv").write_text("submission,auto_total\nalice,3\n")
+    watched = [REPO / "rubrics", REPO / "fixtures", REPO / "grader", earlier]
+    before = tree_state(*watched)
+    home_before = sorted(p.name for p in Path.home().iterdir())
+    out = root / "out"
+    os.environ["GRADER_TEST_SECRET"] = "caller-secret-7f3a"       # must not reach student code
+    rc = grader_main(["grade", str(subs), "--rubric", str(REPO / "rubrics" / "goal_setter.yaml"), "-o", str(out),
+                      "--jobs", "3", "--no-reuse", "--cache-dir", str(root / "cache")])
+    os.environ.pop("GRADER_TEST_SECRET", None)
+    return {"rc": rc, "out": out, "before": before, "after": tree_state(*watched),
+            "home_before": home_before, "home_after": sorted(p.name for p in Path.home().iterdir())}
+
+
+def result(batch: dict, sid: str) -> dict:
+    return json.loads((batch["out"] / sid / "result.json").read_text())
+
+
+def test_the_batch_finishes(batch: dict) -> None:
+    assert batch["rc"] == 0
+
+
+@pytest.mark.parametrize("fault", [*SPEC["faults"], "huge_file"])
+def test_each_fault_grades_as_expected(batch: dict, fault: str) -> None:
+    want = SPEC["faults"].get(fault, SPEC["faults"]["honest"])["expected"]
+    got = {i["id"]: i for i in result(batch, fault)["items"]}
+    bad = []
+    for item, expected in want.items():
+        allowed = expected if isinstance(expected, list) else [expected]
+        allowed = {("fail" if a == "warn" else a) for a in allowed} | ({"partial"} if "warn" in allowed else set())
+        if got[item]["status"] not in allowed:
+            bad.append(f"{item}: expected {expected}, got {got[item]['status']}: {got[item]['feedback'][:160]}")
+    assert not bad, f"{fault}:\n" + "\n".join(bad)
+
+
+def test_nothing_of_the_batch_is_left_running(batch: dict) -> None:
+    assert fault_processes() == []
+
+
+def test_nothing_outside_the_output_changed(batch: dict) -> None:
+    changed = sorted(set(batch["before"]) ^ set(batch["after"]) |
+                     {k for k in batch["before"] if batch["after"].get(k) != batch["before"][k]})
+    assert changed == []
+    assert batch["home_after"] == batch["home_before"]
+    assert not list(Path("/tmp").glob(f"{MARK}*"))
+    assert not list(batch["out"].parent.glob(f"**/{MARK}*"))
+
+
+def test_every_result_is_the_graders(batch: dict) -> None:
+    """No submission rewrote another's result: every seal checks out."""
+    from grader.report.batch import load_results
+    assert len(load_results(batch["out"])) == len(SPEC["faults"]) + 1
+
+
+def test_the_reasons_are_in_the_results(batch: dict) -> None:
+    def problems(sid: str) -> str:
+        return json.dumps(result(batch, sid).get("errors", [])) + json.dumps(result(batch, sid)["items"])
+
+    assert "symbolic link" in problems("symlink_folder")
+    assert "outside the archive" in problems("zip_slip") and "symbolic link" in problems("zip_slip")
+    assert "link" in problems("symlink_tar")
+    assert "MiB" in problems("huge_file")
+    assert "memory" in problems("memory_hog").lower()
+    flood_log = sum(f.stat().st_size for f in (batch["out"] / "output_flood").glob("scenarios/*/logs/*.log"))
+    assert flood_log < 50 * 2**20
+    assert "output" in problems("output_flood").lower()
+    snooped = "".join(f.read_text(errors="replace") for f in (batch["out"] / "read_rubric").glob("scenarios/*/logs/*"))
+    assert "Goal setter service, turtle controller and launch file" not in snooped      # the rubric's title
+    assert "SNOOPED ENV" in snooped and "caller-secret-7f3a" not in snooped     # a minimal environment

@@ -1,0 +1,117 @@
+"""The sandbox's parts on their own (real processes, no ROS): capped logs, the minimal
+environment, the bubblewrap view, the DDS profile, the modes and the probe."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from grader.errors import GraderError
+from grader.sandbox import probe
+from grader.sandbox.capture import CappedLog
+from grader.sandbox.jail import SANDBOX_DDS_PROFILE, Jail, minimal_env, prepare
+from grader.sandbox.scenario import ScenarioSandbox, summary
+from sandboxhelpers import require_protections
+
+REPO = Path(__file__).resolve().parents[2]
+NS = {"d": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+
+
+def test_sandbox_dds_profile_keeps_the_discovery_settings_of_the_main_one() -> None:
+    def discovery(path: Path) -> str:
+        node = ET.parse(path).getroot().find(".//d:discovery_config", NS)
+        return ET.tostring(node).decode().replace(" ", "").replace("\n", "")
+
+    assert discovery(SANDBOX_DDS_PROFILE) == discovery(REPO / "grader" / "dds" / "fastdds_profile.xml")
+    root = ET.parse(SANDBOX_DDS_PROFILE).getroot()
+    assert root.find(".//d:useBuiltinTransports", NS).text == "false"
+    assert root.find(".//d:transport_descriptor/d:type", NS).text == "UDPv4"
+
+
+def test_capped_log_keeps_the_cap_notes_the_cut_and_never_blocks_the_writer(tmp_path: Path) -> None:
+    r, w = os.pipe()
+    proc = subprocess.Popen([sys.executable, "-c", "import sys\nfor _ in range(6 * 1024): sys.stdout.write('y' * 1023 + '\\n')\n"
+                             "sys.stderr.write('done')"], stdout=w, stderr=subprocess.PIPE)
+    os.close(w)
+    cuts = []
+    capped = CappedLog(r, tmp_path / "out.log", 2**20, stream="stdout", on_cut=lambda s, c: cuts.append((s, c)))
+    assert proc.wait(30) == 0 and proc.stderr.read() == b"done"
+    capped.join(10)
+    text = (tmp_path / "out.log").read_text()
+    assert text.count("y" * 1023) == 1024 and len(text) < 2**20 + 300
+    assert "[grader] stdout cut: the log reached its limit of 1 MiB" in text
+    assert f"[grader] {5 * 2**20} bytes of stdout discarded" in text
+    assert cuts == [("stdout", 2**20)] and capped.dropped == 5 * 2**20
+
+
+def test_minimal_env_keeps_ros_variables_and_drops_the_callers(tmp_path: Path) -> None:
+    caller = {"ROS_DOMAIN_ID": "7", "AWS_SECRET_ACCESS_KEY": "x", "SSH_AUTH_SOCK": "/run/agent",
+              "PYTHONPATH": os.pathsep.join([str(REPO), f"{sys.prefix}/lib/site"]),
+              "AMENT_PREFIX_PATH": os.pathsep.join([str(tmp_path / "install" / "pkg"), sys.prefix]),
+              "PATH": f"{REPO}/bin:{sys.prefix}/bin:/usr/bin"}
+    env = minimal_env(caller, {"TURTLE_SPEED": "2"}, visible=[sys.prefix, str(tmp_path / "install")],
+                      home="/sandbox", profile="/.grader/fastdds_profile.xml")
+    assert env["ROS_DOMAIN_ID"] == "7" and env["TURTLE_SPEED"] == "2"
+    assert "AWS_SECRET_ACCESS_KEY" not in env and "SSH_AUTH_SOCK" not in env
+    assert str(REPO) not in env["PYTHONPATH"].split(os.pathsep)
+    assert f"{REPO}/bin" not in env["PATH"].split(os.pathsep)
+    assert env["AMENT_PREFIX_PATH"].split(os.pathsep)[0] == str(tmp_path / "install" / "pkg")
+    assert env["HOME"] == "/sandbox" and env["ROS_LOG_DIR"].startswith("/sandbox")
+    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == "/.grader/fastdds_profile.xml"
+
+
+def test_jailed_command_sees_only_what_it_is_given(tmp_path: Path) -> None:
+    require_protections("filesystem")
+    given, hidden = tmp_path / "given", tmp_path / "hidden"
+    given.mkdir()
+    hidden.mkdir()
+    (given / "a.txt").write_text("ok")
+    jail = Jail(bwrap=probe().bwrap, ro=(str(given),), uid=65534 if probe().uid_drop else None)
+    code = ("import os, sys; print(open(sys.argv[1]).read(), os.path.exists(sys.argv[2]), "
+            "os.path.exists(sys.argv[3]), os.getcwd())")
+    p = prepare(jail, [sys.executable, "-c", code, str(given / "a.txt"), str(hidden), str(REPO / "grader")],
+                {"ROS_DOMAIN_ID": "3"})
+    done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
+    assert done.stdout.split() == ["ok", "False", "False", "/sandbox"], done.stderr
+    # the student entry runner is handed in as one file, not the grader package
+    p = prepare(jail, [sys.executable, "-m", "grader.workspace.launch", "json:dumps", "x"], {})
+    assert "/.grader/launch.py" in p.argv and "-m" not in p.argv[p.argv.index("/.grader/launch.py") - 2:]
+
+
+def test_off_mode_warns_and_require_mode_refuses_a_missing_protection(monkeypatch) -> None:
+    monkeypatch.setenv("GRADER_SANDBOX", "off")
+    off = summary()
+    assert off["active"] == [] and "reduced isolation" in off["warning"]
+    assert ScenarioSandbox().argv(["x"]) == ["x"]
+    monkeypatch.setenv("GRADER_SANDBOX", "sometimes")
+    with pytest.raises(GraderError, match="use auto, off or require"):
+        summary()
+    monkeypatch.setenv("GRADER_SANDBOX", "require")
+    monkeypatch.setenv("GRADER_BWRAP", str(REPO / "no-such-bwrap"))
+    probe.cache_clear()
+    try:
+        with pytest.raises(GraderError, match="filesystem.*bubblewrap is not installed"):
+            ScenarioSandbox()
+    finally:
+        monkeypatch.delenv("GRADER_BWRAP")
+        probe.cache_clear()
+
+
+def test_grader_program_started_as_student_code_stays_jailed_with_the_package_read_only(tmp_path: Path) -> None:
+    """A launch file's turtlesim_node is the grader's simulator started like a student node: it
+    sees the grader package read-only, and still nothing else."""
+    require_protections("filesystem")
+    jail = Jail(bwrap=probe().bwrap, uid=65534 if probe().uid_drop else None)
+    code = "import grader.sandbox.enter as e, os, sys; print(os.path.exists(sys.argv[1])); open(e.__file__, 'a')"
+    p = prepare(jail, [sys.executable, "-c", code, str(tmp_path)], {})
+    assert "-m" not in p.argv                                         # plain student code: no package
+    p = prepare(jail, [sys.executable, "-m", "grader.sandbox.enter", "--", sys.executable, "-c", code,
+                       str(tmp_path)], {})
+    done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
+    assert done.stdout.split() == ["False"], done.stderr
+    assert "Read-only file system" in done.stderr or "Permission denied" in done.stderr, done.stderr
