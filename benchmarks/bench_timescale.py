@@ -9,7 +9,9 @@ changing machine load hits both alike. Every run's per-item results must be iden
 
 ``--fixtures``: also every Lab 3 fixture in one ``grader grade`` batch at 1x and twice at 4x
 (``--jobs 2``, no reuse): each submission's per-item (points, status) tuples must be identical in
-all three batches and match its expected.yaml. Slow (~15 min on a busy 2-core machine).
+all three batches, except items its expected.yaml lists with several outcomes (chaotic at 1x
+too, e.g. no_wrap's turn direction: those must stay within the list), and match its
+expected.yaml. Slow (~30 min on a busy 2-core machine).
 
     .venv/bin/python benchmarks/bench_timescale.py [N] [--fixtures]
 """
@@ -99,11 +101,12 @@ def bench_fixtures() -> bool:
     ok = True
     for s in subs:
         want = yaml.safe_load((LAB3 / s / "expected.yaml").read_text())["expected"]
-        tuples = {label: items_of(batches[label][s]) for label in batches}
+        chaotic = {i for i, w in want.items() if isinstance(w, list)}
+        tuples = {label: tuple(t for t in items_of(batches[label][s]) if t[0] not in chaotic) for label in batches}
         identical = len(set(tuples.values())) == 1
         wrong = []
         for label in batches:
-            for item_id, _points, status in tuples[label]:
+            for item_id, _points, status in items_of(batches[label][s]):
                 allowed = want.get(item_id)
                 if allowed is None:
                     continue
@@ -112,13 +115,16 @@ def bench_fixtures() -> bool:
                 if status not in allowed:
                     wrong.append(f"{label} {item_id}: {status} (expected {want[item_id]})")
         ok &= identical and not wrong
-        print(f"  {s:18} identical 1x/4x/4x: {identical}" + (f"; not as expected: {wrong}" if wrong else ""))
+        print(f"  {s:18} identical 1x/4x/4x: {identical}" + (f" (chaotic at 1x too, within expected: "
+                                                              f"{', '.join(sorted(chaotic))})" if chaotic else "")
+              + (f"; not as expected: {wrong}" if wrong else ""))
         if not identical:
             for idx, row in enumerate(tuples["1x"]):
                 seen = {label: tuples[label][idx] for label in tuples}
                 if len(set(seen.values())) > 1:
                     print(f"      {seen}")
-    print(f"every Lab 3 fixture identical at 1x and (twice) at 4x, and as expected: {ok}")
+    print(f"every Lab 3 fixture identical at 1x and (twice) at 4x (items chaotic at 1x: within their "
+          f"expected outcomes), and as expected: {ok}")
     return ok
 
 

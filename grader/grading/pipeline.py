@@ -257,12 +257,15 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     t1 = time.monotonic()
     scenario_ids = needed_scenarios(items)
     say(f"{sid}: scenarios {', '.join(scenario_ids)}")
+    # longest first (by its step limits): when slots run short, a short scenario waits, not the
+    # one that sets the submission's wall time
+    longest_first = sorted(scenario_ids, key=lambda sc: -rubric.scenarios[sc].budget_s)
     with ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
         runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings,
                                    time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else ())
-                for sc_id in scenario_ids}
-        for sc_id, future in runs.items():
-            record = future.result()
+                for sc_id in longest_first}
+        for sc_id in scenario_ids:
+            record = runs[sc_id].result()
             timings[f"scenario:{sc_id}:wall_s"] = record.get("parent_wall_s", 0.0)
             timings[f"scenario:{sc_id}:active_s"] = record.get("active_s", 0.0)
             errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]

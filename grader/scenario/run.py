@@ -330,7 +330,9 @@ def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dic
 
 def _check_watchdog(driver) -> None:
     if driver.watchdog is not None:
-        reason = driver.watchdog.verdict(driver.node, driver.clock.sim_s(), driver.student_publishes)
+        running = {name: p.pid for name, p in driver.processes.items() if p.alive()}
+        reason = driver.watchdog.verdict(driver.node, driver.clock.sim_s(), driver.student_publishes) \
+            or driver.watchdog.busy(running)
         if reason:
             raise _FallBack(reason)
 

@@ -16,11 +16,18 @@ measures the recorded times.
 
 Either one sends the scenario back to 1x. A node that is simply wrong (10 Hz instead of 1 Hz)
 is then graded at 1x too, which only costs time: the grade is never taken from a run that might
-differ from 1x. A third signal: anyone but the grader's clock publishing ``/clock``.
+differ from 1x. Two more signals: anyone but the grader's clock publishing ``/clock``, and a
+student process busy for ``BUSY_SHARE`` of a CPU core or more since its node came up: at K x it
+handles K times the messages per wall second (every ``/clock`` included), and a process near a
+full core falls behind simulated time. Measured on Lab 3's action server (rclpy's
+MultiThreadedExecutor with ``Rate.sleep`` in its execute callback): 53-102 % of a core at 4x
+(its 30 Hz control loop at 3-20 Hz of simulated time, gaps over 1 s); the Lab 3 controller and
+subscriber nodes: 31-35 %.
 """
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -32,6 +39,45 @@ from grader.sim.clock import CLOCK_TOPIC
 GAP_FACTOR = 5.0
 #: expected periods a published topic may stay silent before that alone is a signal
 QUIET_PERIODS = 4.0
+#: share of a CPU core a student process may use (averaged over at least BUSY_WINDOW_S of wall
+#: time since its node came up) before it counts as unable to keep pace
+BUSY_SHARE = 0.75
+BUSY_WINDOW_S = 2.0
+
+
+def tree_cpu_seconds(pids: dict[str, int]) -> dict[str, float]:
+    """CPU seconds (user + system, reaped children included) of each named process and all its
+    descendants, read from /proc (a sandbox's wrapper and the node inside it count as one)."""
+    tick = os.sysconf("SC_CLK_TCK")
+    parent: dict[int, int] = {}
+    own: dict[int, float] = {}
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry.name}/stat") as f:
+                stat = f.read()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()
+        pid = int(entry.name)
+        parent[pid] = int(fields[1])
+        own[pid] = sum(int(v) for v in fields[11:15]) / tick
+    children: dict[int, list[int]] = {}
+    for pid, ppid in parent.items():
+        children.setdefault(ppid, []).append(pid)
+    out = {}
+    for name, root in pids.items():
+        total, todo, seen = 0.0, [root], set()
+        while todo:
+            pid = todo.pop()
+            if pid in seen or pid not in own:
+                continue
+            seen.add(pid)
+            total += own[pid]
+            todo += children.get(pid, [])
+        out[name] = total
+    return out
 
 
 def rate(times: list[float], max_gap: float) -> float:
@@ -70,6 +116,7 @@ class RateWatchdog:
     clock_owner: str
     arrivals: dict[str, tuple[list[float], list[float]]] = field(default_factory=dict)
     advertised_at: dict[str, float] = field(default_factory=dict)   # sim time a student publisher was seen
+    cpu_base: dict[str, tuple[float, float]] = field(default_factory=dict)   # process -> (cpu s, wall s)
 
     def __post_init__(self) -> None:
         self.arrivals = {e.topic: ([], []) for e in self.expected}
@@ -79,6 +126,19 @@ class RateWatchdog:
         if lists is not None and sim_s > 0:
             lists[0].append(sim_s)
             lists[1].append(time.monotonic())
+
+    def busy(self, pids: dict[str, int]) -> str | None:
+        """A student process (``name -> pid`` of those running) that used ``BUSY_SHARE`` of a
+        core or more since the first call that saw it (its node was up by then)."""
+        now = time.monotonic()
+        used = tree_cpu_seconds(pids)
+        for name, cpu in used.items():
+            base = self.cpu_base.setdefault(name, (cpu, now))
+            wall = now - base[1]
+            if wall >= BUSY_WINDOW_S and (cpu - base[0]) / wall >= BUSY_SHARE:
+                return (f"{name} used {100 * (cpu - base[0]) / wall:.0f} % of a CPU core for {wall:.1f} s: "
+                        "a process that busy cannot keep pace with simulated time")
+        return None
 
     def verdict(self, node: Any, sim_now: float, student_publishes: Any = None) -> str | None:
         """The first reason to rerun at 1x, or None. ``node``: an rclpy node of the graph;

@@ -65,13 +65,16 @@ def test_each_scenario_says_how_it_ran(batch: Path) -> None:
     for name in ("reference", "no_wrap"):
         ts = result(batch, name)["time_scale"]
         assert set(ts) == scenarios
-        assert all(t["requested"] == 4.0 and t["used"] == 4.0 for t in ts.values()), (name, ts)
+        assert all(t["requested"] == 4.0 and t["used"] == 4.0 for sc, t in ts.items() if sc != "ex3_action"), ts
+        # the rubric pins the action scenario to real time (its server cannot keep pace at 4x)
+        assert ts["ex3_action"]["used"] == 1.0 and "real_time: true" in ts["ex3_action"]["fallback"]
+        assert "attempt_wall_s" not in ts["ex3_action"]
     # 10 Hz where 1 Hz is expected: the watchdog cannot tell it from wall-clock pacing, so the
     # grade comes from a 1x recording (and fails the rate there too)
     ts = result(batch, "pub_10hz")["time_scale"]
     assert ts["ex1_publisher"]["used"] == 1.0
     assert "/random_numbers was published at" in ts["ex1_publisher"]["fallback"]
-    assert all(t["used"] == 4.0 for sc, t in ts.items() if sc != "ex1_publisher"), ts
+    assert all(t["used"] == 4.0 for sc, t in ts.items() if sc not in ("ex1_publisher", "ex3_action")), ts
     record = json.loads((batch / "pub_10hz" / "scenarios" / "ex1_publisher" / "scenario.json").read_text())
     assert record["time_scale"]["used"] == 1.0
     meta = (batch / "reference" / "scenarios" / "ex2_controller" / "bag" / "metadata.yaml").read_text()
@@ -105,8 +108,10 @@ def test_check_at_4x_reuses_scaled_recordings_and_says_so(batch: Path, tmp_path:
     assert rc == 0
     assert "ran 4x faster than real time (on simulated time)" in out
     assert "was not run again" in out                   # the batch's 4x recordings, reused
+    assert "scenario ex3_action ran at 1x instead of 4x: the rubric runs this scenario in real time" in out
     doc = json.loads((ws / ".grader-check" / "check" / "result.json").read_text())
-    assert {t["used"] for t in doc["time_scale"].values()} == {4.0}
+    assert {sc for sc, t in doc["time_scale"].items() if t["used"] == 4.0} == \
+        {"ex1_publisher", "ex1_subscriber", "ex2_controller", "ex2_goal_publisher"}
 
 
 def test_time_scale_must_be_a_speed_up(capsys) -> None:

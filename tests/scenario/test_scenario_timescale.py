@@ -83,6 +83,38 @@ def test_watchdog_flags_a_quiet_advertised_topic_and_a_foreign_clock() -> None:
     assert "student_clock published /clock" in dog.verdict(_Graph("turtlesim", "student_clock"), 9.0)
 
 
+def test_busy_process_tree_is_flagged_an_idle_one_is_not(tmp_path: Path) -> None:
+    """CPU of a process tree (a sandbox wrapper and the node inside count as one), real processes."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from grader.scenario.watchdog import BUSY_WINDOW_S
+
+    loop = tmp_path / "loop.py"               # ends by itself (SIGALRM) whatever happens to the test
+    loop.write_text("import signal\nsignal.alarm(20)\nwhile True:\n    pass\n")
+    wrapper = tmp_path / "wrapper.py"         # the busy loop is a grandchild, as a node in a sandbox
+    wrapper.write_text(f"import subprocess, sys\nsubprocess.run([sys.executable, {str(loop)!r}])\n")
+    busy = subprocess.Popen([sys.executable, str(wrapper)], start_new_session=True)
+    idle = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(20)"])
+    try:
+        dog = RateWatchdog((), clock_owner="turtlesim")
+        time.sleep(0.5)
+        assert dog.busy({"idle": idle.pid}) is None                   # baselines
+        assert dog.busy({"busy": busy.pid}) is None
+        time.sleep(BUSY_WINDOW_S + 0.5)
+        assert dog.busy({"idle": idle.pid}) is None
+        reason = dog.busy({"busy": busy.pid})
+        assert reason and reason.startswith("busy used") and "cannot keep pace" in reason
+    finally:
+        os.killpg(busy.pid, signal.SIGKILL)                          # the group: the loop too
+        idle.kill()
+        busy.wait()
+        idle.wait()
+
+
 # -- live scenarios --------------------------------------------------------------------------------
 
 DRIVE = {"steps": [
