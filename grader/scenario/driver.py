@@ -90,8 +90,10 @@ class Driver:
         rclpy.init(context=self.ctx, domain_id=domain_id)
         overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if time_scale > 1 else []
         self.node = rclpy.create_node("grader_driver", context=self.ctx, parameter_overrides=overrides)
+        # its service clients are made here, before the executor spins, and send while it is paused
         self.clock = ScenarioClock(time_scale, self.node,
-                                   f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None)
+                                   f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
+                                   paused=self.executor_paused)
         self.String = String
         latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)

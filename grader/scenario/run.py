@@ -349,6 +349,8 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m grader.scenario.run RUN.json OUT_DIR", file=sys.stderr)
         return 2
     run = ScenarioRun.model_validate_json(Path(argv[0]).read_text())
+    import faulthandler
+    faulthandler.enable()      # a crash in rclpy leaves the Python stacks in scenario.log
     # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks
     signal.signal(signal.SIGTERM, _interrupt_once)
     record = run_scenario_here(run, Path(argv[1]))

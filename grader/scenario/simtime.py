@@ -30,10 +30,13 @@ class ScenarioClock:
     """``now()``, ``sleep()``, ``wait_until()`` and ``held()`` in scenario time.
 
     ``node``: the driver's rclpy node (created with ``use_sim_time``) when ``time_scale`` > 1;
-    ``hold_service``: the clock owner's ``hold_clock`` service (``std_srvs/srv/SetBool``).
+    ``hold_service``: the clock owner's ``hold_clock`` service (``std_srvs/srv/SetBool``);
+    ``paused``: a context manager that holds the node's executor while a request is sent (an
+    rclpy client registers its future only after sending: see ``Driver.executor_paused``).
     """
 
-    def __init__(self, time_scale: float = 1.0, node: Any = None, hold_service: str | None = None) -> None:
+    def __init__(self, time_scale: float = 1.0, node: Any = None, hold_service: str | None = None,
+                 paused: Callable[[], Any] | None = None) -> None:
         self.time_scale = float(time_scale)
         self.simulated = self.time_scale > 1.0
         self.node = node
@@ -43,7 +46,14 @@ class ScenarioClock:
         self._holds = 0
         self.requests = 0                       # hold/stop requests made to the clock owner
         self._lock = threading.Lock()
+        self._paused = paused or contextlib.nullcontext
         self._client: Any = None
+        self._stop_client: Any = None
+        if self.simulated and hold_service is not None:
+            from std_srvs.srv import SetBool, Trigger
+
+            self._client = node.create_client(SetBool, hold_service)
+            self._stop_client = node.create_client(Trigger, hold_service.replace(HOLD_SERVICE, STOP_SERVICE))
 
     # -- reading the time -------------------------------------------------------------------
     def sim_s(self) -> float:
@@ -134,11 +144,12 @@ class ScenarioClock:
             return True
         from std_srvs.srv import Trigger
 
-        client = self.node.create_client(Trigger, self.hold_service.replace(HOLD_SERVICE, STOP_SERVICE))
+        client = self._stop_client
         if not client.wait_for_service(timeout_sec=HOLD_WAIT_S):
             return True
         self.requests += 1
-        future = client.call_async(Trigger.Request())
+        with self._paused():
+            future = client.call_async(Trigger.Request())
         end = time.monotonic() + HOLD_WAIT_S
         while not future.done() and time.monotonic() < end:
             time.sleep(0.002)
@@ -151,12 +162,11 @@ class ScenarioClock:
         """Ask the clock owner to hold (or run); its reply: (time in ns, matched readers)."""
         from std_srvs.srv import SetBool
 
-        if self._client is None:
-            self._client = self.node.create_client(SetBool, self.hold_service)
         if not self._client.wait_for_service(timeout_sec=HOLD_WAIT_S):
             return None
         self.requests += 1
-        future = self._client.call_async(SetBool.Request(data=on))
+        with self._paused():
+            future = self._client.call_async(SetBool.Request(data=on))
         end = time.monotonic() + HOLD_WAIT_S
         while not future.done() and time.monotonic() < end:
             time.sleep(0.002)
