@@ -162,7 +162,7 @@ class ManagedProcess:
             self.stdin_gate.wait(timeout=self.stdin_gate_timeout_s)
         try:
             for line in self.spec.stdin or ():
-                if self._sleep_unless_exited(line.delay):
+                if self.pause_before_line(line.delay):
                     return
                 pipe.write((line.line + "\n").encode())
                 pipe.flush()
@@ -174,6 +174,11 @@ class ManagedProcess:
 
     def on_stdin_line(self, text: str) -> None:
         """Hook: called after each scripted line is written (scenario driver records it)."""
+
+    def pause_before_line(self, seconds: float) -> bool:
+        """Hook: wait a scripted line's delay; True when the process exited meanwhile (the
+        scenario waits in simulated time when it runs faster than real time)."""
+        return self._sleep_unless_exited(seconds)
 
     def on_output_cut(self, stream: str, cap: int) -> None:
         """Hook: called once per stream when its log reached the cap (the scenario reports it)."""

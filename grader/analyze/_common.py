@@ -15,6 +15,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 import pandas as pd
 
+from grader.bag.timebase import to_scenario_time
 from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 
 META = "__meta__"
@@ -260,7 +261,8 @@ def rosout_lines(frames: Frames) -> pd.DataFrame:
     if "stamp.sec" in df.columns and "stamp.nanosec" in df.columns:
         st = pd.to_numeric(df["stamp.sec"], errors="coerce").to_numpy(float) + \
             pd.to_numeric(df["stamp.nanosec"], errors="coerce").to_numpy(float) * 1e-9
-        st = np.where(np.isfinite(st) & (st > 0), st, t)
+        # log stamps are system-clock times: in the frames' time base on simulated time
+        st = np.where(np.isfinite(st) & (st > 0), to_scenario_time(frames, st), t)
     else:
         st = t
     return pd.DataFrame({
@@ -286,9 +288,13 @@ def stdout_lines(frames: Frames) -> pd.DataFrame:
         d = _loads(s)
         line = str(d.get("line", "")) if d else str(s)
         logger, ts, text = split_ros_console(line)
-        rows.append((ts if ts is not None else float(t), str(d.get("process", "")),
+        rows.append((ts if ts is not None else np.nan, float(t), str(d.get("process", "")),
                      str(d.get("stream", "")), logger, text, line))
-    return pd.DataFrame(rows, columns=cols)
+    out = pd.DataFrame(rows, columns=["stamp", *cols])
+    # console stamps are system-clock times (mapped on simulated time); else the receive time
+    stamp = out["stamp"].to_numpy(float)
+    out["time"] = np.where(np.isfinite(stamp), to_scenario_time(frames, stamp), out["time"].to_numpy(float))
+    return out[cols]
 
 
 def fmt(v: float, nd: int = 2) -> str:

@@ -9,6 +9,7 @@ Module map (pure = no rclpy):
 * ``writer`` (pure) bag directories written through the ``mcap`` package
 * ``reader`` (pure) bag directories read through ``mcap_scan``
 * ``cdr`` / ``frames`` (pure) decoding into DataFrames: :func:`load_frames`, :func:`load_bag_meta`
+* ``timebase`` (pure) bags of faster-than-real-time runs: wall-clock stamps to simulated time
 * ``info``, ``repair``, ``conformance`` (pure) the ``grader bag`` subcommands; ``conformance``
   also gives tests :func:`~grader.bag.conformance.check_bag` (rosbags, mcap, ours agree)
 * ``recorder``, ``replay``, ``loadgen``, ``rosio`` (rclpy) live-graph processes

@@ -172,7 +172,7 @@ def _mcap_decoder(factory: Any, schema: Any, channel: Any, notes: list[str]) -> 
 def _grader_counts(bag_dir: Path, files: list[Path], notes: list[str]) -> dict[str, int]:
     from grader.bag.frames import load_frames
 
-    return {name: len(df) for name, df in load_frames(bag_dir).items() if len(df)}
+    return {name: len(df) for name, df in load_frames(bag_dir, time_scale=1.0).items() if len(df)}
 
 
 # --------------------------------------------------------------------------------------------

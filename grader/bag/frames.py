@@ -18,6 +18,7 @@ from grader.bag import cdr
 from grader.bag.msgdefs import (DefinitionNotFound, DefinitionSource, from_rosbag2_service_definition,
                                  normalize_type)
 from grader.bag.reader import Bag, TopicData, open_bag
+from grader.bag.timebase import CLOCK_TOPIC, TIMEBASE, bag_time_scale, time_map
 from grader.errors import GraderError
 
 
@@ -65,12 +66,17 @@ def load_bag_meta(bag_dir: Path | str) -> BagMeta:
     return BagMeta(bag.path, topics, lo / 1e9, hi / 1e9, bag.finalized, list(bag.problems))
 
 
-def load_frames(bag_dir: Path | str, topics: list[str] | None = None) -> dict[str, pd.DataFrame]:
+def load_frames(bag_dir: Path | str, topics: list[str] | None = None, *,
+                time_scale: float | None = None) -> dict[str, pd.DataFrame]:
     """One DataFrame per topic: index ``t`` (receive time, epoch s), ``pub_t``, flattened fields.
 
     ``topics`` selects topics; naming one the bag lacks is an error (a typo would otherwise look
     like a student who never published). Each frame's ``attrs`` holds ``topic``, ``type``, ``bag``
     and ``finalized`` (False: read from a crashed recording, up to its last complete chunk).
+
+    A bag recorded on simulated time (``time_scale`` > 1; None: what the bag's metadata notes)
+    has its times mapped to simulated seconds through its ``/clock`` (:mod:`grader.bag.timebase`);
+    the map is left under ``frames[TIMEBASE]``.
     """
     bag = open_bag(bag_dir, topics)
     if topics is not None:
@@ -78,7 +84,28 @@ def load_frames(bag_dir: Path | str, topics: list[str] | None = None) -> dict[st
         if missing:
             have = ", ".join(sorted(open_bag(bag_dir).topics)) or "none"
             raise GraderError(f"bag {bag_dir} has no topic {', '.join(missing)} (topics: {have}).")
-    return {name: topic_frame(bag, td) for name, td in bag.topics.items()}
+    frames = {name: topic_frame(bag, td) for name, td in bag.topics.items()}
+    if time_scale is None:
+        time_scale = bag_time_scale(bag.metadata.custom_data if bag.metadata else None)
+    if time_scale > 1:
+        _to_simulated_time(frames, bag, time_scale)
+    return frames
+
+
+def _to_simulated_time(frames: dict[str, Any], bag: Bag, scale: float) -> None:
+    clock = frames.get(CLOCK_TOPIC)
+    if clock is None and CLOCK_TOPIC in open_bag(bag.path).topics:
+        clock_bag = open_bag(bag.path, [CLOCK_TOPIC])
+        clock = topic_frame(clock_bag, clock_bag.topics[CLOCK_TOPIC])
+    tmap = time_map(clock, scale)
+    if tmap is None:
+        raise GraderError(f"bag {bag.path} was recorded on simulated time ({scale:g}x) but holds no "
+                          f"{CLOCK_TOPIC} messages, so its times cannot be mapped; grade it again.")
+    for df in frames.values():
+        df.index = pd.Index(tmap(df.index.to_numpy(float)), name="t")
+        if "pub_t" in df.columns:
+            df["pub_t"] = tmap(df["pub_t"].to_numpy(float))
+    frames[TIMEBASE] = tmap
 
 
 def _definition(bag: Bag, td: TopicData) -> str:

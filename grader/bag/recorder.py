@@ -31,7 +31,11 @@ drain pending messages, finalize the bag (MCAP summary + metadata.yaml) and exit
 Time stamps: log (receive) time = rmw ``received_timestamp`` of the sample (taken by the DDS
 layer, so Python scheduling delays do not shift it), falling back to the wall clock when the
 RMW gives none; MCAP ``publish_time`` = rmw ``source_timestamp`` (the publisher's send time —
-available through rclpy's ``MessageInfo`` in Jazzy).
+available through rclpy's ``MessageInfo`` in Jazzy). Both stay wall-clock times when the graph
+runs on simulated time (``--time-scale``, unlike ``ros2 bag record --use-sim-time``): the DDS
+stamps and the ``/rosout`` stamps inside messages can only be wall clock, so the bag keeps one
+time base and the recorded ``/clock`` maps all of them to simulated time when it is read
+(:mod:`grader.bag.timebase`).
 """
 
 from __future__ import annotations
@@ -126,8 +130,12 @@ class Recorder:
 
         self.args = args
         self.rclpy = rclpy
+        custom = {"recorder": "grader.bag.recorder"}
+        if args.time_scale is not None:
+            from grader.bag.timebase import TIME_SCALE_KEY
+            custom[TIME_SCALE_KEY] = repr(float(args.time_scale))
         self.writer = BagWriter(args.output, chunk_size=args.chunk_size, chunk_age_s=args.chunk_age,
-                                custom_data={"recorder": "grader.bag.recorder"})
+                                custom_data=custom)
         self.defs = DefinitionSource()
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx, domain_id=_domain_id() if domain_id is None else domain_id,
@@ -386,6 +394,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(receive times come from DDS, so they are unchanged; default 0.05)")
     p.add_argument("--node-name", default="grader_recorder")
     p.add_argument("--verbose", "-v", action="store_true", help="log publisher changes to stderr")
+    p.add_argument("--time-scale", type=float, default=None, metavar="K",
+                   help="the graph runs on simulated time K times faster than the wall clock: "
+                        "noted in the bag's custom_data (log times stay wall clock; /clock maps "
+                        "them, see grader.bag.timebase)")
     p.add_argument("--ready-timeout", type=float, default=2.0,
                    help="seconds to wait for initial publishers to match before READY")
 

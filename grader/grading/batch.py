@@ -19,11 +19,12 @@ from grader.grading.schedule import Slots
 def grade_batch(submissions: list[Path], rubric: Any, out: Path, *, slots: Slots,
                 cache_dir: Path | None = None, reuse: bool = True,
                 on_done: Callable[[str, Any, str | None], None] | None = None,
-                progress: Callable[[str], None] | None = None) -> dict[str, str]:
+                progress: Callable[[str], None] | None = None, time_scale: float = 1.0) -> dict[str, str]:
     """Grade ``submissions`` into ``out``; returns ``{submission id: why it has no result}``.
 
     ``on_done(id, graded or None, error or None)`` is called as each one finishes; ``progress``
-    gets status lines when there is a single submission. ``grades.csv``/``index.html`` are
+    gets status lines when there is a single submission; ``time_scale`` as for
+    ``grade_submission``. ``grades.csv``/``index.html`` are
     rewritten after each submission, so they are current even if the batch is interrupted.
     """
     from grader.grading.outputs import write_batch_outputs
@@ -35,7 +36,7 @@ def grade_batch(submissions: list[Path], rubric: Any, out: Path, *, slots: Slots
     with ThreadPoolExecutor(max_workers=slots.n + 1) as pool:
         futures = {pool.submit(grade_submission, s, rubric, out, cache_dir=cache_dir,
                                progress=progress if len(submissions) == 1 else None, slots=slots,
-                               reuse=reuse): s for s in submissions}
+                               reuse=reuse, time_scale=time_scale): s for s in submissions}
         try:
             for fut in as_completed(futures):
                 sid = submission_id(futures[fut])

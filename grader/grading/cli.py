@@ -28,6 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
     g.add_argument("--no-reuse", action="store_true",
                    help="run every scenario, even when an identical one was recorded before")
+    _time_scale_option(g)
     g.set_defaults(func=run_grade)
 
     c = sub.add_parser("check", help="self-check your own workspace (public items only)",
@@ -41,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     c.add_argument("--jobs", type=_positive, default=None, help="scenarios run at once (default: twice the cores)")
     c.add_argument("--no-reuse", action="store_true",
                    help="run every scenario, even those whose packages did not change since the last check")
+    _time_scale_option(c)
     c.set_defaults(func=run_check)
 
     r = sub.add_parser("regrade", help="recompute grades from recorded bags (no ROS needed)",
@@ -49,6 +51,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("path", type=Path, help="OUT folder of a batch, or OUT/<id> of one submission")
     r.add_argument("--rubric", type=Path, required=True)
     r.set_defaults(func=run_regrade)
+
+
+def _time_scale_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--time-scale", type=_time_scale, default=1.0, metavar="K",
+                        help="run scenarios K times faster than real time on simulated time (e.g. 4), "
+                             "each one that may: a node paced by the wall clock runs at 1x, and the "
+                             "result says so (default 1: real time)")
+
+
+def _time_scale(text: str) -> float:
+    from grader.sim.cli import MAX_TIME_SCALE
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = 0.0
+    if not 1.0 <= value <= MAX_TIME_SCALE:
+        raise argparse.ArgumentTypeError(f"expected a speed-up between 1 and {MAX_TIME_SCALE:g} (e.g. 4), "
+                                         f"got {text!r}")
+    return value
 
 
 def _positive(text: str) -> int:
@@ -138,7 +160,7 @@ def run_grade(args: argparse.Namespace) -> int:
     try:
         failures = grade_batch(todo, rubric, args.out, slots=Slots(args.jobs or default_jobs()),
                                cache_dir=args.cache_dir, reuse=not args.no_reuse, on_done=done,
-                               progress=progress.status)
+                               progress=progress.status, time_scale=args.time_scale)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -170,7 +192,7 @@ def run_check(args: argparse.Namespace) -> int:
     progress = Progress(1)
     graded = grade_submission(ws, rubric, out, cache_dir=args.cache_dir, public_only=True,
                               sid="check", progress=progress.status, slots=Slots(args.jobs or default_jobs()),
-                              reuse=not args.no_reuse)
+                              reuse=not args.no_reuse, time_scale=args.time_scale)
     progress.close()
     ok = print_check_table(graded, rubric)
     print(f"report: {graded.out / 'report.html'}")

@@ -60,10 +60,13 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
         extra["sandbox"] = sandbox
     if getattr(graded, "previous", None):
         extra["previous"] = graded.previous
+    time_scales = dict(getattr(graded, "time_scales", {}) or {})
+    if time_scales:                 # --time-scale: how each scenario ran, and why not faster
+        extra["time_scale"] = time_scales
     out_dir, sid = graded.out.parent, graded.out.name
     write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
-               problems=problems, params=effective_params(rubric))
+               problems=problems, params=effective_params(rubric), notes=time_scale_notes(time_scales))
 
 
 def write_batch_outputs(out: Path, rubric) -> None:
@@ -104,10 +107,28 @@ def print_check_table(graded, rubric) -> bool:
     for sc_id, src in (getattr(graded, "reused", {}) or {}).items():
         print(f"\n  note: scenario {sc_id} was not run again: nothing it runs changed since "
               f"{src.get('recorded', 'an earlier run')} (its recording was reused; --no-reuse runs it)")
+    for line in time_scale_notes(getattr(graded, "time_scales", {}) or {}):
+        print(f"\n  note: {line}")
     for err in graded.errors:
         print(f"\n  problem: {err.splitlines()[0]}")
     print("\nAll public checks pass." if ok else "\nSome checks do not pass yet (see above).")
     return ok
+
+
+def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:
+    """How the scenarios ran under --time-scale: the fast ones in one line, each fallback with
+    its reason."""
+    from grader.grading.timescale import describe
+
+    fast = sorted(sc for sc, ts in time_scales.items() if float(ts.get("used", 1)) > 1)
+    notes = []
+    if fast:
+        used = {float(time_scales[sc]["used"]) for sc in fast}
+        speed = f"{used.pop():g}x faster" if len(used) == 1 else "faster"
+        notes.append(f"scenario{'s' if len(fast) > 1 else ''} {', '.join(fast)} ran {speed} than real time "
+                     "(on simulated time)")
+    notes += [describe(sc, ts) for sc, ts in sorted(time_scales.items()) if float(ts.get("used", 1)) <= 1]
+    return notes
 
 
 def _wrap(text: str, width: int) -> list[str]:

@@ -58,6 +58,7 @@ class GradedSubmission:
     errors: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     reused: dict[str, dict] = field(default_factory=dict)     # scenario -> where its recording came from
+    time_scales: dict[str, dict] = field(default_factory=dict)  # scenario -> requested/used/fallback (--time-scale)
     previous: dict | None = None      # a regrade's summary of the result it replaced (class view diff)
 
 
@@ -83,7 +84,13 @@ def scenario_frames(scenario_dir: Path) -> dict:
     bag = scenario_dir / "bag"
     if not bag.exists():
         return {"__meta__": pd.DataFrame(columns=["topic", "type", "count", "publishers"])}
-    frames = load_frames(bag)
+    record_file = scenario_dir / "scenario.json"
+    record = json.loads(record_file.read_text()) if record_file.exists() else None
+    # a run on simulated time is read in simulated seconds (grader.bag.timebase): the bag's own
+    # metadata says so (sealed with it); the record speaks only for a bag never finalised
+    used = ((record or {}).get("time_scale") or {}).get("used")
+    finalized = (bag / "metadata.yaml").exists()
+    frames = load_frames(bag, time_scale=None if finalized or not used else float(used))
     meta = load_bag_meta(bag)
     publishers: dict[str, set[str]] = {}
     for ev in events(frames, Event.GRAPH):
@@ -96,9 +103,8 @@ def scenario_frames(scenario_dir: Path) -> dict:
     if canvas.exists():
         from grader.bag.frames import canvas_frame
         frames["__canvas__"] = canvas_frame(canvas)
-    record_file = scenario_dir / "scenario.json"
-    if record_file.exists():
-        frames["__meta__"].attrs["scenario"] = json.loads(record_file.read_text())
+    if record is not None:
+        frames["__meta__"].attrs["scenario"] = record
     return frames
 
 
@@ -207,10 +213,13 @@ def analyze_bags(rubric, items: list, sub_out: Path,
 def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | None = None,
                      public_only: bool = False, sid: str | None = None,
                      progress: Callable[[str], None] | None = None, slots=None,
-                     reuse: bool = True) -> GradedSubmission:
+                     reuse: bool = True, time_scale: float = 1.0) -> GradedSubmission:
     """Build, run the needed scenarios (side by side, within ``slots``), analyze and score one
     submission; writes its folder. ``reuse``: copy a scenario's recording when everything it
-    runs is identical to an earlier run (see grader.grading.reuse)."""
+    runs is identical to an earlier run (see grader.grading.reuse). ``time_scale`` > 1: run
+    scenarios that may on simulated time, that much faster (see grader.grading.timescale)."""
+    from grader.grading.timescale import expected_rates
+
     from grader.grading.schedule import Slots
     from grader.rubric.score import score
     from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
@@ -247,19 +256,26 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     items = selected_items(rubric, public_only)
     recordings = (Path(cache_dir or default_cache_dir()) / "recordings") if reuse else None
     reused: dict[str, dict] = {}
+    time_scales: dict[str, dict] = {}
     t1 = time.monotonic()
     scenario_ids = needed_scenarios(items)
     say(f"{sid}: scenarios {', '.join(scenario_ids)}")
+    # longest first (by its step limits): when slots run short, a short scenario waits, not the
+    # one that sets the submission's wall time
+    longest_first = sorted(scenario_ids, key=lambda sc: -rubric.scenarios[sc].budget_s)
     with ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
-        runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings)
-                for sc_id in scenario_ids}
-        for sc_id, future in runs.items():
-            record = future.result()
+        runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings,
+                                   time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else ())
+                for sc_id in longest_first}
+        for sc_id in scenario_ids:
+            record = runs[sc_id].result()
             timings[f"scenario:{sc_id}:wall_s"] = record.get("parent_wall_s", 0.0)
             timings[f"scenario:{sc_id}:active_s"] = record.get("active_s", 0.0)
             errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]
             if record.get("reused"):
                 reused[sc_id] = record["reused"]
+            if time_scale > 1 and record.get("time_scale"):
+                time_scales[sc_id] = record["time_scale"]
     timings["scenarios_wall_s"] = round(time.monotonic() - t1, 2)
 
     say(f"{sid}: analyzing")
@@ -271,30 +287,34 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
         result = result.for_student()
     graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
                               build_failed=list(build.failed) if build else ["(no build)"],
-                              errors=errors, timings=timings, reused=reused)
+                              errors=errors, timings=timings, reused=reused, time_scales=time_scales)
     write_outputs(graded, rubric, public_only=public_only)
     return graded
 
 
-def recording_settings() -> str:
+def recording_settings(time_scale: float = 1.0) -> str:
     """What, besides the inputs, changes a recording: the sandbox's active protections (a
-    recording made with fewer of them is not reused where more are active)."""
+    recording made with fewer of them is not reused where more are active) and the time scale."""
     from grader.sandbox import summary
 
     info = summary()
-    return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}"
+    scaled = f";time_scale={time_scale:g}" if time_scale > 1 else ""
+    return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}{scaled}"
 
 
-def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None) -> dict:
+def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None,
+             time_scale: float = 1.0, rates: tuple = ()) -> dict:
     """One scenario: copied from an identical earlier recording, or run (within a slot)."""
     from grader.grading.reuse import RecordingCache, reusable, scenario_key
-    from grader.scenario import resolve, run_scenario
+    from grader.grading.timescale import run_at_scale
+    from grader.scenario import resolve
 
     folder = out / SCENARIOS_DIR / sc_id
-    key = scenario_key(sc_id, scenario, build, settings=recording_settings()) if recordings is not None else None
+    key = (scenario_key(sc_id, scenario, build, settings=recording_settings(time_scale))
+           if recordings is not None else None)
     if key is None:
         with slots.taken():
-            return run_scenario(resolve(sc_id, scenario, build), folder)
+            return run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
     cache = RecordingCache(recordings)
     with cache.locked(key):
         t0 = time.monotonic()
@@ -307,7 +327,7 @@ def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings
             (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
             return record
         with slots.taken():
-            record = run_scenario(resolve(sc_id, scenario, build), folder)
+            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
         if reusable(record):
             cache.put(key, folder, sid)
         return record
@@ -341,7 +361,8 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
     graded = GradedSubmission(sub_out.name, sub_out, result, build_ok=old.get("build", {}).get("ok", True),
                               build_failed=old.get("build", {}).get("failed", []),
                               errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
-                              timings=old.get("timings", {}), previous=previous_summary(old))
+                              timings=old.get("timings", {}), previous=previous_summary(old),
+                              time_scales=old.get("time_scale", {}))
     write_outputs(graded, rubric, public_only=public_only, inputs=inputs)
     return graded
 

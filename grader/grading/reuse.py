@@ -56,11 +56,9 @@ def workspace_packages(src: Path) -> dict[str, tuple[Path, set[str]]]:
     return out
 
 
-def scenario_key(scenario_id: str, scenario: Scenario, build: Any, settings: str = "") -> str | None:
-    """The recording's identity, or None when it cannot be reused (no build)."""
-    if build is None:
-        return None
-    packages = workspace_packages(Path(build.root) / "src")
+def packages_run(scenario: Scenario, packages: dict[str, tuple[Path, set[str]]]) -> set[str]:
+    """Workspace packages a scenario runs: those its processes name (all of them for a launch
+    file, which may start nodes of any package) and their workspace dependencies."""
     wanted: set[str] = set()
     for proc in scenario.processes:
         if proc.launch:                   # a launch file may start nodes of any package
@@ -74,6 +72,16 @@ def scenario_key(scenario_id: str, scenario: Scenario, build: Any, settings: str
             continue
         closure.add(name)
         todo += packages[name][1]
+    return closure
+
+
+def scenario_key(scenario_id: str, scenario: Scenario, build: Any, settings: str = "") -> str | None:
+    """The recording's identity, or None when it cannot be reused (no build). ``settings``: how
+    the recording was made beyond the scenario (e.g. its time scale)."""
+    if build is None:
+        return None
+    packages = workspace_packages(Path(build.root) / "src")
+    closure = packages_run(scenario, packages)
     h = hashlib.sha256(f"{__version__}:{RECORDING_FORMAT}:{settings}:{scenario_id}".encode())
     h.update(scenario.model_dump_json().encode())
     for name in sorted(closure):

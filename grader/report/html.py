@@ -188,6 +188,14 @@ def _problems_html(problems: Sequence[str]) -> str:
             f'grading</h2><ul class="problems">{items}</ul></section>')
 
 
+def _notes_html(notes: Sequence[str]) -> str:
+    """How the grading ran, when it matters for reading it (e.g. scenarios on simulated time)."""
+    if not notes:
+        return ""
+    items = "".join(f"<li>{escape(n)}</li>" for n in notes)
+    return f'<section class="box" aria-label="How the scenarios ran" id="run-notes"><ul>{items}</ul></section>'
+
+
 def _section_points(sec: SectionResult) -> str:
     if sec.pending_max:
         return "graded by the instructor"
@@ -207,11 +215,12 @@ def _scores(result: Result) -> str:
 
 def render_html(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
                 canvas_png: Any = None, problems: Sequence[str] = (),
-                params: Mapping[str, Mapping[str, Any]] | None = None) -> str:
+                params: Mapping[str, Mapping[str, Any]] | None = None, notes: Sequence[str] = ()) -> str:
     """The report page of one submission. Pass ``result.for_student()`` for the self-check
     view; ``canvas_png`` is a PNG path (or {label: path}) embedded as a data URI; ``problems``
     are build/scenario errors shown at the top; ``params`` (item id -> effective analyzer
-    parameters) is used for items whose result does not carry its own ``params``."""
+    parameters) is used for items whose result does not carry its own ``params``; ``notes``:
+    lines on how the scenarios ran (``--time-scale``)."""
     page = _Page(result, params or {})
     fix = _to_fix(result)
     carded = {i.id for i in fix}
@@ -268,6 +277,7 @@ def render_html(result: Result, submission: str, *, versions: Mapping[str, str] 
 <h1>{"Self-check" if result.student_view else "Grade report"}: <span id="submission">{escape(submission)}</span></h1>
 <div class="scores" id="scores">{_scores(result)}</div>{hidden}</header>
 {_problems_html(problems)}
+{_notes_html(notes)}
 {flags}
 {summary}
 {fix_html}

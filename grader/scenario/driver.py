@@ -19,6 +19,7 @@ from typing import Any, Callable, Iterator
 from grader.executors import make_executor
 from grader.runner import ManagedProcess
 from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.sim.clock import HOLD_SERVICE
 
 GRADER_NODE_PREFIX = "grader_"
 
@@ -67,18 +68,32 @@ def to_plain(msg: Any) -> Any:
 
 
 class Driver:
-    """Owns an rclpy context on the scenario's domain and a background executor thread."""
+    """Owns an rclpy context on the scenario's domain and a background executor thread.
 
-    def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim") -> None:
+    ``time_scale`` > 1: the node runs with ``use_sim_time`` and ``clock`` measures scenario time
+    on the ``/clock`` of ``clock_node`` (see :mod:`grader.scenario.simtime`).
+    """
+
+    def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim",
+                 *, time_scale: float = 1.0, clock_node: str | None = None) -> None:
         import rclpy
+        from rclpy.clock import Clock, ClockType
+        from rclpy.parameter import Parameter
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from std_msgs.msg import String
+
+        from grader.scenario.simtime import ScenarioClock
 
         self.rclpy = rclpy
         self.sim_node = sim_node
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node("grader_driver", context=self.ctx)
+        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if time_scale > 1 else []
+        self.node = rclpy.create_node("grader_driver", context=self.ctx, parameter_overrides=overrides)
+        # its service clients are made here, before the executor spins, and send while it is paused
+        self.clock = ScenarioClock(time_scale, self.node,
+                                   f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
+                                   paused=self.executor_paused)
         self.String = String
         latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -100,9 +115,14 @@ class Driver:
         self._exited: set[str] = set()
         self.lines: dict[str, list[str]] = {}      # process -> output lines seen so far
         self._watch: set[str] = set()              # topics to count once they appear
+        self.watchdog: Any = None                  # a RateWatchdog on simulated time (run.py)
         self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
                                       self._on_rosout, QoSProfile(depth=1000))
-        self.node.create_timer(0.05, self._tail_outputs)
+        if time_scale > 1:   # output lines reach the bag as often, in scenario time, as at 1x
+            self.node.create_timer(0.05 / time_scale, self._tail_outputs,
+                                   clock=Clock(clock_type=ClockType.STEADY_TIME))
+        else:
+            self.node.create_timer(0.05, self._tail_outputs)
         self.executor = make_executor(self.ctx)   # EventsExecutor: the CPU goes to student nodes
         self.executor.add_node(self.node)
         self._spin_lock = threading.Lock()
@@ -234,6 +254,8 @@ class Driver:
 
         def on_msg(_msg: Any) -> None:
             self.counts[topic] += 1
+            if self.watchdog is not None:
+                self.watchdog.arrived(topic, self.clock.sim_s())
 
         self._subs[topic] = self.node.create_subscription(self._import(type_name), topic, on_msg, 100)
 
@@ -252,13 +274,10 @@ class Driver:
             self._pubs[topic] = self.node.create_publisher(self._import(type_name), topic, 10)
         return self._pubs[topic]
 
-    def wait_until(self, predicate: Callable[[], bool], timeout_s: float, poll: float = 0.02) -> bool:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            time.sleep(poll)
-        return predicate()
+    def wait_until(self, predicate: Callable[[], bool], timeout_s: float, poll: float = 0.02,
+                   *, wall: bool = False) -> bool:
+        """Poll until ``predicate()`` or ``timeout_s`` of scenario time (``wall``: wall seconds)."""
+        return self.clock.wait_until(predicate, timeout_s, poll, wall=wall)
 
     def graph_snapshot(self) -> None:
         """Publish the nodes, and who publishes and subscribes what: integrity checks and

@@ -505,6 +505,8 @@ class Scenario(Model):
     processes: Annotated[tuple[Process, ...], Field(strict=False)] = ()
     steps: Annotated[tuple[Step, ...], Field(min_length=1, strict=False)]
     limits: Limits = Limits()
+    real_time: bool = Field(False, description="run at 1x even with --time-scale (the scenario judges "
+                            "wall-clock behaviour; say why in a comment)")
 
     @model_validator(mode="after")
     def _goal_publishing(self) -> "Scenario":
@@ -590,9 +592,19 @@ class LaunchedProcess(Model):
     error: str = ""                    # why it cannot run (build failed, no such executable...)
 
 
+class RateExpectation(Model):
+    """A publish rate the rubric expects on a topic (a ``publish_rate`` item of the scenario):
+    on simulated time the watchdog checks that the student's node keeps it in simulated time."""
+
+    topic: RosName
+    expected_hz: PositiveFloat
+    rel_tol: PositiveFloat = 0.3
+
+
 class ScenarioRun(Model):
     """What crosses to the scenario child: the rubric's scenario as it is, plus what the parent
-    resolved against the build (argv of every process, install prefixes, the simulator's name)."""
+    resolved against the build (argv of every process, install prefixes, the simulator's name)
+    and how fast to run it (``time_scale`` > 1: on simulated time, see grader.scenario.simtime)."""
 
     id: str
     scenario: Scenario
@@ -601,3 +613,5 @@ class ScenarioRun(Model):
     sim_node: str = "turtlesim"
     notes: dict[str, Annotated[tuple[str, ...], Field(strict=False)]] = {}  # process -> remarks (launch)
     launch_installed: dict[str, bool] = {}   # process -> its launch file is in the package's share
+    time_scale: Annotated[float, Field(ge=1.0, le=16.0, strict=False)] = 1.0   # 1: the wall clock
+    expected_rates: Annotated[tuple[RateExpectation, ...], Field(strict=False)] = ()   # watchdog

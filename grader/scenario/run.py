@@ -5,6 +5,10 @@ recorder first (so it sees everything; a thread of this process, see
 ``grader.bag.recorder_thread``), then the reference simulator, the driver, the student's
 processes, the steps; then stops the student's processes, the simulator (which saves its canvas)
 and the recorder (which finalizes the bag). Writes ``OUT_DIR/scenario.json``.
+With ``time_scale`` > 1 the simulator (or ``grader_clock``) owns simulated time and every node
+runs with ``use_sim_time`` (see :mod:`grader.scenario.simtime`); the clock is held while a
+student process starts, and the run stops early with ``time_scale.fallback`` in the record when
+the watchdog says it would not grade like 1x (:mod:`grader.scenario.watchdog`).
 Runs in a child process started with the build's environment, so the student's interface types
 import here and rclpy state never leaks between scenarios.
 """
@@ -27,12 +31,25 @@ from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
 from grader.scenario.events import Event
 from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
+from grader.scenario.watchdog import RateWatchdog
+from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
 
 RECORDER_READY_S = 10.0
 SIM_READY_S = 15.0
 #: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
 #: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario
 STUDENT_STOP_GRACE_S = 2.0
+#: on simulated time: wall seconds a starting process may hold the clock until its node is up
+NODE_UP_S = 15.0
+#: then wall seconds until the clock owner has matched the new nodes' /clock readers
+CLOCK_MATCH_S = 5.0
+#: and for the new nodes to take the held /clock (and the recorder to match their publishers:
+#: DDS matching lags the graph) before the clock runs again
+FIRST_CLOCK_S = 0.3
+
+
+class _FallBack(Exception):
+    """The run on simulated time would not grade like 1x (the watchdog's reason)."""
 
 
 #: what decides how a participant discovers others: this process's own nodes (the recorder thread,
@@ -55,6 +72,12 @@ class _EventedProcess(ManagedProcess):
 
     driver = None
 
+    def pause_before_line(self, seconds: float) -> bool:
+        """A line's delay in scenario time (simulated when the run is faster than real time)."""
+        if self.driver is None or not self.driver.clock.simulated:
+            return super().pause_before_line(seconds)
+        return self.driver.clock.sleep(seconds, stop=lambda: self.popen.poll() is not None)
+
     def on_stdin_line(self, text: str) -> None:
         if self.driver is not None:
             self.driver.event(Event.STDIN_LINE, process=self.name, line=text, delivered=True)
@@ -67,7 +90,7 @@ def _open_gate(driver, proc: ManagedProcess, before: set, gate: threading.Event)
     while time.monotonic() < deadline and proc.alive():
         new = driver.student_nodes() - before
         if new and all(driver.recorder_matched(n) for n in new):
-            time.sleep(0.3)
+            driver.clock.sleep(0.3)
             break
         time.sleep(0.05)
     driver.event(Event.STDIN_READY, process=proc.name,
@@ -91,19 +114,61 @@ class Launcher:
 
     def start(self, name: str) -> list[str]:
         proc = self.run.scenario.process(name)
+        clock = self.driver.clock
         if proc.start_delay:
-            time.sleep(proc.start_delay)
+            clock.sleep(proc.start_delay)
         launched = self.run.launched.get(name, ())
         started: list[str] = []
         launched = [lp for lp in launched if not lp.stand_in]   # the reference sim plays those
         delayed = [lp for lp in launched if lp.start_delay > 0]
-        for lp in launched:
-            if lp.start_delay <= 0 and self._start_one(proc, lp):
-                started.append(lp.name)
+        with clock.held():
+            before = self.driver.student_nodes(), clock.clock_readers()
+            for lp in launched:
+                if lp.start_delay <= 0 and self._start_one(proc, lp):
+                    started.append(lp.name)
+            self._wait_up(before, started)
         for lp in delayed:      # a launch file's TimerAction: start later, without blocking steps
-            threading.Timer(lp.start_delay, self._start_one, args=(proc, lp)).start()
+            if clock.simulated:
+                threading.Thread(target=self._start_later, args=(proc, lp), daemon=True).start()
+            else:
+                threading.Timer(lp.start_delay, self._start_one, args=(proc, lp)).start()
             started.append(lp.name)
         return started
+
+    def _start_later(self, proc: Process, lp: LaunchedProcess) -> None:
+        clock = self.driver.clock
+        clock.sleep(lp.start_delay)
+        with clock.held():
+            before = self.driver.student_nodes(), clock.clock_readers()
+            if self._start_one(proc, lp):
+                self._wait_up(before, [lp.name])
+
+    def _wait_up(self, before: tuple[set, int | None], names: list[str]) -> None:
+        """On simulated time, while the clock is held: wait (wall time) until the started
+        processes' nodes are in the graph with their topics recorded and the clock owner has
+        matched their ``/clock`` readers (or the processes ended), then a moment for their first
+        ``/clock``. ``before``: the student nodes and matched readers before they started."""
+        clock = self.driver.clock
+        if not clock.simulated or not names:
+            return
+        driver = self.driver
+        before, readers = before
+
+        def alive() -> list[str]:
+            return [n for n in names if n in self.students and self.students[n].alive()]
+
+        def up() -> bool:
+            new = driver.student_nodes() - before
+            return not alive() or (len(new) >= len(alive()) and all(driver.recorder_matched(n) for n in new))
+
+        def clocked() -> bool:
+            now = clock.clock_readers()
+            return not alive() or readers is None or now is None or \
+                now >= readers + len(driver.student_nodes() - before)
+
+        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and \
+                driver.wait_until(clocked, CLOCK_MATCH_S, poll=0.02, wall=True):
+            time.sleep(FIRST_CLOCK_S)
 
     def _start_one(self, proc: Process, lp: LaunchedProcess) -> bool:
         driver = self.driver
@@ -114,8 +179,11 @@ class Launcher:
         script = list(proc.stdin or ()) if proc.launch is None else []
         gate = threading.Event() if script else None
         before = driver.student_nodes()
+        argv = list(lp.argv)
+        if self.run.time_scale > 1:     # every node of the process follows /clock
+            argv += ["--ros-args", "-p", "use_sim_time:=true"]
         managed = self.graph.start(ProcessSpec(
-            lp.name, list(lp.argv), env={**proc.env, **lp.env} or None,
+            lp.name, argv, env={**proc.env, **lp.env} or None,
             stdin=script if (script or proc.stdin is not None) else None,
             close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.scenario.time_limit_s),
             nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0, untrusted=True),
@@ -137,9 +205,13 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     from grader.scenario.steps import Runtime, action_name, prepare, run_step
 
     spec = run.scenario
+    scale = run.time_scale if run.time_scale > 1 else None
+    clock_node = (run.sim_node if spec.sim else CLOCK_NODE) if scale else None
     out.mkdir(parents=True, exist_ok=True)
     record: dict[str, Any] = {"scenario": run.id, "steps": [], "processes": {}, "errors": [],
                               "bag": str(out / "bag"), "canvas": None}
+    if scale:
+        record["time_scale"] = {"used": scale}
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
     driver = recorder = None
@@ -148,26 +220,42 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
         _discover_like(graph)
         try:
             topics = None if spec.record == "all" else list(spec.record) + ["/grader/events", "/grader/stdout"]
+            if topics is not None and scale:
+                topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
             with _interrupt_after():
-                recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id)
+                recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id,
+                                          extra=["--time-scale", repr(scale)] if scale else ())
+            # on simulated time the clock owner starts alongside the recorder: the clock is held
+            # below until the recorder records it, so nothing is missed
+            sim = _start_clock_owner(graph, run, out, record, scale) if scale else None
             try:
                 recorder.start(RECORDER_READY_S)
             except GraderError as exc:
                 record["errors"].append(str(exc))
-            sim = None
-            if spec.sim:
-                from grader.sim import sim_argv
-                canvas = out / "canvas.png"
-                sim = graph.start(ProcessSpec("turtlesim", sim_argv(
-                    canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"])))
-                record["canvas"] = str(canvas)
-            driver = Driver(graph.domain_id, students, sim_node=run.sim_node)
+            if not scale:
+                sim = _start_clock_owner(graph, run, out, record, scale)
+            driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
+                            clock_node=clock_node)
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
+            if scale:
+                if not driver.clock.wait_for_clock(SIM_READY_S):
+                    raise RuntimeError(f"no {CLOCK_TOPIC} from the grader's clock within {SIM_READY_S:.0f}s")
+                driver.watchdog = RateWatchdog(run.expected_rates, clock_owner=clock_node)
+                for expect in run.expected_rates:
+                    driver.count_messages(expect.topic, None, wait_s=0.0)
             if sim is not None:
                 driver.watch_pose()
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
+            start_hold = contextlib.ExitStack()
+            if scale:
+                # the clock is held from here until the autostarted processes are up: a recorder
+                # still discovering the clock owner's topics would miss K times more of the start
+                start_hold.enter_context(driver.clock.held())
+                driver.wait_until(lambda: driver.recorder_matched((clock_node, "/")), RECORDER_READY_S,
+                                  wall=True)
+                time.sleep(FIRST_CLOCK_S)
             launcher = Launcher(run, graph, driver, students)
             rt = Runtime(driver, run, launcher.start, launcher.members)
             prepare(rt)
@@ -186,6 +274,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             for proc in spec.processes:
                 if proc.autostart:
                     launcher.start(proc.name)
+            start_hold.close()
             for step in spec.steps:
                 if spec.processes and step.start is None and not any(p.alive() for p in students.values()):
                     # nobody left to grade (build failed, crashed on start-up): waiting for this
@@ -197,12 +286,16 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                     continue
                 outcome = run_step(rt, step)
                 record["steps"].append(outcome)
+                _check_watchdog(driver)
                 if outcome["ended_by"] == "timeout" and step.on_timeout == "abort":
                     driver.event(Event.SCENARIO_ABORTED, step=step.id)
                     break
-            time.sleep(0.5)            # let the last messages reach the recorder
+            driver.clock.sleep(0.5)    # let the last messages reach the recorder
+            _check_watchdog(driver)
             driver.graph_snapshot()
             driver.event(Event.SCENARIO_END, scenario=run.id)
+        except _FallBack as exc:
+            record["time_scale"]["fallback"] = str(exc)
         except KeyboardInterrupt:
             # SIGTERM from the parent (batch Ctrl-C or time limit): stop, but keep what was recorded
             record["errors"].append("interrupted: the scenario was stopped before it finished")
@@ -216,6 +309,10 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 driver.event(Event.SCENARIO_ERROR, error=f"{type(exc).__name__}: {exc}")
         finally:
             record["output_cut"] = graph.output_cuts()
+            # on simulated time the shutdown's wall time must not run the simulation on
+            if scale and driver is not None and not driver.clock.stop():
+                record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "
+                                                            "or stopped the simulated clock")
             for name, proc in students.items():
                 crashed = proc.returncode is not None and not proc.stopped_by_grader
                 rc = proc.stop()
@@ -223,6 +320,9 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                                              "exited_early": crashed, "timed_out": proc.timed_out,
                                              "killed": proc.killed}
             if driver is not None:
+                if scale:
+                    record["time_scale"].update(sim_s=round(driver.clock.sim_s(), 3),
+                                                held_s=round(driver.clock.held_s, 3))
                 driver.shutdown()
             graph.stop_all()
             if recorder is not None:
@@ -231,6 +331,31 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
+
+
+def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dict[str, Any],
+                       scale: float | None) -> ManagedProcess | None:
+    """The reference simulator (with the clock on simulated time), or without one on simulated
+    time ``grader_clock``; returns the simulator's process (None without a simulator)."""
+    from grader.sim import sim_argv
+
+    if run.scenario.sim:
+        canvas = out / "canvas.png"
+        record["canvas"] = str(canvas)
+        return graph.start(ProcessSpec("turtlesim", sim_argv(
+            canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale)))
+    if scale:
+        graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
+    return None
+
+
+def _check_watchdog(driver) -> None:
+    if driver.watchdog is not None:
+        running = {name: p.pid for name, p in driver.processes.items() if p.alive()}
+        reason = driver.watchdog.verdict(driver.node, driver.clock.sim_s(), driver.student_publishes) \
+            or driver.watchdog.busy(running)
+        if reason:
+            raise _FallBack(reason)
 
 
 _DEFERRED = {"depth": 0, "pending": False}
@@ -265,6 +390,8 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m grader.scenario.run RUN.json OUT_DIR", file=sys.stderr)
         return 2
     run = ScenarioRun.model_validate_json(Path(argv[0]).read_text())
+    import faulthandler
+    faulthandler.enable()      # a crash in rclpy leaves the Python stacks in scenario.log
     # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks
     signal.signal(signal.SIGTERM, _interrupt_once)
     record = run_scenario_here(run, Path(argv[1]))

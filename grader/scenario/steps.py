@@ -24,7 +24,7 @@ class StepState:
     """What a step's action leaves for its condition (and the step record)."""
 
     step: m.Step
-    t0: float = field(default_factory=time.monotonic)
+    t0: float = field(default_factory=time.monotonic)   # scenario time the step began
     action_done: bool = False
     service_done: bool = False
     replay_done: bool = False
@@ -74,7 +74,7 @@ def _publish(rt: Runtime, step: m.Step, spec: m.Publish, state: StepState) -> di
     for i in range(spec.count):
         pub.publish(msg)
         if i + 1 < spec.count and period:
-            time.sleep(period)
+            rt.driver.clock.sleep(period)
     fields = {"topic": spec.topic, "type": spec.type, "msg": to_plain(msg), "count": spec.count}
     rt.driver.event(Event.MESSAGE_SENT, step=step.id, **fields)
     return fields
@@ -86,7 +86,8 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
     try:
         type_name = spec.type
         if type_name is None:
-            driver.wait_until(lambda: driver.service_type(spec.name) is not None, spec.server_timeout)
+            driver.wait_until(lambda: driver.service_type(spec.name) is not None, spec.server_timeout,
+                              wall=True)      # discovery takes wall time at any speed
             type_name = driver.service_type(spec.name)
             if type_name is None:
                 driver.event(Event.SERVICE_MISSING, step=step.id, service=spec.name)
@@ -224,25 +225,26 @@ def _replay(rt: Runtime, step: m.Step, spec: m.Replay, state: StepState) -> dict
         """Seconds from the first message to message ``k`` on the replay's schedule."""
         return k / spec.rate_hz if spec.rate_hz else (p.times[k] - p.times[0]) / 1e9
 
-    t_start = t0 = time.monotonic()
+    clock = driver.clock
+    t_start = t0 = clock.now()
     for i in range(n):
         pubs[p.pubs[i]].publish(p.payloads[i])
         if i + 1 < n:
-            delay = t0 + offset(i + 1) - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
+            clock.sleep_until(t0 + offset(i + 1))
         if paced and spec.lead is not None:
             ahead = i + 1 - spec.lead
-            if not driver.wait_until(lambda: driver.output_count() - base >= ahead, 0.25, poll=0.002):
+            # the student's processing takes wall time: it gets the 1x allowance at any speed
+            if not driver.wait_until(lambda: driver.output_count() - base >= ahead, 0.25, poll=0.002,
+                                     wall=True):
                 base = driver.output_count() - (i + 1)   # inputs lost or ignored: re-sync
             if i == 4 * spec.lead and driver.output_count() == base:
                 paced = False       # it prints nothing per message: the plain schedule from here on
         if i + 1 < n:
-            t0 = max(t0, time.monotonic() - offset(i + 1))   # no burst after waiting for the student
+            t0 = max(t0, clock.now() - offset(i + 1))   # no burst after waiting for the student
     driver.last_output = time.monotonic()
     state.replay_done = True
     driver.event(Event.REPLAY_END, step=step.id, count=n, outputs=driver.output_count() - base,
-                 paced=paced, duration_s=round(time.monotonic() - t_start, 3))
+                 paced=paced, duration_s=round(clock.now() - t_start, 3))
     return {"topics": topics, "count": n}
 
 
@@ -301,7 +303,7 @@ def _goal_reached(rt: Runtime, cond: m.GoalReached, state: StepState) -> Predica
         if pose is None or math.hypot(pose.x - goal.x, pose.y - goal.y) > cond.tolerance:
             since[0] = None
             return False
-        now = time.monotonic()
+        now = rt.driver.clock.now()
         since[0] = since[0] or now
         return now - since[0] >= cond.settle
 
@@ -371,7 +373,7 @@ def action_name(step: m.Step) -> str:
 def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
     """Do the step's action, then wait for its condition (or its whole limit); the record."""
     driver = rt.driver
-    state = StepState(step)
+    state = StepState(step, t0=driver.clock.now())
     kind = action_name(step)
     # conditions that count from the step's start are armed before the action runs
     predicate = CONDITIONS[type(step.until)](rt, step.until, state) if step.until is not None else None
@@ -392,7 +394,7 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
             state.detail = {"error": f"{type(exc).__name__}: {exc}"}
             ended_by = "error"
     if ended_by != "error":
-        remaining = max(0.0, step.limit_s - (time.monotonic() - state.t0))
+        remaining = max(0.0, step.limit_s - (driver.clock.now() - state.t0))
         if predicate is None:
             ended_by = "students_exited" if driver.wait_until(rt.students_gone, remaining) else "done"
         else:
@@ -401,7 +403,7 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
     if isinstance(action, m.ActionGoal) and ended_by == "timeout" and state.goal_handle is not None:
         state.goal_handle.cancel_goal_async()
         driver.event(Event.ACTION_CANCEL_SENT, step=step.id)
-    duration = time.monotonic() - state.t0
+    duration = driver.clock.now() - state.t0
     driver.graph_snapshot()
     driver.event(Event.STEP_END, step=step.id, action=kind, ended_by=ended_by, duration_s=round(duration, 3))
     return {"id": step.id, "action": kind, "start": start_wall, "duration_s": round(duration, 3),

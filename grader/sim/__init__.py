@@ -64,9 +64,18 @@ def all_service_event_topics(turtles: Iterable[str] = ("turtle1",)) -> list[str]
 
 def sim_args(canvas_out: str | Path | None = None, *, holonomic: bool = False,
              background: Sequence[int] | None = None,
-             ros_args: Sequence[str] = ()) -> list[str]:
-    """Command-line arguments of ``python -m grader.sim`` (without the interpreter part)."""
+             ros_args: Sequence[str] = (), time_scale: float | None = None,
+             clock_only: bool = False) -> list[str]:
+    """Command-line arguments of ``python -m grader.sim`` (without the interpreter part).
+
+    ``time_scale``: the simulator owns simulated time and publishes ``/clock`` (see
+    :mod:`grader.sim.clock`); ``clock_only``: only that clock, no turtles.
+    """
     args: list[str] = []
+    if time_scale is not None:
+        args += ["--time-scale", repr(float(time_scale))]
+    if clock_only:
+        args.append("--clock-only")
     if canvas_out is not None:
         args += ["--canvas-out", str(canvas_out)]
     if holonomic:
@@ -80,13 +89,15 @@ def sim_args(canvas_out: str | Path | None = None, *, holonomic: bool = False,
 
 def sim_argv(canvas_out: str | Path | None = None, extra: Sequence[str] = (), *,
              holonomic: bool = False, background: Sequence[int] | None = None,
-             ros_args: Sequence[str] = ()) -> list[str]:
+             ros_args: Sequence[str] = (), time_scale: float | None = None,
+             clock_only: bool = False) -> list[str]:
     """argv that starts the simulator as a separate process with this interpreter.
 
     ``extra`` is appended verbatim (e.g. ``["--ros-args", "-r", "__ns:=/sim1"]``).
     """
     return [sys.executable, "-m", "grader.sim",
-            *sim_args(canvas_out, holonomic=holonomic, background=background, ros_args=ros_args),
+            *sim_args(canvas_out, holonomic=holonomic, background=background, ros_args=ros_args,
+                      time_scale=time_scale, clock_only=clock_only),
             *extra]
 
 

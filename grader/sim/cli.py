@@ -9,6 +9,9 @@ from typing import Sequence
 
 from grader.errors import GraderError
 
+#: beyond this a 16 ms tick lasts under 1 ms of wall time: no Python node keeps up
+MAX_TIME_SCALE = 16.0
+
 
 def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--canvas-out", type=Path, metavar="FILE",
@@ -18,6 +21,11 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
                         help="start with parameter holonomic:=true")
     parser.add_argument("--background", nargs=3, type=int, metavar=("R", "G", "B"),
                         help="background colour (parameters background_r/g/b), 0..255 each")
+    parser.add_argument("--time-scale", type=float, metavar="K", default=None,
+                        help="own simulated time: publish /clock and step the physics on it, K times "
+                             "faster than the wall clock (K >= 1; nodes need use_sim_time:=true)")
+    parser.add_argument("--clock-only", action="store_true",
+                        help="with --time-scale: no turtles, only /clock (node grader_clock)")
     parser.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=[],
                         help="everything after this goes to ROS (remaps, -p name:=value, ...)")
 
@@ -53,9 +61,14 @@ def run_from_args(args: argparse.Namespace) -> int:
     """Start the node in this process; returns its exit status (0 after a clean stop)."""
     if args.canvas_out is not None and args.canvas_out.exists() and args.canvas_out.is_dir():
         raise GraderError(f"--canvas-out {args.canvas_out} is a directory; give a .png file path")
+    if args.time_scale is not None and not 1.0 <= args.time_scale <= MAX_TIME_SCALE:
+        raise GraderError(f"--time-scale must be between 1 and {MAX_TIME_SCALE:g}, got {args.time_scale:g}")
+    if args.clock_only and args.time_scale is None:
+        raise GraderError("--clock-only needs --time-scale K (the clock it publishes)")
     from grader.sim.node import run  # noqa: PLC0415 - rclpy only when actually running
 
-    return run(ros_argv(args), canvas_out=args.canvas_out)
+    return run(ros_argv(args), canvas_out=args.canvas_out, time_scale=args.time_scale,
+               clock_only=args.clock_only)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -7,7 +7,9 @@ in one executor thread (EventsExecutor by default), like the Qt main loop of the
 
 Grader additions (not in the real turtlesim): every simulator service has service introspection
 (CONTENTS) so calls land in bags as ``<service>/_service_event``; with a canvas path the node
-offers ``~/save_canvas`` (std_srvs/Empty) and writes the PNG again on shutdown.
+offers ``~/save_canvas`` (std_srvs/Empty) and writes the PNG again on shutdown. With a time
+scale (:mod:`grader.sim.clock`) the node owns simulated time: every tick advances ``/clock`` by
+16 ms and the physics runs on that time instead of the wall clock.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ from turtlesim.srv import Kill, SetPen, Spawn, TeleportAbsolute, TeleportRelativ
 from grader.executors import make_executor as shared_make_executor
 from grader.sim import truth_pose_topic
 from grader.sim.canvas import Canvas
+from grader.sim.clock import SimClock, make_clock_node
 from grader.sim.physics import DEFAULT_BACKGROUND, METER, TICK_MS, RotateGoal, Turtle, World
 
 #: cmd_vel / pose / color_sensor profile of turtlesim/qos.hpp: KEEP_LAST 7, RELIABLE, VOLATILE
@@ -90,9 +93,12 @@ class TurtlesimNode(Node):
     """Headless turtlesim. ``canvas_out``: where ``save_canvas`` and shutdown write the PNG."""
 
     def __init__(self, *, context: rclpy.context.Context | None = None,
-                 canvas_out: str | Path | None = None, node_name: str = "turtlesim") -> None:
+                 canvas_out: str | Path | None = None, node_name: str = "turtlesim",
+                 time_scale: float | None = None) -> None:
         super().__init__(node_name, context=context)
         self.canvas_out = Path(canvas_out) if canvas_out else None
+        #: simulated time (``--time-scale``), or None: the wall clock, as the real turtlesim
+        self.sim_clock = SimClock(time_scale) if time_scale is not None else None
         self._declare_parameters()
         self._sim_goals: dict[bytes, RotateGoal] = {}      # active goals by goal id
         self._sim_results: dict[bytes, Future] = {}        # result futures not yet awaited
@@ -120,8 +126,13 @@ class TurtlesimNode(Node):
         self._grid_slot = -1
         self.caught_up_ticks = 0   # ticks run late after the timer skipped periods
         self.resynced_ticks = 0    # ticks dropped after long stalls
-        self._tick_timer = self.create_timer(TICK_MS / 1000.0, self._on_tick,
-                                             clock=self._steady_clock)
+        if self.sim_clock is not None:
+            self.sim_clock.attach(self)
+            self._tick_timer = self.create_timer(self.sim_clock.period_s, self._on_sim_tick,
+                                                 clock=self._steady_clock)
+        else:
+            self._tick_timer = self.create_timer(TICK_MS / 1000.0, self._on_tick,
+                                                 clock=self._steady_clock)
 
     # -- setup helpers ----------------------------------------------------------------------
     def _declare_parameters(self) -> None:
@@ -158,6 +169,8 @@ class TurtlesimNode(Node):
             logger.debug(message)
 
     def _now_ns(self) -> int:
+        if self.sim_clock is not None:
+            return self.sim_clock.now_ns
         return self.get_clock().now().nanoseconds
 
     # -- WorldListener: a turtle's endpoints live exactly as long as the turtle --------------
@@ -318,6 +331,16 @@ class TurtlesimNode(Node):
             if self.world.tick(now - behind * _TICK_NS, self._publish) and self._sim_graveyard:
                 self._bury()
 
+    def _on_sim_tick(self) -> None:
+        """A tick on simulated time: one 16 ms step (none while held), then ``/clock``."""
+        if not self.context.ok():
+            return
+        self._debug = self._sim_logger.is_enabled_for(LoggingSeverity.DEBUG)
+        now = self.sim_clock.tick()
+        if now is not None and self.world.tick(now, self._publish) and self._sim_graveyard:
+            self._bury()
+        self.sim_clock.publish()
+
     def _missed_ticks(self) -> int:
         """Timer periods skipped since the previous callback (rcl drops periods when a callback
         runs more than one period late, e.g. when the machine is busy).
@@ -406,10 +429,13 @@ def make_executor(context: rclpy.context.Context) -> Any:
     return shared_make_executor(context, os.environ.get("GRADER_SIM_EXECUTOR", "events"))
 
 
-def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = None) -> int:
+def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = None,
+        time_scale: float | None = None, clock_only: bool = False) -> int:
     """Run the node until SIGINT/SIGTERM or ROS shutdown; save the canvas; return 0.
 
-    ``args`` is the full argv for rclpy (ROS arguments after ``--ros-args``).
+    ``args`` is the full argv for rclpy (ROS arguments after ``--ros-args``). ``time_scale``:
+    simulated time K times faster than the wall clock, published on ``/clock``;
+    ``clock_only``: no turtles, only the clock (node ``grader_clock``).
     """
     context = rclpy.Context()
     rclpy.init(args=list(args) if args is not None else None, context=context,
@@ -423,7 +449,10 @@ def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = No
     node = None
     executor = None
     try:
-        node = TurtlesimNode(context=context, canvas_out=canvas_out)
+        if clock_only:
+            node = make_clock_node(context, time_scale or 1.0)
+        else:
+            node = TurtlesimNode(context=context, canvas_out=canvas_out, time_scale=time_scale)
         executor = make_executor(context)
         executor.add_node(node)
         while not stop["flag"] and context.ok():
@@ -433,7 +462,7 @@ def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = No
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        if node is not None:
+        if isinstance(node, TurtlesimNode):
             if node.caught_up_ticks or node.resynced_ticks:
                 print(f"turtlesim: ran {node.caught_up_ticks} timer ticks late, dropped "
                       f"{node.resynced_ticks} after long stalls", file=sys.stderr)

@@ -1,0 +1,191 @@
+"""``--time-scale K``: run a submission's scenarios K times faster than real time, when it is safe.
+
+The simulator owns simulated time (:mod:`grader.sim.clock`) and every node runs with
+``use_sim_time``, so a scenario's motion and every ROS timer are those of a 1x run, K times
+sooner. What does not follow ``/clock`` is the wall clock: a node that paces itself with
+``time.sleep`` or reads ``time.time()`` would behave differently, and its grade would depend on
+the speed. So a scenario only runs faster when
+
+0. its rubric does not pin it to real time (``real_time: true``, for a scenario that judges
+   wall-clock behaviour), and
+1. the static scan of the Python packages it runs (their installed modules) finds no wall-clock
+   pacing (:data:`WALL_CLOCK`), and
+2. at run time the watchdog (:mod:`grader.scenario.watchdog`) sees every rate the rubric expects
+   kept in simulated time, nobody else publishes ``/clock``, and the run itself worked.
+
+Otherwise the scenario runs (again) at 1x, and its record says why: ``scenario.json`` and
+result.json carry ``time_scale: {requested, used, fallback}`` per scenario; the report and
+``grader check`` print it. Official grading stays at 1x unless the instructor asks.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import shutil
+from pathlib import Path
+from typing import Any, Iterable
+
+from grader.scenario.model import RateExpectation, ScenarioRun
+
+#: calls (and attributes) that read or wait on the wall clock; a node using any of them is not
+#: run faster than real time
+WALL_CLOCK = frozenset({
+    "time.sleep", "time.time", "time.time_ns", "time.monotonic", "time.monotonic_ns",
+    "time.perf_counter", "time.perf_counter_ns", "time.clock_gettime", "time.clock_gettime_ns",
+    "datetime.datetime.now", "datetime.datetime.utcnow", "datetime.datetime.today",
+    "datetime.date.today", "threading.Timer", "asyncio.sleep",
+})
+#: an rclpy clock that is not the node's ROS clock (a timer on it ignores ``/clock``)
+WALL_CLOCK_TYPES = ("ClockType.STEADY_TIME", "ClockType.SYSTEM_TIME")
+#: the analyzer whose expectations the watchdog checks
+RATE_ANALYZER = "publish_rate"
+#: why a scenario marked ``real_time: true`` in its rubric runs at 1x
+REAL_TIME = "the rubric runs this scenario in real time (real_time: true)"
+
+
+def _dotted(node: ast.AST) -> str | None:
+    parts: list[str] = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if isinstance(node, ast.Name):
+        parts.append(node.id)
+        return ".".join(reversed(parts))
+    return None
+
+
+def scan_source(text: str) -> list[tuple[int, str]]:
+    """``(line, what)`` for every wall-clock use in Python source (imports resolved: ``import
+    time as t``, ``from time import sleep``, ``from datetime import datetime``)."""
+    try:
+        tree = ast.parse(text)
+    except (SyntaxError, ValueError):
+        return []
+    names: dict[str, str] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                names[(a.asname or a.name).split(".")[0]] = a.name if a.asname else a.name.split(".")[0]
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            for a in node.names:
+                names[a.asname or a.name] = f"{node.module}.{a.name}"
+    found: list[tuple[int, str]] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            dotted = _dotted(node.func)
+            if dotted is None:
+                continue
+            head, _, rest = dotted.partition(".")
+            full = names.get(head, head) + (f".{rest}" if rest else "")
+            if full in WALL_CLOCK:
+                found.append((node.lineno, f"{full}()"))
+        elif isinstance(node, ast.Attribute):
+            dotted = _dotted(node)
+            if dotted and dotted.endswith(WALL_CLOCK_TYPES):
+                found.append((node.lineno, dotted))
+    return sorted(set(found))
+
+
+def package_files(build: Any, package: str) -> list[Path]:
+    """The installed Python modules of a built package (what its nodes import)."""
+    from grader.rosenv import PY_SITE
+
+    pkg = getattr(build, "packages", {}).get(package)
+    if pkg is None or pkg.status != "built":
+        return []
+    site = Path(build.install) / package / PY_SITE
+    return sorted(site.rglob("*.py")) if site.is_dir() else []
+
+
+def scan_packages(build: Any, packages: Iterable[str]) -> list[str]:
+    """``package/module.py:LINE: call`` for every wall-clock use in the packages' modules."""
+    from grader.rosenv import PY_SITE
+
+    hits: list[str] = []
+    for package in sorted(packages):
+        site = Path(build.install) / package / PY_SITE
+        for path in package_files(build, package):
+            text = path.read_text(errors="replace")
+            for line, what in scan_source(text):
+                hits.append(f"{path.relative_to(site)}:{line}: {what}")
+    return hits
+
+
+def pacing_reason(build: Any, run: ScenarioRun) -> str | None:
+    """Why the scenario's packages cannot run on simulated time (the static scan), or None."""
+    from grader.grading.reuse import packages_run, workspace_packages
+
+    if build is None:
+        return None
+    packages = packages_run(run.scenario, workspace_packages(Path(build.root) / "src"))
+    hits = scan_packages(build, packages)
+    if not hits:
+        return None
+    more = f" and {len(hits) - 3} more" if len(hits) > 3 else ""
+    return ("wall-clock pacing in node code (" + "; ".join(hits[:3]) + more +
+            "): ROS timers and create_rate follow simulated time, these do not")
+
+
+def expected_rates(rubric: Any, scenario_id: str) -> tuple[RateExpectation, ...]:
+    """The publish rates the rubric's items expect on a scenario (the watchdog's reference)."""
+    from grader import analyze
+
+    out: list[RateExpectation] = []
+    for item in rubric.items:
+        if item.analyzer != RATE_ANALYZER or scenario_id not in item.scenario:
+            continue
+        params = {**analyze.defaults(RATE_ANALYZER), **dict(item.params)}
+        try:
+            out.append(RateExpectation(topic=params["topic"], expected_hz=float(params["expected_hz"]),
+                                       rel_tol=float(params.get("partial_rel_tol") or 0.3)))
+        except (KeyError, TypeError, ValueError):
+            continue
+    return tuple(dict.fromkeys(out))
+
+
+def run_at_scale(run: ScenarioRun, folder: Path, time_scale: float, build: Any,
+                 rates: tuple[RateExpectation, ...] = ()) -> dict[str, Any]:
+    """Run the scenario at ``time_scale`` when the scan allows it, else (or when the run says it
+    would not grade like 1x) at 1x; the record's ``time_scale`` says which and why."""
+    from grader.scenario import run_scenario
+
+    if time_scale <= 1:
+        return run_scenario(run, folder)
+    reason = REAL_TIME if run.scenario.real_time else pacing_reason(build, run)
+    attempt: dict[str, Any] = {}
+    if reason is None:
+        record = run_scenario(run.model_copy(update={"time_scale": time_scale, "expected_rates": rates}),
+                              folder)
+        ts = record.get("time_scale") or {}
+        reason = ts.get("fallback")
+        if reason is None and record.get("errors"):
+            reason = "the run on simulated time failed: " + str(record["errors"][0]).splitlines()[0]
+        if reason is None:
+            return _note(folder, record, {**ts, "requested": time_scale})
+        attempt = {"attempt_wall_s": record.get("parent_wall_s")}
+        shutil.rmtree(folder, ignore_errors=True)
+    record = run_scenario(run, folder)
+    if attempt.get("attempt_wall_s") is not None:
+        record["parent_wall_s"] = round(record.get("parent_wall_s", 0.0) + attempt["attempt_wall_s"], 3)
+    return _note(folder, record, {"requested": time_scale, "used": 1.0, "fallback": reason, **attempt})
+
+
+def _note(folder: Path, record: dict[str, Any], time_scale: dict[str, Any]) -> dict[str, Any]:
+    """Keep the decision in the record and in scenario.json (a reuse or a regrade reads it)."""
+    record["time_scale"] = time_scale
+    path = Path(folder) / "scenario.json"
+    if path.is_file():
+        saved = json.loads(path.read_text())
+        saved["time_scale"] = time_scale
+        path.write_text(json.dumps(saved, indent=1, default=str))
+    return record
+
+
+def describe(scenario_id: str, ts: dict[str, Any]) -> str:
+    """One line for the report and ``grader check``."""
+    requested = float(ts.get("requested", 1.0))
+    used = float(ts.get("used", 1.0))
+    if used > 1:
+        return f"scenario {scenario_id} ran {used:g}x faster than real time (on simulated time)"
+    return f"scenario {scenario_id} ran at 1x instead of {requested:g}x: {ts.get('fallback', 'no reason recorded')}"

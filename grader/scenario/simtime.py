@@ -1,0 +1,202 @@
+"""The time a scenario's steps are measured in: the wall clock at 1x, simulated time when faster.
+
+At 1x (the default) this is ``time.monotonic()``, exactly as before time scales existed. With a
+time scale the simulator (or ``grader_clock``) owns ``/clock`` (:mod:`grader.sim.clock`) and the
+driver's node runs with ``use_sim_time``; then *scenario time* is simulated time plus the wall
+time during which the clock was held for a student process to start. That sum is what a 1x run
+measures for the same scenario (at 1x a process's start-up costs wall time too), so a step's
+``timeout: 10`` means the same thing at every speed, and a starting node never has to come up
+in a quarter of the time.
+
+Every wait also ends after its timeout in *wall* seconds: the scenario clock normally runs at
+least as fast as the wall clock, so that bound only matters when the clock stalls (a dead
+simulator) and a step would otherwise wait forever.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from typing import Any, Callable, Iterator
+
+from grader.sim.clock import HOLD_SERVICE, STOP_SERVICE
+
+#: wall seconds to wait for the clock owner's hold service and for the clock to reach the hold
+HOLD_WAIT_S = 10.0
+
+
+class ScenarioClock:
+    """``now()``, ``sleep()``, ``wait_until()`` and ``held()`` in scenario time.
+
+    ``node``: the driver's rclpy node (created with ``use_sim_time``) when ``time_scale`` > 1;
+    ``hold_service``: the clock owner's ``hold_clock`` service (``std_srvs/srv/SetBool``);
+    ``paused``: a context manager that holds the node's executor while a request is sent (an
+    rclpy client registers its future only after sending: see ``Driver.executor_paused``).
+    """
+
+    def __init__(self, time_scale: float = 1.0, node: Any = None, hold_service: str | None = None,
+                 paused: Callable[[], Any] | None = None) -> None:
+        self.time_scale = float(time_scale)
+        self.simulated = self.time_scale > 1.0
+        self.node = node
+        self.hold_service = hold_service
+        self.held_s = 0.0                       # wall seconds the clock was held, finished holds
+        self._held_since: float | None = None   # monotonic time the current hold froze the clock
+        self._holds = 0
+        self.requests = 0                       # hold/stop requests made to the clock owner
+        self._lock = threading.Lock()
+        self._paused = paused or contextlib.nullcontext
+        self._client: Any = None
+        self._stop_client: Any = None
+        if self.simulated and hold_service is not None:
+            from std_srvs.srv import SetBool, Trigger
+
+            self._client = node.create_client(SetBool, hold_service)
+            self._stop_client = node.create_client(Trigger, hold_service.replace(HOLD_SERVICE, STOP_SERVICE))
+
+    # -- reading the time -------------------------------------------------------------------
+    def sim_s(self) -> float:
+        """Simulated seconds (0 until the first ``/clock``); the wall clock at 1x."""
+        if not self.simulated:
+            return time.monotonic()
+        return self.node.get_clock().now().nanoseconds / 1e9
+
+    def now(self) -> float:
+        """Scenario seconds: monotonic at 1x; simulated + held wall time when scaled."""
+        if not self.simulated:
+            return time.monotonic()
+        since = self._held_since
+        return self.sim_s() + self.held_s + (time.monotonic() - since if since is not None else 0.0)
+
+    def _poll(self, poll: float) -> float:
+        """Wall seconds between checks: the 1x poll in scenario time (at least 1 ms)."""
+        return max(0.001, poll / self.time_scale)
+
+    # -- waiting ------------------------------------------------------------------------------
+    def wait_until(self, predicate: Callable[[], bool], timeout_s: float, poll: float = 0.02,
+                   *, wall: bool = False) -> bool:
+        """Poll ``predicate`` until it holds or ``timeout_s`` pass (scenario time, and never
+        longer than ``timeout_s`` wall seconds). ``wall``: wall seconds only, for waits on
+        work rather than on time (discovery, a student's processing of inputs)."""
+        wall_end = time.monotonic() + timeout_s
+        if wall or not self.simulated:
+            while time.monotonic() < wall_end:
+                if predicate():
+                    return True
+                time.sleep(poll)
+            return predicate()
+        end = self.now() + timeout_s
+        step = self._poll(poll)
+        while self.now() < end and time.monotonic() < wall_end:
+            if predicate():
+                return True
+            time.sleep(step)
+        return predicate()
+
+    def sleep(self, seconds: float, stop: Callable[[], bool] | None = None) -> bool:
+        """Sleep ``seconds`` of scenario time; True when ``stop()`` became true first."""
+        if seconds <= 0:
+            return bool(stop and stop())
+        if not self.simulated and stop is None:
+            time.sleep(seconds)
+            return False
+        return self.wait_until(stop or (lambda: False), seconds, poll=min(0.02, seconds))
+
+    def sleep_until(self, t: float) -> None:
+        """Sleep until scenario time ``t`` (returns at once when it has passed)."""
+        if not self.simulated:
+            delay = t - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            return
+        self.wait_until(lambda: False, t - self.now(), poll=0.002)
+
+    def wait_for_clock(self, timeout_s: float) -> bool:
+        """Wait (wall seconds) for the first ``/clock``: before it ``now()`` reads zero."""
+        if not self.simulated:
+            return True
+        return self.wait_until(lambda: self.sim_s() > 0, timeout_s, poll=0.01, wall=True)
+
+    # -- holding the clock while student processes start ---------------------------------------
+    @contextlib.contextmanager
+    def held(self) -> Iterator[None]:
+        """Hold the clock for the block (nested holds share one; a no-op at 1x)."""
+        if not self.simulated or self.hold_service is None:
+            yield
+            return
+        with self._lock:
+            self._holds += 1
+            if self._holds == 1:
+                self._hold()
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._holds -= 1
+                if self._holds == 0:
+                    self._release()
+
+    def stop(self) -> bool:
+        """Stop the clock for good (the scenario ended; a no-op at 1x). False when the clock
+        owner served more hold requests than this driver made: someone else held the clock."""
+        if not self.simulated or self.hold_service is None:
+            return True
+        from std_srvs.srv import Trigger
+
+        client = self._stop_client
+        if not client.wait_for_service(timeout_sec=HOLD_WAIT_S):
+            return True
+        self.requests += 1
+        with self._paused():
+            future = client.call_async(Trigger.Request())
+        end = time.monotonic() + HOLD_WAIT_S
+        while not future.done() and time.monotonic() < end:
+            time.sleep(0.002)
+        try:
+            return int(future.result().message.split()[1]) <= self.requests
+        except (AttributeError, IndexError, ValueError):
+            return True
+
+    def _call(self, on: bool) -> tuple[int, int] | None:
+        """Ask the clock owner to hold (or run); its reply: (time in ns, matched readers)."""
+        from std_srvs.srv import SetBool
+
+        if not self._client.wait_for_service(timeout_sec=HOLD_WAIT_S):
+            return None
+        self.requests += 1
+        with self._paused():
+            future = self._client.call_async(SetBool.Request(data=on))
+        end = time.monotonic() + HOLD_WAIT_S
+        while not future.done() and time.monotonic() < end:
+            time.sleep(0.002)
+        if not future.done() or future.result() is None:
+            return None
+        try:
+            at, readers = future.result().message.split()
+            return int(at), int(readers)
+        except ValueError:
+            return None
+
+    def clock_readers(self) -> int | None:
+        """While held: how many ``/clock`` readers the clock owner has matched (None otherwise)."""
+        if self._held_since is None:
+            return None
+        reply = self._call(True)
+        return reply[1] if reply else None
+
+    def _hold(self) -> None:
+        reply = self._call(True)
+        if reply is None:
+            return                           # no hold: the process starts on the running clock
+        end = time.monotonic() + HOLD_WAIT_S
+        while self.node.get_clock().now().nanoseconds < reply[0] and time.monotonic() < end:
+            time.sleep(0.001)
+        self._held_since = time.monotonic()
+
+    def _release(self) -> None:
+        since = self._held_since
+        self._call(False)
+        if since is not None:
+            self.held_s += time.monotonic() - since
+            self._held_since = None
