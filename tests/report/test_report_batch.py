@@ -49,6 +49,27 @@ def test_batch_from_disk(tmp_path, lab3, lab3_result):
     assert 'href="alice/report.html"' in index.read_text() and "check/" not in index.read_text()
 
 
+def test_a_result_removed_while_the_batch_is_listed_is_left_out(tmp_path, lab3, lab3_result, monkeypatch):
+    """Grading into a folder that holds an earlier run: a submission graded again removes its old
+    result.json, possibly between the batch listing the folder and reading that file."""
+    import grader.report.batch as batch
+
+    write_result(tmp_path, "alice", lab3_result)
+    write_result(tmp_path, "bob", lab3_result)
+    real = batch.read_result
+
+    def regraded_meanwhile(path, **kw):
+        if path.parent.name == "bob":
+            path.unlink()
+        return real(path, **kw)
+
+    monkeypatch.setattr(batch, "read_result", regraded_meanwhile)
+    assert list(batch.load_results(tmp_path, lab3)) == ["alice"]
+    (tmp_path / "alice" / "result.json").write_text("{not json")     # still there, unreadable: said
+    with pytest.raises(GraderError, match="cannot read"):
+        batch.load_results(tmp_path, lab3)
+
+
 def test_unreadable_result_is_a_clear_error(tmp_path):
     bad = tmp_path / "x" / "result.json"
     bad.parent.mkdir()
