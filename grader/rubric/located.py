@@ -21,7 +21,7 @@ from pydantic import BaseModel, RootModel
 from yaml.constructor import SafeConstructor
 from yaml.nodes import MappingNode, Node, SequenceNode
 
-from grader.scenario.model import PATTERN_WHAT
+from grader.scenario.fields import PATTERN_WHAT
 
 MERGE_TAG = "tag:yaml.org,2002:merge"
 _IDENT_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")

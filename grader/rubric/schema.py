@@ -17,7 +17,8 @@ from typing import Annotated, Any, Collection, Literal, Mapping, Union
 
 from pydantic import BeforeValidator, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
-from grader.scenario.model import Model, PackageName, Scenario, _named, with_rules
+from grader.scenario.fields import Model, PackageName, _named, with_rules
+from grader.scenario.model import Scenario
 
 SCHEMA_VERSION = 1
 KINDS = ("auto", "manual", "advisory", "integrity")

@@ -12,114 +12,26 @@ is also why ``grader rubric schema`` can hand editors a JSON Schema generated fr
 pydantic is used because it gives typed, frozen models, strict validation with located errors,
 JSON round-trips and JSON Schema from one declaration.
 
-The module is longer than the project's usual ~400 lines on purpose: it is the whole scenario
-language of a rubric (names, actions, conditions, steps, processes, scenarios) in the order a
-rubric author reads it, and splitting it would scatter one declaration across files.
+The field types and base model live in ``grader.scenario.fields``, the ``until:`` conditions in
+``grader.scenario.conditions``; both are re-exported here, so ``model`` names the whole language.
 """
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, RootModel, StringConstraints,
-                      ValidationInfo, field_validator, model_validator)
+from pydantic import (BeforeValidator, ConfigDict, Field, RootModel, ValidationInfo, field_validator,
+                      model_validator)
 
-#: ``pattern -> what it is``: validation errors say "expected a topic name" instead of a regex
-PATTERN_WHAT: dict[str, str] = {}
-
-
-def _named(pattern: str, what: str, **field: Any) -> Any:
-    PATTERN_WHAT[pattern] = what
-    return Annotated[str, StringConstraints(pattern=pattern), Field(description=what, **field)]
-
-
-RosName = _named(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", "a ROS name like /turtle1/pose")
-PackageName = _named(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digits, _)")
-ExecutableName = _named(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "an executable name")
-EntryPoint = _named(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$",
-                    "a Python entry point 'package.module:function'")
-LaunchFile = _named(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "a launch file name like app.launch.py")
-LocalId = _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "an id (letters, digits, _ or -)")
-EnvName = _named(r"^[A-Za-z_][A-Za-z0-9_]*$", "an environment variable name")
-MsgType = _named(r"^[A-Za-z][A-Za-z0-9_]*/msg/[A-Z][A-Za-z0-9]*$", "a message type like std_msgs/msg/String")
-SrvType = _named(r"^[A-Za-z][A-Za-z0-9_]*/srv/[A-Z][A-Za-z0-9]*$", "a service type like turtlesim/srv/SetPen")
-ActionType = _named(r"^[A-Za-z][A-Za-z0-9_]*/action/[A-Z][A-Za-z0-9]*$",
-                    "an action type like turtlesim/action/RotateAbsolute")
-#: sequences and paths accept what YAML/JSON give (lists, text); their items stay strict
-LaxPath = Annotated[Path, Field(strict=False)]
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-PositiveInt = Annotated[int, Field(gt=0)]
-ParamScalar = Union[bool, int, float, str]
-ParamValue = Union[bool, int, float, str, list[bool], list[int], list[float], list[str]]
-
-#: the grader's own processes; rubric processes may not take these names
-RESERVED_PROCESSES = ("sim", "recorder", "driver")
-#: where ``goal:`` steps may publish, and how [x, y] fills each type
-GOAL_TYPES = ("std_msgs/msg/Float32MultiArray", "geometry_msgs/msg/Point", "geometry_msgs/msg/Pose2D")
-
-
-class Model(BaseModel):
-    """Frozen, no unknown keys, strict types (a quoted number is text, ``yes`` is not 1)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
-
-
-def with_rules(cls: type, handler: Any, value: Any, own: list[tuple[tuple, str]]) -> Any:
-    """Run a wrap validator's ``handler`` and report ``own`` problems (``(loc, message)``, loc
-    relative to the model) together with the field errors, so a user sees every problem at once."""
-    from pydantic import ValidationError
-    from pydantic_core import InitErrorDetails, PydanticCustomError
-
-    errors: list[InitErrorDetails] = []
-    result = None
-    try:
-        result = handler(value)
-    except ValidationError as exc:
-        for err in exc.errors():
-            detail: dict[str, Any] = {"type": err["type"], "loc": err["loc"], "input": err.get("input")}
-            if err["type"] in ("value_error", "assertion_error", "rule"):
-                detail["type"] = PydanticCustomError("rule", _braces(err["msg"].removeprefix("Value error, ")))
-            elif "ctx" in err:
-                detail["ctx"] = err["ctx"]
-            errors.append(detail)  # type: ignore[arg-type]
-    known = {tuple(e["loc"]) for e in errors}
-    for loc, message in own:
-        if loc not in known:
-            errors.append({"type": PydanticCustomError("rule", _braces(message)), "loc": loc,
-                           "input": value.get(loc[0]) if loc and isinstance(value, dict) else value})
-    if errors:
-        raise ValidationError.from_exception_data(cls.__name__, errors)
-    return result
-
-
-def _braces(message: str) -> str:
-    """A message as a pydantic template: literal braces doubled."""
-    return message.replace("{", "{{").replace("}", "}}")
-
-
-# ---------------------------------------------------------------------------------------- leaves
-class Goal(Model):
-    """A position ``[x, y]`` or ``{x: .., y: ..}`` (m, turtlesim world frame)."""
-
-    x: Annotated[float, Field(allow_inf_nan=False, description="m")]
-    y: Annotated[float, Field(allow_inf_nan=False, description="m")]
-
-    @model_validator(mode="before")
-    @classmethod
-    def _pair(cls, value: Any) -> Any:
-        if isinstance(value, (list, tuple)):
-            if len(value) != 2:
-                raise ValueError(f"expected a position [x, y] or {{x: .., y: ..}}, got a list of {len(value)}")
-            return {"x": value[0], "y": value[1]}
-        return value
-
-    @property
-    def xy(self) -> tuple[float, float]:
-        return (self.x, self.y)
-
+# re-exported: the whole scenario language is importable from here
+from grader.scenario.conditions import (  # noqa: F401
+    ActionDone, Advertised, Condition, GoalReached, Messages, Output, ProcessExit, ReplayDone, ServiceDone,
+    Subscribed)
+from grader.scenario.fields import (  # noqa: F401
+    GOAL_TYPES, RESERVED_PROCESSES, ActionType, EntryPoint, EnvName, ExecutableName, Goal,
+    LaunchFile, LaxPath, LocalId, Model, MsgType, NonNegativeFloat, PackageName, ParamValue,
+    PositiveFloat, PositiveInt, RosName, SrvType, with_rules)
 
 #: turtlesim's world is [0, WORLD_M]^2 (float32 of 499/45: grader.sim.physics.W)
 WORLD_M = 11.088889
@@ -322,100 +234,6 @@ class Stop(RootModel[tuple[LocalId, ...]]):
 Action = Union[Goal, Publish, ServiceCall, ActionGoal, Replay, Start, Stop]
 #: step keys that hold an action, in the order they are documented
 ACTION_KEYS = ("goal", "publish", "service", "action", "replay", "start", "stop")
-
-
-# ------------------------------------------------------------------------------------ conditions
-class GoalReached(Model):
-    """The turtle is within ``tolerance`` of ``goal`` (default: the step's ``goal:``) and stays
-    there for ``settle`` seconds."""
-
-    condition: Literal["goal_reached"]
-    goal: Goal | None = Field(None, description="absent: the step's goal")
-    tolerance: PositiveFloat = Field(0.1, description="m")
-    settle: NonNegativeFloat = Field(0.5, description="s it must stay within the tolerance")
-    pose_topic: RosName = "/turtle1/pose"
-
-
-class ActionDone(Model):
-    """The step's action goal was rejected or returned a result."""
-
-    condition: Literal["action_done"]
-
-
-class ServiceDone(Model):
-    """The step's service call returned (or could not be made)."""
-
-    condition: Literal["service_done"]
-
-
-class ReplayDone(Model):
-    """The step's replay published its last message."""
-
-    condition: Literal["replay_done"]
-
-
-class ProcessExit(Model):
-    """Every OS process of ``process`` has exited."""
-
-    condition: Literal["process_exit"]
-    process: LocalId
-
-
-class Output(Model):
-    """A stdout/stderr line of ``process`` printed since the step began matches ``pattern``."""
-
-    condition: Literal["output"]
-    process: LocalId
-    pattern: str = Field(description="a regular expression (Python syntax)")
-
-    @field_validator("pattern")
-    @classmethod
-    def _regex(cls, pattern: str) -> str:
-        try:
-            re.compile(pattern)
-        except re.error as exc:
-            raise ValueError(f"invalid regular expression: {exc}") from None
-        return pattern
-
-
-class Messages(Model):
-    """At least ``count`` messages on ``topic`` since the step began."""
-
-    condition: Literal["messages"]
-    topic: RosName
-    count: PositiveInt = Field(1, description="messages since the step began")
-
-
-class Advertised(Model):
-    """A student node offers the topic (and the recorder subscribes to it), service or action."""
-
-    condition: Literal["advertised"]
-    topic: RosName | None = None
-    service: RosName | None = None
-    action: RosName | None = None
-
-    @model_validator(mode="after")
-    def _exactly_one(self) -> "Advertised":
-        if sum(v is not None for v in (self.topic, self.service, self.action)) != 1:
-            raise ValueError("advertised needs exactly one of topic, service or action")
-        return self
-
-
-class Subscribed(Model):
-    """A node other than the grader's subscribes to ``topic``."""
-
-    condition: Literal["subscribed"]
-    topic: RosName
-
-
-def _condition_name(value: Any) -> Any:
-    return {"condition": value} if isinstance(value, str) else value
-
-
-Condition = Annotated[
-    Union[GoalReached, ActionDone, ServiceDone, ReplayDone, ProcessExit, Output, Messages,
-          Advertised, Subscribed],
-    Field(discriminator="condition"), BeforeValidator(_condition_name)]
 
 
 # ----------------------------------------------------------------------------------------- steps

@@ -1,0 +1,105 @@
+"""The ``until:`` conditions of a scenario step: when a step is over (one class each, dispatched
+on ``condition``; ``grader.scenario.steps`` holds the predicate of each)."""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import BeforeValidator, Field, field_validator, model_validator
+
+from grader.scenario.fields import (Goal, LocalId, Model, NonNegativeFloat, PositiveFloat, PositiveInt,
+                                    RosName)
+
+
+class GoalReached(Model):
+    """The turtle is within ``tolerance`` of ``goal`` (default: the step's ``goal:``) and stays
+    there for ``settle`` seconds."""
+
+    condition: Literal["goal_reached"]
+    goal: Goal | None = Field(None, description="absent: the step's goal")
+    tolerance: PositiveFloat = Field(0.1, description="m")
+    settle: NonNegativeFloat = Field(0.5, description="s it must stay within the tolerance")
+    pose_topic: RosName = "/turtle1/pose"
+
+
+class ActionDone(Model):
+    """The step's action goal was rejected or returned a result."""
+
+    condition: Literal["action_done"]
+
+
+class ServiceDone(Model):
+    """The step's service call returned (or could not be made)."""
+
+    condition: Literal["service_done"]
+
+
+class ReplayDone(Model):
+    """The step's replay published its last message."""
+
+    condition: Literal["replay_done"]
+
+
+class ProcessExit(Model):
+    """Every OS process of ``process`` has exited."""
+
+    condition: Literal["process_exit"]
+    process: LocalId
+
+
+class Output(Model):
+    """A stdout/stderr line of ``process`` printed since the step began matches ``pattern``."""
+
+    condition: Literal["output"]
+    process: LocalId
+    pattern: str = Field(description="a regular expression (Python syntax)")
+
+    @field_validator("pattern")
+    @classmethod
+    def _regex(cls, pattern: str) -> str:
+        try:
+            re.compile(pattern)
+        except re.error as exc:
+            raise ValueError(f"invalid regular expression: {exc}") from None
+        return pattern
+
+
+class Messages(Model):
+    """At least ``count`` messages on ``topic`` since the step began."""
+
+    condition: Literal["messages"]
+    topic: RosName
+    count: PositiveInt = Field(1, description="messages since the step began")
+
+
+class Advertised(Model):
+    """A student node offers the topic (and the recorder subscribes to it), service or action."""
+
+    condition: Literal["advertised"]
+    topic: RosName | None = None
+    service: RosName | None = None
+    action: RosName | None = None
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> "Advertised":
+        if sum(v is not None for v in (self.topic, self.service, self.action)) != 1:
+            raise ValueError("advertised needs exactly one of topic, service or action")
+        return self
+
+
+class Subscribed(Model):
+    """A node other than the grader's subscribes to ``topic``."""
+
+    condition: Literal["subscribed"]
+    topic: RosName
+
+
+def _condition_name(value: Any) -> Any:
+    return {"condition": value} if isinstance(value, str) else value
+
+
+Condition = Annotated[
+    Union[GoalReached, ActionDone, ServiceDone, ReplayDone, ProcessExit, Output, Messages,
+          Advertised, Subscribed],
+    Field(discriminator="condition"), BeforeValidator(_condition_name)]
