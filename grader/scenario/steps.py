@@ -110,21 +110,22 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
         state.service_done = True
 
 
-#: the first simulator pose after the teleport must be this close (m): the turtle keeps its last
-#: command for one 16 ms tick (turtlesim applies cmd_vel for 1 s), so a fast one has moved a bit
+#: a simulator pose this close (m) to the placement shows it done: turtlesim applies a teleport at
+#: its next 16 ms tick, together with one tick of the last command (which it keeps for 1 s)
 PLACE_TOL_M = 0.1
-#: wall seconds for that pose to arrive (the simulator publishes every 16 ms)
-PLACE_WAIT_S = 1.0
+#: wall seconds to wait for that pose before the action goes on anyway (the teleport was answered,
+#: so it is applied by the next tick); kept short because until the action's new goal arrives,
+#: the student's controller steers for the old one
+PLACE_WAIT_S = 0.1
 
 
 def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> dict[str, Any]:
     """Teleport the turtle (the simulator's service, recorded like any driver call), then go on
     with the step's action as soon as the simulator's own pose topic shows the turtle there.
 
-    No waiting beyond that first pose: until the new goal arrives, the student's controller still
-    steers for the old one, and a controller that spins on the spot (placed on a goal it never
-    settles on) would turn the turtle a different amount each run. Sent at once, the goal meets
-    the placed pose give or take one simulator tick, every run."""
+    Never longer: a controller that spins on the spot (placed on a goal it never settles on)
+    turns the turtle a different amount each run while it waits for a new goal. Sent at once,
+    the goal meets the placed pose give or take a simulator tick or two, every run."""
     from grader.sim import truth_pose_topic
 
     driver = rt.driver
@@ -132,8 +133,9 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> d
     driver.watch_pose(topic)
     spec = m.ServiceCall(name=f"/{place.turtle}/teleport_absolute", type="turtlesim/srv/TeleportAbsolute",
                          request={"x": place.x, "y": place.y, "theta": place.theta})
+    # the pose after the teleport may reach the driver before the service's answer does
+    driver.poses.pop(topic, None)
     called = _service(rt, step, spec, state)
-    driver.poses.pop(topic, None)        # the poses from before the answer do not count
     state.service_done = False           # the step's own service (if any) has not run yet
 
     def there() -> bool:
@@ -143,7 +145,7 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> d
     shown = called.get("response") is not None and driver.wait_until(there, PLACE_WAIT_S, poll=0.001)
     pose = driver.poses.get(topic)
     return {"pose": [place.x, place.y, place.theta], "shown": bool(shown),
-            "first_pose": None if pose is None else [round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)]}
+            "seen": None if pose is None else [round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)]}
 
 
 def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> dict[str, Any]:
