@@ -47,6 +47,7 @@ EVIDENCE = {
     "set_pen_calls": ("set_pen calls", ""),
     "service": ("service", ""),
     "request": ("request", ""),
+    "x": ("x", "m"), "y": ("y", "m"), "theta": ("heading", "rad"),
     "service_event_topics_recorded": ("service calls were recorded", ""),
     "allowed": ("nodes allowed to publish the pose", ""),
 }

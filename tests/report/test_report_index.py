@@ -81,7 +81,8 @@ def test_regrade_with_a_changed_rubric_shows_who_changed(batch, tmp_path):
     row = html[html.index('<table class="regrade"'):]
     row = row[row.index('data-submission="no_wrap"'):row.index("</tr>", row.index('data-submission="no_wrap"'))]
     delta = after["no_wrap"]["auto_score"] - before["no_wrap"]["auto_score"]
-    assert delta > 0 and f"+{delta:g}" in row and "ex2.goals_reached: 0 →" in row
+    was = {i["id"]: i for i in before["no_wrap"]["items"]}["ex2.goals_reached"]["points"]
+    assert delta > 0 and f"+{delta:g}" in row and f"ex2.goals_reached: {was:g} →" in row
 
 
 def test_empty_batch():
