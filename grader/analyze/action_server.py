@@ -9,6 +9,9 @@ results answer accepted goals in order), which does not depend on the driver wai
 Bounds: the world is [0, 11.088889]^2. The lab's template rejects goals outside [0, 11], so goals
 inside [0, ``inner_bound``] must be accepted and reached, goals outside [0, ``outer_bound``] must be
 rejected, and the thin band in between is not judged.
+
+A little over the project's ~400 lines: the five Exercise 3 items share one reconstruction of
+goal, response, feedback and result per goal, kept with them so each item reads the same rows.
 """
 
 from __future__ import annotations

@@ -1,6 +1,10 @@
 """How the numbers a student's Box-Muller subscriber printed are paired with the (u1, u2) inputs
 that produced them, and which formula (the right one or a classic mistake) explains them.
-The analyzers in ``grader.analyze.boxmuller`` use it; the method is described there."""
+The analyzers in ``grader.analyze.boxmuller`` use it; the method is described there.
+
+A little over the project's ~400 lines: the pairing (log lines to input messages, tolerant of
+dropped and reordered lines) and the catalogue of wrong formulas it tests against are one
+algorithm, and each half is only read with the other."""
 
 from __future__ import annotations
 
