@@ -110,42 +110,49 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
         state.service_done = True
 
 
-#: a simulator pose this close (m) to the placement shows it done: turtlesim applies a teleport at
-#: its next 16 ms tick, together with one tick of the last command (which it keeps for 1 s)
-PLACE_TOL_M = 0.1
-#: wall seconds to wait for that pose before the action goes on anyway (the teleport was answered,
-#: so it is applied by the next tick); kept short because until the action's new goal arrives,
-#: the student's controller steers for the old one
-PLACE_WAIT_S = 0.1
+#: a fresh simulator pose this close to the placement shows the teleport done: turtlesim applies
+#: it at its next 16 ms tick together with one tick of the last command (kept for 1 s), so the
+#: turtle may already have moved by up to v * 16 ms and turned by up to w * 16 ms (31 rad/s)
+PLACE_TOL_M, PLACE_TOL_RAD = 0.1, 0.5
+#: wall seconds to wait for that pose (a loaded machine delays the simulator's tick)
+PLACE_WAIT_S = 2.0
 
 
 def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> dict[str, Any]:
     """Teleport the turtle (the simulator's service, recorded like any driver call), then go on
     with the step's action as soon as the simulator's own pose topic shows the turtle there.
 
-    Never longer: a controller that spins on the spot (placed on a goal it never settles on)
-    turns the turtle a different amount each run while it waits for a new goal. Sent at once,
-    the goal meets the placed pose give or take a simulator tick or two, every run."""
-    from grader.sim import truth_pose_topic
-
+    Not a moment later: until the action's new goal arrives, the student's controller steers for
+    the old one, and one that spins on the spot (placed on a goal it never settles on) would turn
+    the turtle a different amount each run. Not earlier either: a pose published before the
+    teleport (the turtle may have stopped right there, on its last goal) is no proof, so the
+    pose must be a new message that matches the placed heading too. The subscription is made in
+    :func:`prepare`, before the scenario starts (a new one would take a discovery round)."""
     driver = rt.driver
-    topic = truth_pose_topic(f"/{place.turtle}/pose")
-    driver.watch_pose(topic)
+    topic = placement_topic(place)
+    before = driver.poses.get(topic)
     spec = m.ServiceCall(name=f"/{place.turtle}/teleport_absolute", type="turtlesim/srv/TeleportAbsolute",
                          request={"x": place.x, "y": place.y, "theta": place.theta})
-    # the pose after the teleport may reach the driver before the service's answer does
-    driver.poses.pop(topic, None)
     called = _service(rt, step, spec, state)
     state.service_done = False           # the step's own service (if any) has not run yet
 
     def there() -> bool:
         pose = driver.poses.get(topic)
-        return pose is not None and math.hypot(pose.x - place.x, pose.y - place.y) <= PLACE_TOL_M
+        return pose is not None and pose is not before and \
+            math.hypot(pose.x - place.x, pose.y - place.y) <= PLACE_TOL_M and \
+            abs(math.remainder(pose.theta - place.theta, math.tau)) <= PLACE_TOL_RAD
 
     shown = called.get("response") is not None and driver.wait_until(there, PLACE_WAIT_S, poll=0.001)
     pose = driver.poses.get(topic)
     return {"pose": [place.x, place.y, place.theta], "shown": bool(shown),
             "seen": None if pose is None else [round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)]}
+
+
+def placement_topic(place: m.Placement) -> str:
+    """The simulator's own pose topic of the placed turtle (students cannot publish on it)."""
+    from grader.sim import truth_pose_topic
+
+    return truth_pose_topic(f"/{place.turtle}/pose")
 
 
 def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> dict[str, Any]:
@@ -296,6 +303,8 @@ def prepare(rt: Runtime) -> None:
             rt.driver.count_messages(step.until.topic, None, wait_s=0.0)
         if isinstance(step.until, m.GoalReached):
             rt.driver.watch_pose(step.until.pose_topic)
+        if step.place is not None:
+            rt.driver.watch_pose(placement_topic(step.place))
 
 
 # --------------------------------------------------------------------------------- conditions
