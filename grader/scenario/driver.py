@@ -7,6 +7,7 @@ process exits) is also published on ``/grader/events``, and student stdout/stder
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import importlib
 import json
@@ -105,6 +106,9 @@ class Driver:
         self.pose: Any = None                      # latest pose of the first watched topic
         self.pose_topic: str | None = None
         self.poses: dict[str, Any] = {}            # topic -> latest pose
+        #: topic -> the recent poses, numbered in arrival order (a placement looks for the first
+        #: one after its teleport, which may arrive before the service's answer does)
+        self.pose_log: dict[str, collections.deque[tuple[int, Any]]] = {}
         self.goal_status: dict[bytes, int] = {}    # action goal id -> last status the server sent
         self.last_output = time.monotonic()
         self.counts: dict[str, int] = {}
@@ -227,8 +231,11 @@ class Driver:
         if topic in self._subs:
             return
 
+        log = self.pose_log.setdefault(topic, collections.deque(maxlen=256))
+
         def on_pose(msg: Any) -> None:
             self.poses[topic] = msg
+            log.append((log[-1][0] + 1 if log else 1, msg))
             if self.pose_topic == topic:
                 self.pose = msg
 
