@@ -100,6 +100,19 @@ def _under(path: str, roots: Sequence[str]) -> bool:
     return any(p == Path(r) or Path(r) in p.parents for r in roots)
 
 
+def ros_roots(env: Mapping[str, str]) -> list[str]:
+    """The ROS installs ``env`` builds and runs against: every directory on its
+    ``AMENT_PREFIX_PATH`` and ``CMAKE_PREFIX_PATH`` (a sourced ``/opt/ros/jazzy`` and its Python
+    packages, an overlay, a build's ``install/<pkg>``), read-only in a jail. Never the grader's
+    own package, even when a prefix contains it."""
+    out: list[str] = []
+    for var in ("AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH"):
+        for entry in env.get(var, "").split(os.pathsep):
+            if entry and os.path.isdir(entry) and entry not in out and not _under(PACKAGE_DIR, [entry]):
+                out.append(entry)
+    return out
+
+
 def visible_roots(jail: Jail) -> list[str]:
     """Host paths a jailed process can see (besides /proc, /dev and its scratch)."""
     from grader.sandbox.probe import python_roots

@@ -18,7 +18,7 @@ from typing import Mapping, Sequence
 
 from grader.sandbox import cgroups
 from grader.sandbox.capture import CappedLog
-from grader.sandbox.jail import Jail, prepare
+from grader.sandbox.jail import Jail, prepare, ros_roots
 from grader.sandbox.probe import probe
 from grader.sandbox.scenario import SandboxPolicy, require_complete, sandbox_mode, student_jail
 
@@ -72,8 +72,8 @@ def run_jailed(argv: Sequence[str], *, env: Mapping[str, str], cwd: Path, stdout
             group = cgroups.CgroupSet.create(caps.cgroups, f"grader-{os.getpid()}-{next(_SEQ)}-{name}")
             group.set_limits(memory_bytes=memory_mb * 2**20, pids=pids)
         policy = SandboxPolicy.from_env()
-        jail = student_jail(caps, policy, ro=[str(p) for p in ro], rw=[str(p) for p in rw],
-                            own_network=True, cgroup=group)
+        jail = student_jail(caps, policy, ro=[*(str(p) for p in ro), *ros_roots(env)],
+                            rw=[str(p) for p in rw], own_network=True, cgroup=group)
         if python_path:
             jail = Jail.from_json({**jail.to_json(), "python_path": [str(p) for p in python_path]})
     if jail is not None and jail.bwrap:

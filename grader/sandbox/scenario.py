@@ -25,7 +25,7 @@ from typing import Any, Mapping, Sequence
 from grader.errors import GraderError
 from grader.sandbox import cgroups
 from grader.sandbox.capture import DEFAULT_CAP_BYTES
-from grader.sandbox.jail import Jail
+from grader.sandbox.jail import Jail, ros_roots
 from grader.sandbox.probe import Capabilities, probe, protections, sandbox_uid
 
 CONFIG_VAR = "GRADER_SANDBOX_CONFIG"
@@ -90,17 +90,14 @@ def require_complete(caps: Capabilities | None = None) -> None:
 
 def _extra_ro(prefixes: Sequence[str], env: Mapping[str, str]) -> list[str]:
     """The build's ``install`` and ``src`` trees (and the simulator overlay that the system's
-    ``ros2 launch`` uses), and system ROS prefixes under /opt."""
+    ``ros2 launch`` uses), and the ROS installs on ``env`` (a sourced system ROS wherever it is)."""
     ro: list[str] = []
     for prefix in prefixes:
         install = Path(prefix).parent
         for tree in (install, install.parent / "src", install.parent / "grader-sim-overlay"):
             if tree.is_dir() and str(tree) not in ro:
                 ro.append(str(tree))
-    for entry in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        if entry.startswith("/opt/") and os.path.isdir(entry) and entry not in ro:
-            ro.append(entry)
-    return ro
+    return ro + [r for r in ros_roots(env) if r not in ro]
 
 
 def student_jail(caps: Capabilities, policy: SandboxPolicy, *, ro: Sequence[str] = (),
