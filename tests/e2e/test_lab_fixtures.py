@@ -31,7 +31,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(3000)]
 
 @pytest.fixture(scope="session")
 def batches(tmp_path_factory) -> dict[str, Path]:
-    """Every lab's fixtures graded side by side within one budget of 3 concurrent scenarios
+    """Every lab's fixtures graded side by side within one budget of 4 concurrent scenarios
     (`grade_batch`, what `grader grade` runs), sharing one build cache."""
     from concurrent.futures import ThreadPoolExecutor
 
@@ -40,7 +40,7 @@ def batches(tmp_path_factory) -> dict[str, Path]:
     from grader.grading.schedule import Slots
 
     root = tmp_path_factory.mktemp("labs")
-    slots = Slots(3)
+    slots = Slots(4)          # `grader grade`'s default on 2 cores (twice the cores)
     out = {lab: root / lab for lab in LABS}
 
     def grade(lab: str) -> dict[str, str]:
