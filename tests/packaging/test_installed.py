@@ -112,8 +112,11 @@ def system_ros(autograder: Path, tmp_path_factory) -> SystemRos:
     installed = autograder / "grader-venv" / "lib" / "python3.11" / "site-packages"
     reqs = installed / "grader" / "_data" / "requirements" / "ros-wheels.txt"   # the wheel's pins
     ros = tmp / "opt-ros-jazzy"
+    # numpy too, as a distribution has it beside its ROS (the interface packages' CMake exports
+    # name its include folder, which must be inside the "system" a jailed build sees)
+    numpy = next(installed.glob("numpy-*.dist-info")).name.removesuffix(".dist-info").replace("-", "==")
     sh(["python3.11", "-m", "pip", "install", "-q", "--disable-pip-version-check", "--prefix", ros,
-        "-r", reqs], cwd=tmp, env=clean_env())
+        "-r", reqs, numpy], cwd=tmp, env=clean_env())
     site = ros / "lib" / "python3.11" / "site-packages"
     libs = [ros / "lib", *sorted(site.glob("ros_*.libs"))]      # where its shared libraries are
     sourced = clean_env(ROS_DISTRO="jazzy", ROS_VERSION="2", AMENT_PREFIX_PATH=str(ros),
