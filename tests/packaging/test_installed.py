@@ -113,10 +113,11 @@ def system_ros(autograder: Path, tmp_path_factory) -> SystemRos:
     reqs = installed / "grader" / "_data" / "requirements" / "ros-wheels.txt"   # the wheel's pins
     ros = tmp / "opt-ros-jazzy"
     # numpy too, as a distribution has it beside its ROS (the interface packages' CMake exports
-    # name its include folder, which must be inside the "system" a jailed build sees)
+    # name its include folder, which must be inside the "system" a jailed build sees), even when
+    # the Python that installs it has one of its own
     numpy = next(installed.glob("numpy-*.dist-info")).name.removesuffix(".dist-info").replace("-", "==")
     sh(["python3.11", "-m", "pip", "install", "-q", "--disable-pip-version-check", "--prefix", ros,
-        "-r", reqs, numpy], cwd=tmp, env=clean_env())
+        "--ignore-installed", "-r", reqs, numpy], cwd=tmp, env=clean_env())
     site = ros / "lib" / "python3.11" / "site-packages"
     libs = [ros / "lib", *sorted(site.glob("ros_*.libs"))]      # where its shared libraries are
     sourced = clean_env(ROS_DISTRO="jazzy", ROS_VERSION="2", AMENT_PREFIX_PATH=str(ros),
