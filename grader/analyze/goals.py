@@ -81,7 +81,7 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
     placed = sorted(e["t"] for e in events(frames, Event.SERVICE_CALL)
                     if str(e.get("service", "")).rsplit("/", 1)[-1] in TELEPORT_SERVICES)
     for g in merged:
-        after = [t for t in placed if t > g.t and not t >= g.t_end]
+        after = [t for t in placed if t > g.t and not t >= g.t_end]     # t_end NaN: the last goal
         if after:
             g.t_end = after[0]
     return merged

@@ -10,7 +10,6 @@ import os
 from pathlib import Path
 
 from grader.errors import GraderError
-
 from grader.report.index import read_docs, write_index
 from grader.report.result import read_result, write_grades_csv
 from grader.rubric.schema import Rubric

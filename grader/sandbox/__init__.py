@@ -6,8 +6,9 @@ provide, and each is probed at start (``grader doctor`` lists them):
 
 * filesystem (bubblewrap): a read-only view of the system, the Python interpreter, the ROS
   installs on the environment's ``AMENT_PREFIX_PATH``/``CMAKE_PREFIX_PATH`` (a sourced ROS
-  wherever it lives) and the build's install tree; one size-capped scratch tmpfs; nothing of the outputs, bags, rubric,
-  fixtures, other submissions, build cache or grader sources (:mod:`.jail`);
+  wherever it lives) and the build's install tree; one size-capped scratch tmpfs; nothing of
+  the outputs, bags, rubric, fixtures, other submissions, build cache or grader sources
+  (:mod:`.jail`);
 * network and processes (``unshare``): each scenario runs in its own network namespace (a
   loopback shared by its simulator, recorder, driver and students only) and PID namespace, and
   each student process in a PID namespace of its own, so nothing it starts outlives it

@@ -223,6 +223,15 @@ class Driver:
                 {"process": name, "stream": stream, "line": rest.decode(errors="replace")})))
             del self._tail_rest[path]
 
+    def pose_mark(self, topic: str) -> int:
+        """The number of the latest pose of ``topic`` received (0 before any)."""
+        log = self.pose_log.get(topic)
+        return log[-1][0] if log else 0
+
+    def poses_since(self, topic: str, mark: int) -> list[Any]:
+        """The poses of ``topic`` received after ``mark`` (see :meth:`pose_mark`), oldest first."""
+        return [msg for n, msg in list(self.pose_log.get(topic, ())) if n > mark]
+
     def watch_pose(self, topic: str = "/turtle1/pose") -> None:
         """Keep the latest turtlesim Pose of ``topic`` in ``poses[topic]`` (and ``pose`` for the
         first one watched)."""

@@ -7,7 +7,6 @@ that none is missing.
 
 from __future__ import annotations
 
-import collections
 import math
 import re
 import time
@@ -115,7 +114,7 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
 #: its next 16 ms tick together with one tick of the last command (it keeps one for 1 s), so the
 #: turtle may already have moved by v * 16 ms (up to 12 m/s) and turned by w * 16 ms (31 rad/s)
 PLACE_TOL_M, PLACE_TOL_RAD = 0.2, 0.5
-#: wall seconds to wait for that pose (a loaded machine delays the simulator's tick)
+#: seconds (scenario time) to wait for that pose (a loaded machine delays the simulator's tick)
 PLACE_WAIT_S = 2.0
 
 
@@ -132,8 +131,7 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> d
     take a discovery round)."""
     driver = rt.driver
     topic = placement_topic(place)
-    log = driver.pose_log.setdefault(topic, collections.deque(maxlen=256))
-    start = log[-1][0] if log else 0
+    start = driver.pose_mark(topic)
     spec = m.ServiceCall(name=f"/{place.turtle}/teleport_absolute", type="turtlesim/srv/TeleportAbsolute",
                          request={"x": place.x, "y": place.y, "theta": place.theta})
     called = _service(rt, step, spec, state)
@@ -141,8 +139,8 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> d
     seen: list[Any] = []
 
     def there() -> bool:
-        for n, pose in list(log):
-            if n > start and math.hypot(pose.x - place.x, pose.y - place.y) <= PLACE_TOL_M and \
+        for pose in driver.poses_since(topic, start):
+            if math.hypot(pose.x - place.x, pose.y - place.y) <= PLACE_TOL_M and \
                     abs(math.remainder(pose.theta - place.theta, math.tau)) <= PLACE_TOL_RAD:
                 seen.append(pose)
                 return True
