@@ -403,11 +403,16 @@ def _param_value(name: str, value: Any, ctx: Context) -> Any:
         return _yaml_param(name, perform(value, ctx))
     if isinstance(value, (list, tuple)):
         items = [_param_value(name, v, ctx) for v in value]
-        if not items or len({type(v) for v in items}) != 1 or isinstance(items[0], list):
+        if not _scalar_list(items):
             raise LaunchFileError(f"parameter {name!r}: a list parameter needs values of one type "
                                   f"(bool, int, float or str), got {items!r}")
         return items
     raise LaunchFileError(f"parameter {name!r}: {type(value).__name__} is not a parameter value")
+
+
+def _scalar_list(items: list) -> bool:
+    """A list ROS can hold as one parameter: not empty, all bool, all int, all float or all str."""
+    return bool(items) and len({type(v) for v in items}) == 1 and isinstance(items[0], (bool, int, float, str))
 
 
 def _yaml_param(name: str, text: str) -> Any:
@@ -422,8 +427,7 @@ def _yaml_param(name: str, text: str) -> Any:
         return ""
     if isinstance(value, (bool, int, float, str)):
         return value
-    if isinstance(value, list) and value and len({type(v) for v in value}) == 1 and \
-            isinstance(value[0], (bool, int, float, str)):
+    if isinstance(value, list) and _scalar_list(value):
         return value
     raise LaunchFileError(f"parameter {name!r}: {text!r} is not a bool, int, float, string or list of one of those")
 
