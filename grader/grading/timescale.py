@@ -9,7 +9,8 @@ the speed. So a scenario only runs faster when
 0. its rubric does not pin it to real time (``real_time: true``, for a scenario that judges
    wall-clock behaviour), and
 1. the static scan of the Python packages it runs (their installed modules) finds no wall-clock
-   pacing (:data:`WALL_CLOCK`), and
+   pacing (:data:`WALL_CLOCK`) and no executor that cannot keep pace with ``/clock``
+   (:data:`BUSY_ON_SIM_TIME`), and
 2. at run time the watchdog (:mod:`grader.scenario.watchdog`) sees every rate the rubric expects
    kept in simulated time, nobody else publishes ``/clock``, and the run itself worked.
 
@@ -36,6 +37,12 @@ WALL_CLOCK = frozenset({
     "datetime.datetime.now", "datetime.datetime.utcnow", "datetime.datetime.today",
     "datetime.date.today", "threading.Timer", "asyncio.sleep",
 })
+#: executors that take a whole CPU core once ``/clock`` arrives, so their node falls behind
+#: simulated time: rclpy 7.1.6's MultiThreadedExecutor (ros2/rclpy issue 1452; measured by
+#: ``benchmarks/bench_executor.py``: 1.02 CPU s/s idle next to the simulator at 2x, against 0.05
+#: at 1x and 0.06 on the SingleThreadedExecutor at 2x). The run-time watchdog's busy signal
+#: (:mod:`grader.scenario.watchdog`) samples CPU between steps and can miss a short scenario.
+BUSY_ON_SIM_TIME = frozenset({"rclpy.executors.MultiThreadedExecutor"})
 #: an rclpy clock that is not the node's ROS clock (a timer on it ignores ``/clock``)
 WALL_CLOCK_TYPES = ("ClockType.STEADY_TIME", "ClockType.SYSTEM_TIME")
 #: the analyzer whose expectations the watchdog checks
@@ -56,8 +63,9 @@ def _dotted(node: ast.AST) -> str | None:
 
 
 def scan_source(text: str) -> list[tuple[int, str]]:
-    """``(line, what)`` for every wall-clock use in Python source (imports resolved: ``import
-    time as t``, ``from time import sleep``, ``from datetime import datetime``)."""
+    """``(line, what)`` for every wall-clock use (and every :data:`BUSY_ON_SIM_TIME` executor)
+    in Python source (imports resolved: ``import time as t``, ``from time import sleep``, ``from
+    datetime import datetime``)."""
     try:
         tree = ast.parse(text)
     except (SyntaxError, ValueError):
@@ -78,7 +86,7 @@ def scan_source(text: str) -> list[tuple[int, str]]:
                 continue
             head, _, rest = dotted.partition(".")
             full = names.get(head, head) + (f".{rest}" if rest else "")
-            if full in WALL_CLOCK:
+            if full in WALL_CLOCK or full in BUSY_ON_SIM_TIME:
                 found.append((node.lineno, f"{full}()"))
         elif isinstance(node, ast.Attribute):
             dotted = _dotted(node)
@@ -120,11 +128,17 @@ def pacing_reason(build: Any, run: ScenarioRun) -> str | None:
         return None
     packages = packages_run(run.scenario, workspace_packages(Path(build.root) / "src"))
     hits = scan_packages(build, packages)
-    if not hits:
-        return None
-    more = f" and {len(hits) - 3} more" if len(hits) > 3 else ""
-    return ("wall-clock pacing in node code (" + "; ".join(hits[:3]) + more +
-            "): ROS timers and create_rate follow simulated time, these do not")
+    busy = [h for h in hits if h.rsplit(": ", 1)[1][:-2] in BUSY_ON_SIM_TIME]
+    pacing = [h for h in hits if h not in busy]
+    reasons = []
+    if pacing:
+        more = f" and {len(pacing) - 3} more" if len(pacing) > 3 else ""
+        reasons.append("wall-clock pacing in node code (" + "; ".join(pacing[:3]) + more +
+                       "): ROS timers and create_rate follow simulated time, these do not")
+    if busy:
+        reasons.append(f"{busy[0]}: rclpy's MultiThreadedExecutor takes a whole CPU core once /clock "
+                       "arrives (ros2/rclpy issue 1452), so its node would fall behind simulated time")
+    return "; ".join(reasons) or None
 
 
 def expected_rates(rubric: Any, scenario_id: str) -> tuple[RateExpectation, ...]:

@@ -35,6 +35,12 @@ TICKS = RateExpectation(topic="/ticks", expected_hz=2.0, rel_tol=0.3)
     ("import threading\nthreading.Timer(1.0, print).start()\n", [(2, "threading.Timer()")]),
     ("from rclpy.clock import Clock, ClockType\nc = Clock(clock_type=ClockType.STEADY_TIME)\n",
      [(2, "ClockType.STEADY_TIME")]),
+    # an executor that cannot keep pace with /clock (ros2/rclpy issue 1452), however imported
+    ("from rclpy.executors import MultiThreadedExecutor\nex = MultiThreadedExecutor(num_threads=4)\n",
+     [(2, "rclpy.executors.MultiThreadedExecutor()")]),
+    ("import rclpy.executors\nex = rclpy.executors.MultiThreadedExecutor()\n",
+     [(2, "rclpy.executors.MultiThreadedExecutor()")]),
+    ("from rclpy.executors import SingleThreadedExecutor\nex = SingleThreadedExecutor()\n", []),
     # ROS time and unrelated names are fine
     ("def sleep():\n    pass\nsleep()\nself.get_clock().now()\nrate = node.create_rate(30)\n", []),
     ("import time\nprint(time.strftime('%H'))\n", []),
@@ -42,6 +48,34 @@ TICKS = RateExpectation(topic="/ticks", expected_hz=2.0, rel_tol=0.3)
 ])
 def test_scan_finds_wall_clock_pacing(source: str, found: list) -> None:
     assert scan_source(source) == found
+
+
+def test_pacing_reason_names_the_file_and_why(tmp_path: Path) -> None:
+    """The reason says where and why: wall-clock pacing and a MultiThreadedExecutor are separate
+    reasons, each with its first file:line."""
+    from types import SimpleNamespace
+
+    from grader.rosenv import PY_SITE
+
+    src = tmp_path / "src" / "server_pkg"
+    src.mkdir(parents=True)
+    (src / "package.xml").write_text("<package><name>server_pkg</name></package>")
+    site = tmp_path / "install" / "server_pkg" / PY_SITE / "server_pkg"
+    site.mkdir(parents=True)
+    (site / "server.py").write_text("from rclpy.executors import MultiThreadedExecutor\n\n"
+                                    "def main():\n    MultiThreadedExecutor().spin()\n")
+    build = SimpleNamespace(root=str(tmp_path), install=str(tmp_path / "install"),
+                            packages={"server_pkg": SimpleNamespace(status="built")})
+    run = SimpleNamespace(scenario=Scenario.model_validate(
+        {"processes": [{"name": "server", "package": "server_pkg", "executable": "server"}],
+         "steps": [{"id": "s", "wait": 1.0}]}))
+    reason = pacing_reason(build, run)
+    assert reason.startswith("server_pkg/server.py:4: rclpy.executors.MultiThreadedExecutor(): ")
+    assert "whole CPU core" in reason and "wall-clock" not in reason
+    (site / "server.py").write_text((site / "server.py").read_text() + "import time\ntime.sleep(1)\n")
+    reason = pacing_reason(build, run)
+    assert reason.startswith("wall-clock pacing in node code (server_pkg/server.py:6: time.sleep())")
+    assert "; server_pkg/server.py:4: rclpy.executors.MultiThreadedExecutor(): " in reason
 
 
 # -- the watchdog's rule ----------------------------------------------------------------------------
