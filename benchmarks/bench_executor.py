@@ -7,17 +7,19 @@ SingleThreadedExecutor and MultiThreadedExecutor, at 1x and on simulated time (`
 2 and 4: the simulator publishes ``/clock`` every tick and the node runs with ``use_sim_time``),
 side by side in one run. With ``--lab3`` also the Lab 3 reference action server itself.
 
-Measured on the 2-core development machine, quiet (load 0.5), rclpy 7.1.6 from the Jazzy wheels:
+Measured on the 2-core development machine, quiet (load 0.5), rclpy 7.1.6 from the Jazzy wheels
+(ranges over three runs):
 
 ```
-executor   node               1x     2x     4x   (CPU s per s, idle next to the simulator)
-single     pose              0.04   0.07     -
-multi      pose              0.06   1.02     -
-multi      pose + rate       0.08   1.02     -
-lab 3 action server          0.08   1.02   1.03
+executor   node               1x          2x     4x   (CPU s per s, idle next to the simulator)
+single     pose              0.03-0.04   0.06-0.09  -
+multi      pose              0.05-0.08   1.02-1.03  -
+multi      pose + rate       0.08-1.02   1.01-1.02  -
+lab 3 action server          0.07-0.08   1.01-1.02  1.02-1.03
 ```
 
-The MultiThreadedExecutor takes a whole core as soon as ``/clock`` arrives, whatever the scale:
+The MultiThreadedExecutor takes a whole core as soon as ``/clock`` arrives, whatever the scale
+(and, with a rate timer, now and then at 1x too: a state it tips into and stays in):
 its spin thread yields the same subscription tasks again before a worker thread has started them
 (counted: 100-4,000 queued copies of the same two tasks) and rescans its list of futures on every
 spin (profile: 16.7 million ``Task.done`` calls in 8 s). This is ros2/rclpy issue 1452, fixed
