@@ -20,7 +20,7 @@ import threading
 import time
 from typing import Any, Callable, Iterator
 
-from grader.sim.clock import HOLD_SERVICE, STOP_SERVICE
+from grader.sim.clock import HOLD_NOW_SERVICE, HOLD_SERVICE, STOP_SERVICE
 
 #: wall seconds to wait for the clock owner's hold service and for the clock to reach the hold
 HOLD_WAIT_S = 10.0
@@ -49,11 +49,13 @@ class ScenarioClock:
         self._paused = paused or contextlib.nullcontext
         self._client: Any = None
         self._stop_client: Any = None
+        self._now_client: Any = None
         if self.simulated and hold_service is not None:
             from std_srvs.srv import SetBool, Trigger
 
             self._client = node.create_client(SetBool, hold_service)
             self._stop_client = node.create_client(Trigger, hold_service.replace(HOLD_SERVICE, STOP_SERVICE))
+            self._now_client = node.create_client(Trigger, hold_service.replace(HOLD_SERVICE, HOLD_NOW_SERVICE))
 
     # -- reading the time -------------------------------------------------------------------
     def sim_s(self) -> float:
@@ -120,15 +122,17 @@ class ScenarioClock:
 
     # -- holding the clock while student processes start ---------------------------------------
     @contextlib.contextmanager
-    def held(self) -> Iterator[None]:
-        """Hold the clock for the block (nested holds share one; a no-op at 1x)."""
+    def held(self, at_once: bool = False) -> Iterator[None]:
+        """Hold the clock for the block (nested holds share one; a no-op at 1x). The clock
+        holds at its next grid point (:func:`grader.sim.clock.hold_point`: a starting node's
+        timers keep their phase), or with ``at_once`` at the tick it is at."""
         if not self.simulated or self.hold_service is None:
             yield
             return
         with self._lock:
             self._holds += 1
             if self._holds == 1:
-                self._hold()
+                self._hold_now() if at_once else self._hold()
         try:
             yield
         finally:
@@ -158,15 +162,17 @@ class ScenarioClock:
         except (AttributeError, IndexError, ValueError):
             return True
 
-    def _call(self, on: bool) -> tuple[int, int] | None:
-        """Ask the clock owner to hold (or run); its reply: (time in ns, matched readers)."""
-        from std_srvs.srv import SetBool
+    def _call(self, on: bool | None) -> tuple[int, int] | None:
+        """Ask the clock owner to hold (or run; None: hold at once); its reply: (time in ns,
+        matched readers)."""
+        from std_srvs.srv import SetBool, Trigger
 
-        if not self._client.wait_for_service(timeout_sec=HOLD_WAIT_S):
+        client = self._now_client if on is None else self._client
+        if not client.wait_for_service(timeout_sec=HOLD_WAIT_S):
             return None
         self.requests += 1
         with self._paused():
-            future = self._client.call_async(SetBool.Request(data=on))
+            future = client.call_async(Trigger.Request() if on is None else SetBool.Request(data=on))
         end = time.monotonic() + HOLD_WAIT_S
         while not future.done() and time.monotonic() < end:
             time.sleep(0.002)
@@ -193,6 +199,10 @@ class ScenarioClock:
         while self.node.get_clock().now().nanoseconds < reply[0] and time.monotonic() < end:
             time.sleep(0.001)
         self._held_since = time.monotonic()
+
+    def _hold_now(self) -> None:
+        if self._call(None) is not None:
+            self._held_since = time.monotonic()
 
     def _release(self) -> None:
         since = self._held_since

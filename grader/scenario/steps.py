@@ -7,6 +7,7 @@ that none is missing.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import re
 import time
@@ -116,6 +117,13 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
 PLACE_TOL_M, PLACE_TOL_RAD = 0.2, 0.5
 #: seconds (scenario time) to wait for that pose (a loaded machine delays the simulator's tick)
 PLACE_WAIT_S = 2.0
+#: on simulated time, wall seconds the clock stays held (at once, at the tick the placement was
+#: seen) after a placed step's goal is sent, for the student's node to take it before the turtle
+#: moves on. Without the hold every wall millisecond the goal takes to arrive is K of simulated
+#: time in which the controller steers for the old goal: measured at 4x at load 5
+#: (bench_scale), wrong_sign turned the other way at one placed goal than at 1x
+#: (ex2.turn_direction partial instead of fail)
+PLACE_HANDOFF_S = 0.15
 
 
 def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> dict[str, Any]:
@@ -404,8 +412,13 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
     driver.event(Event.STEP_START, step=step.id, action=kind)
     ended_by = "done"
     action = step.do
+    handoff = contextlib.ExitStack()
     if step.place is not None:
         state.detail = {"placed": _place(rt, step, step.place, state)}
+        if driver.clock.simulated and isinstance(action, (m.Goal, m.Publish)):
+            # fire and forget: nothing in the action waits on the held clock
+            handoff.enter_context(driver.clock.held(at_once=True))
+            handoff.callback(time.sleep, PLACE_HANDOFF_S)       # runs before the release
     if step.target is not None and not isinstance(action, m.Goal):
         # a goal set some other way (e.g. a service call): it is active from before the action,
         # so whatever the student's nodes do in answer (even a teleport) falls inside its window
@@ -416,6 +429,7 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
         except Exception as exc:  # noqa: BLE001 - a bad step must not kill the whole run
             state.detail = {"error": f"{type(exc).__name__}: {exc}"}
             ended_by = "error"
+    handoff.close()
     if ended_by != "error":
         remaining = max(0.0, step.limit_s - (driver.clock.now() - state.t0))
         if predicate is None:

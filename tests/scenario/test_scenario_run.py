@@ -43,17 +43,23 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
 
 @pytest.mark.ros
 @pytest.mark.slow
-def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path) -> None:
+@pytest.mark.parametrize("time_scale", [1.0, 4.0])
+def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path, time_scale: float) -> None:
     """`place:` teleports the (moving) turtle and goes on once the simulator shows it there; the
-    teleport is recorded as the driver's own service call."""
+    teleport is recorded as the driver's own service call. On simulated time the clock is held
+    at once while the action is handed over, so the turtle has not moved on when it arrives."""
     scenario = Scenario.model_validate({"steps": [
         {"id": "go", "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
                                  "msg": {"linear": {"x": 1.0}, "angular": {"z": 0.5}}}, "timeout": 0.5},
         {"id": "placed", "place": {"x": 2.0, "y": 7.0, "theta": 2.1},
          "publish": {"topic": "/marker", "type": "std_msgs/msg/Empty"}, "timeout": 0.2},
     ], "limits": {"wall_s": 30}})
-    record = run_scenario(resolve("place", scenario, None), tmp_path / "place")
+    run = resolve("place", scenario, None).model_copy(update={"time_scale": time_scale})
+    record = run_scenario(run, tmp_path / "place")
     assert record["errors"] == [], record
+    if time_scale > 1:
+        from grader.scenario.steps import PLACE_HANDOFF_S
+        assert record["time_scale"]["used"] == 4.0 and record["time_scale"]["held_s"] >= PLACE_HANDOFF_S
     placed = record["steps"][1]["detail"]["placed"]
     assert placed["pose"] == [2.0, 7.0, 2.1] and placed["shown"] is True
     # the pose seen when the action went on: there, moved by a tick of the command it still had
@@ -68,3 +74,15 @@ def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path) -> None:
     events = [json.loads(d) for d in frames["/grader/events"]["data"]]
     calls = [e for e in events if e["event"] == "service_call"]
     assert [c["service"] for c in calls] == ["/turtle1/teleport_absolute"]
+    if time_scale > 1:
+        # the clock stood still while the action was handed over: every /clock recorded in the
+        # first 0.1 s of wall time after the marker carries one time (running, 25 ticks at 4x)
+        from rosbags.highlevel import AnyReader
+        with AnyReader([tmp_path / "place" / "bag"]) as reader:
+            conns = [c for c in reader.connections if c.topic in ("/marker", "/clock")]
+            msgs = [(c.topic, t, reader.deserialize(raw, c.msgtype) if c.topic == "/clock" else None)
+                    for c, t, raw in reader.messages(connections=conns)]
+        marker_wall = next(t for topic, t, _ in msgs if topic == "/marker")
+        held = {(m.clock.sec, m.clock.nanosec) for topic, t, m in msgs
+                if topic == "/clock" and marker_wall <= t <= marker_wall + 100_000_000}
+        assert len(held) == 1, sorted(held)
