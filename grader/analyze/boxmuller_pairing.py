@@ -17,7 +17,7 @@ import numpy as np
 
 from grader.analyze import Finding
 from grader.analyze._common import (ROSOUT, STDOUT, Frames, end_time, meta_row, rosout_lines, stdout_lines,
-                                    thin, times, topic)
+                                    thin, times, topic, traceback_mask)
 
 
 TWO_PI = 2.0 * math.pi
@@ -168,6 +168,7 @@ def _sources(frames: Frames, p: dict) -> list[Source]:
             if p.get("process") and str(name) != str(p["process"]):
                 continue
             g = g.sort_values("time", kind="stable")
+            g = g[~traceback_mask(g["text"])]
             out.append(Source("stdout", str(name), g["time"].to_numpy(float), g["text"].tolist()))
     return [s for s in out if s.n_numeric > 0]
 

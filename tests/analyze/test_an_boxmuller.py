@@ -199,3 +199,25 @@ def test_fast_replay_coarse_printing_gets_no_credit_by_chance(kind: str) -> None
 def test_integers_cannot_be_verified() -> None:
     f = check(get("boxmuller")(_frames(fmt="{:.0f}", rate=50.0, n=300, fn=_unknown), {}))
     assert f.status == "fail" and "too coarsely" in f.feedback
+
+
+def test_traceback_mask_marks_whole_tracebacks_only() -> None:
+    from grader.analyze._common import traceback_mask
+
+    lines = ["z = 0.5", "Traceback (most recent call last):", '  File "/x/node.py", line 24, in <module>',
+             "    main()", "RuntimeError: Unable to convert call argument '0'", "z = 0.7",
+             "Traceback (most recent call last):", '  File "/y.py", line 3, in f', "KeyboardInterrupt"]
+    assert traceback_mask(lines).tolist() == [False, True, True, True, True, False, True, True, True]
+
+
+def test_a_crash_traceback_is_not_printed_output() -> None:
+    """A node that prints nothing and dies with a traceback gets no Box-Muller credit, even when a
+    number in the traceback equals some pair's z (its frames' line numbers, the exception text)."""
+    t, u = _inputs()
+    z = FORMULAS["correct"][1](u[:, 0], u[:, 1])
+    crash = [(t[5] + 0.01, "Traceback (most recent call last):"),
+             *[(t[5] + 0.01, f'  File "/node.py", line {k}, in spin') for k in (24, 20, 247, 839)],
+             (t[5] + 0.01, f"RuntimeError: Unable to convert call argument '{z[5]:.4f}'")]
+    f = check(get("boxmuller")(_frames(kind="stdout", drop=range(60), extra=crash), {}))
+    assert f.status == "fail" and f.fraction == 0.0, f.feedback
+    assert f.evidence.get("matched", 0) == 0, f.evidence
