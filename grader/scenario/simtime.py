@@ -55,7 +55,6 @@ class ScenarioClock:
 
             self._client = node.create_client(SetBool, hold_service)
             self._stop_client = node.create_client(Trigger, hold_service.replace(HOLD_SERVICE, STOP_SERVICE))
-            self._now_client = node.create_client(Trigger, hold_service.replace(HOLD_SERVICE, HOLD_NOW_SERVICE))
 
     # -- reading the time -------------------------------------------------------------------
     def sim_s(self) -> float:
@@ -200,7 +199,17 @@ class ScenarioClock:
             time.sleep(0.001)
         self._held_since = time.monotonic()
 
+    def prepare_hold_now(self) -> None:
+        """Create the client of the clock owner's ``hold_clock_now`` (only scenarios that
+        place the turtle use it; made before the scenario starts, so it is discovered in time)."""
+        if self.simulated and self.hold_service is not None and self._now_client is None:
+            from std_srvs.srv import Trigger
+
+            self._now_client = self.node.create_client(
+                Trigger, self.hold_service.replace(HOLD_SERVICE, HOLD_NOW_SERVICE))
+
     def _hold_now(self) -> None:
+        self.prepare_hold_now()
         if self._call(None) is not None:
             self._held_since = time.monotonic()
 

@@ -317,6 +317,7 @@ def prepare(rt: Runtime) -> None:
             rt.driver.watch_pose(step.until.pose_topic)
         if step.place is not None:
             rt.driver.watch_pose(placement_topic(step.place))
+            rt.driver.clock.prepare_hold_now()      # its client discovered before it is needed
 
 
 # --------------------------------------------------------------------------------- conditions
