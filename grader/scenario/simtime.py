@@ -147,40 +147,36 @@ class ScenarioClock:
             return True
         from std_srvs.srv import Trigger
 
-        client = self._stop_client
-        if not client.wait_for_service(timeout_sec=HOLD_WAIT_S):
+        reply = self._request(self._stop_client, Trigger.Request())
+        try:
+            return int(reply.split()[1]) <= self.requests
+        except (AttributeError, IndexError, ValueError):
             return True
+
+    def _request(self, client: Any, request: Any) -> str | None:
+        """Send ``request`` to one of the clock owner's services (counted in ``requests``) and
+        wait (wall time) for its reply's ``message``; None without a service or a reply."""
+        if not client.wait_for_service(timeout_sec=HOLD_WAIT_S):
+            return None
         self.requests += 1
         with self._paused():
-            future = client.call_async(Trigger.Request())
+            future = client.call_async(request)
         end = time.monotonic() + HOLD_WAIT_S
         while not future.done() and time.monotonic() < end:
             time.sleep(0.002)
-        try:
-            return int(future.result().message.split()[1]) <= self.requests
-        except (AttributeError, IndexError, ValueError):
-            return True
+        return future.result().message if future.done() and future.result() is not None else None
 
     def _call(self, on: bool | None) -> tuple[int, int] | None:
         """Ask the clock owner to hold (or run; None: hold at once); its reply: (time in ns,
         matched readers)."""
         from std_srvs.srv import SetBool, Trigger
 
-        client = self._now_client if on is None else self._client
-        if not client.wait_for_service(timeout_sec=HOLD_WAIT_S):
-            return None
-        self.requests += 1
-        with self._paused():
-            future = client.call_async(Trigger.Request() if on is None else SetBool.Request(data=on))
-        end = time.monotonic() + HOLD_WAIT_S
-        while not future.done() and time.monotonic() < end:
-            time.sleep(0.002)
-        if not future.done() or future.result() is None:
-            return None
+        reply = (self._request(self._now_client, Trigger.Request()) if on is None
+                 else self._request(self._client, SetBool.Request(data=on)))
         try:
-            at, readers = future.result().message.split()
+            at, readers = reply.split()
             return int(at), int(readers)
-        except ValueError:
+        except (AttributeError, ValueError):
             return None
 
     def clock_readers(self) -> int | None:
