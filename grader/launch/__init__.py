@@ -156,8 +156,9 @@ def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> Launc
         try:
             if not entity.get("package"):
                 raise GraderError(f"{entity['at']}: Node(executable={entity['executable']!r}) has no package")
-            argv = build.argv(entity["package"], entity["executable"], None) + \
-                list(entity.get("arguments", [])) + node_ros_args(entity)
+            # found as launch_ros's Node finds it (lib/<package>/ of its prefix in the ament index)
+            argv = build.argv(entity["package"], entity["executable"], None,
+                              [*entity.get("arguments", []), *node_ros_args(entity)], nested=False)
             out.append(LaunchedProcess(name=name, process=proc.name, argv=tuple(argv),
                                        node_name=entity.get("name"), package=entity.get("package"),
                                        executable=entity["executable"], start_delay=entity["delay"],

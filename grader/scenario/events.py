@@ -39,7 +39,7 @@ class Event(StrEnum):
     REPLAY_START = "replay_start"            # step, topics, count, rate_hz, bag
     REPLAY_END = "replay_end"                # step, count, outputs, paced, duration_s
     # processes
-    NODE_STARTED = "node_started"            # process, of (rubric process), argv, node_name
+    NODE_STARTED = "node_started"            # process, of (rubric process), argv (whole), node_name
     NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started)
     NODE_STOPPED = "node_stopped"            # process, returncode
     PROCESS_EXIT = "process_exit"            # process, returncode, stopped_by_grader, timed_out

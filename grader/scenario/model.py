@@ -75,13 +75,14 @@ class Limits(Model):
 
 
 class Process(Model):
-    """One student (or supplied) program: by ``executable`` (console script) and/or ``module``
-    (``pkg.module:func``, tried when the console script is missing: students name scripts freely),
+    """One student (or supplied) program: by ``executable`` (found as ``ros2 run`` finds it:
+    console script, CMake-installed script or binary) and/or ``module`` (``pkg.module:func``,
+    tried when the executable is missing: students name scripts freely),
     or by ``launch`` file (every node it declares starts as a process of its own)."""
 
     name: LocalId = Field(description="unique in the scenario; steps and conditions use it")
     package: PackageName | None = Field(None, description="the ROS package")
-    executable: ExecutableName | None = Field(None, description="a console script of the package")
+    executable: ExecutableName | None = Field(None, description="an executable of the package, found as `ros2 run` finds it")
     module: EntryPoint | None = Field(None, description="pkg.module:function, when the script's name varies")
     launch: LaunchFile | None = Field(None, description="a launch file of the package: starts its nodes")
     launch_arguments: dict[str, str] = Field({}, description="name: value arguments of the launch file")

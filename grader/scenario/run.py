@@ -195,7 +195,7 @@ class Launcher:
         self.members[proc.name].append(lp.name)
         driver.event(Event.NODE_STARTED, process=lp.name, of=proc.name, package=proc.package,
                      executable=proc.executable, module=proc.module, launch=proc.launch,
-                     node_name=lp.node_name, argv=list(lp.argv[3:]))
+                     node_name=lp.node_name, argv=list(lp.argv))
         return True
 
 

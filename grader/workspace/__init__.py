@@ -1,7 +1,8 @@
 """Submission workspaces: staging (source.py), colcon builds with a content cache (build.py),
-the per-package build cache (package_cache.py), running an entry point (launch.py).
+the per-package build cache (package_cache.py), executables found and started as ``ros2 run``
+does (executables.py), running a rubric's ``module:`` entry point (launch.py).
 
-Imports are lazy: every student process starts through ``grader.workspace.launch``, and
+Imports are lazy: a ``module:`` process starts through ``grader.workspace.launch``, and
 importing the build machinery there cost each of them ~65 ms of CPU for nothing (measured:
 93 ms for ``import grader.workspace.launch`` against 28 ms for a bare interpreter).
 """

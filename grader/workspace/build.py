@@ -15,7 +15,6 @@ from that package's own build instead of built again for every submission.
 
 from __future__ import annotations
 
-import configparser
 import fcntl
 import json
 import os
@@ -29,6 +28,8 @@ from grader.errors import GraderError
 from grader.rosenv import PY_SITE, child_env, ros_mode
 from grader.sandbox.oneshot import run_jailed
 from grader.workspace.colcon_events import JobOutcome, read_events
+from grader.workspace.executables import (INDEX, command, executable_paths, find_executable,
+                                          package_prefix, search_path)
 from grader.workspace.diagnose import DETAIL_LINES, Availability, Diagnosis, diagnose
 from grader.workspace.package_cache import (CachedPackage, PackageCache, copy_installs, package_keys,
                                             stage_support)
@@ -38,7 +39,7 @@ BUILD_TIMEOUT_S = 900
 BUILD_MEMORY_MB = 6144     # colcon + compilers of one submission together (cgroup)
 BUILD_PIDS = 2048
 TIMED_OUT = -1
-CACHE_FORMAT = 3          # 3: status from colcon's events; reason, blocked_by, missing_dependencies, log
+CACHE_FORMAT = 4          # 4: executables as ros2 run finds them (3: status from colcon's events...)
 
 
 def default_cache_dir() -> Path:
@@ -59,7 +60,7 @@ class PackageBuild:
     log: str = ""                      # the package's full colcon log (or build.log)
     blocked_by: list[str] = field(default_factory=list)       # skipped: the failed packages it needs
     missing_dependencies: list[str] = field(default_factory=list)  # neither installed nor submitted
-    executables: dict[str, str] = field(default_factory=dict)   # console script -> module:func
+    executables: dict[str, str] = field(default_factory=dict)   # ros2 pkg executables: name -> lib/<pkg>/...
     reused_from: str = ""              # build area whose install of it was copied (package cache)
 
     def problem(self) -> str:
@@ -116,51 +117,58 @@ class BuildResult:
             raise GraderError("\n".join([pkg.problem(), *details]))
         return pkg
 
-    def argv(self, package: str, executable: str | None = None, module: str | None = None,
-             args: list[str] | tuple[str, ...] = ()) -> list[str]:
-        """argv to run a package's executable, by console-script name or by ``module[:func]``.
+    def executable(self, package: str, name: str, *, nested: bool = True) -> Path:
+        """The file ``ros2 run package name`` runs with this build sourced (``grader.workspace.
+        executables``); ``nested=False``: the one a launch file's ``Node`` runs."""
+        if package in self.packages:
+            self.require_package(package)
+        prefixes = search_path(self.env())
+        if package_prefix(package, prefixes) is None:
+            if package in self.packages:
+                raise GraderError(
+                    f"package '{package}' is built but not in the ament index (its install has no "
+                    f"{INDEX}/{package}), so `ros2 run` and `ros2 launch` cannot find it: install "
+                    f"resource/{package} there (in setup.py: data_files=[('share/ament_index/resource_index/"
+                    f"packages', ['resource/{package}'])])")
+            raise GraderError(f"package '{package}' is not in the submission "
+                              f"(packages found: {', '.join(sorted(self.packages)) or 'none'}).")
+        return find_executable(package, name, prefixes, nested=nested)
 
-        Students name console scripts freely; ``module`` finds ``turtle_control.goal_publisher:main``
-        whatever its script is called. Both run through the grader's own interpreter, so a wrong
-        shebang in an installed script never matters.
+    def argv(self, package: str, executable: str | None = None, module: str | None = None,
+             args: list[str] | tuple[str, ...] = (), *, nested: bool = True) -> list[str]:
+        """argv to run a package's executable as ``ros2 run`` would, or a ``module[:func]`` of it.
+
+        ``executable``: found in the ament index and ``<prefix>/lib/<package>/`` like ``ros2 run``
+        finds it (console scripts, CMake ``install(PROGRAMS)`` scripts and binaries alike) and
+        started by its ``#!`` line, Python scripts with the ROS Python (``executables.command``).
+        ``module`` (tried when the executable is missing: students name scripts freely) finds
+        ``turtle_control.goal_publisher:main`` in the package's installed Python modules, whatever
+        its script is called, and runs it as its console script would.
         """
         pkg = self.require_package(package)
-        target = None
-        if executable and executable in pkg.executables:
-            target = pkg.executables[executable]
-        elif module:
-            mod, _, func = module.partition(":")
-            func = func or "main"
-            if (self.install / package / PY_SITE / (mod.replace(".", "/") + ".py")).exists() or \
-                    (self.install / package / PY_SITE / mod.replace(".", "/") / "__init__.py").exists():
-                target = f"{mod}:{func}"
-            else:
-                for script, entry in pkg.executables.items():
-                    if entry.split(":")[0] == mod:
-                        target = entry
-                        break
-        if target is None:
-            wanted = executable or module
-            listing = ", ".join(f"{k} ({v})" for k, v in sorted(pkg.executables.items())) or "none"
-            raise GraderError(f"package '{package}' has no executable '{wanted}'; "
-                              f"executables it does have: {listing}.")
-        name = executable or target.split(":")[0].rsplit(".", 1)[-1]
-        return [sys.executable, "-m", "grader.workspace.launch", target, name, *args]
-
-
-def _console_scripts(prefix: Path, package: str) -> dict[str, str]:
-    scripts: dict[str, str] = {}
-    site = prefix / PY_SITE
-    for ep in list(site.glob("*.egg-info/entry_points.txt")) + list(site.glob("*.dist-info/entry_points.txt")):
-        cp = configparser.ConfigParser()
         try:
-            cp.read(ep)
-        except configparser.Error:
-            continue
-        if cp.has_section("console_scripts"):
-            for name, value in cp.items("console_scripts"):
-                scripts[name] = value.strip().replace(" ", "")
-    return scripts
+            if executable:
+                return command(self.executable(package, executable, nested=nested), args)
+            problem = None
+        except GraderError as exc:
+            if not module:
+                raise
+            problem = exc
+        mod, _, func = (module or "").partition(":")
+        site = self.install / package / PY_SITE / mod.replace(".", "/")
+        if site.with_suffix(".py").is_file() or (site / "__init__.py").is_file():
+            return [sys.executable, "-m", "grader.workspace.launch", f"{mod}:{func or 'main'}",
+                    executable or mod.rsplit(".", 1)[-1], *args]
+        if problem is not None:
+            raise problem
+        raise GraderError(f"package '{pkg.name}' has no Python module '{mod}' (looked for {PY_SITE}/"
+                          f"{mod.replace('.', '/')}.py in its install)")
+
+
+def _listing(prefix: Path, package: str) -> dict[str, str]:
+    """``ros2 pkg executables`` of a built package: name -> path under its prefix."""
+    found = package_prefix(package, [prefix])
+    return {p.name: str(p.relative_to(prefix)) for p in executable_paths(package, found)} if found else {}
 
 
 def _colcon_env() -> dict[str, str]:
@@ -259,12 +267,12 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
         missing = avail.missing_from_manifest(root / "src" / pkg.name / "package.xml")
         if pkg.name in reused:
             out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "built", missing_dependencies=missing,
-                                         executables=_console_scripts(root / "install" / pkg.name, pkg.name),
+                                         executables=_listing(root / "install" / pkg.name, pkg.name),
                                          reused_from=str(reused[pkg.name].root))
         elif job.succeeded:
             prefix = root / "install" / pkg.name
             out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "built", missing_dependencies=missing,
-                                         executables=_console_scripts(prefix, pkg.name))
+                                         executables=_listing(prefix, pkg.name))
         elif not job.skipped and (job.rc is not None or job.started or not job.queued):
             d, log = _failure(root, pkg, job, timed_out, avail, env)
             out[pkg.name] = PackageBuild(pkg.name, pkg.build_type, "failed", d.reason,

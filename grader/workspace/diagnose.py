@@ -199,6 +199,8 @@ _NOT_FOUND = re.compile(r'provided by "(?P<a>[^"]+)"|Could NOT find (?P<b>\S+)|'
 _COMPILER = re.compile(r"^(?P<file>[^\s:][^:]*):(?P<line>\d+):(?:(?P<col>\d+):)? (?:fatal )?error: "
                        r"(?P<msg>.*)$")
 _LINKER = re.compile(r"undefined reference to .*$")
+#: ament_python_install_package(X) where rosidl_generate_interfaces() already installs Python package X
+_PY_CLASH = re.compile(r'target "ament_cmake_python_(?:copy|symlink)_(?P<name>\w+)" because another target')
 _EXC_LINE = re.compile(r"^(?P<exc>[A-Za-z_][\w.]*(?:Error|Exception|Exit|Interrupt|Warning))"
                        r"(?::\s*(?P<msg>.*))?$")
 _FRAME = re.compile(r'^\s*File "(?P<file>[^"]+)", line (?P<line>\d+)')
@@ -268,6 +270,12 @@ def _cmake(errors: list[CMakeError], avail: Availability) -> Diagnosis | None:
                              "in package.xml", e.paragraphs[:2])
         if ROS_NAME.match(dep) and not avail.installed(dep):
             return Diagnosis(lacks(dep, where), e.paragraphs[:1], [dep])
+    for e in errors:
+        if m := _PY_CLASH.search(" ".join(e.paragraphs)):
+            return Diagnosis(_at(e.location, f"ament_python_install_package({m['name']}) installs a Python "
+                                 f"package named like the one rosidl_generate_interfaces() installs for this "
+                                 f"package's interfaces, which ROS 2 Jazzy cannot build "
+                                 f"(ros2/rosidl_python#141): give the module another name"), e.paragraphs[:1])
     e = errors[0]
     paras = [p for p in e.paragraphs if not p.startswith("execute_process(")]
     if len(paras) < len(e.paragraphs):  # a tool CMake ran failed: its exception says why

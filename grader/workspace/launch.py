@@ -1,4 +1,5 @@
-"""Run a student's entry point ``module:func`` as if it were its console script.
+"""Run a student's entry point ``module:func`` as if it were its console script (a rubric's
+``module:`` process; executables are started as ``ros2 run`` starts them: grader.workspace.executables).
 
 ``python -m grader.workspace.launch turtle_control.goal_publisher:main goal_pub --ros-args ...``
 sets ``sys.argv`` the way ``ros2 run`` would (script name, then the arguments), imports the

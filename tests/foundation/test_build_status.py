@@ -103,7 +103,7 @@ def test_cli_and_json_show_each_package(result: BuildResult, cache_dir: Path, ca
     assert ("  failed   turtle_goal_interfaces (ament_cmake)\n"
             "    srv/SetGoal.srv:1: 'x,' is an invalid field name") in out
     assert "  skipped  turtle_goal (ament_python)\n    not built: it depends on 'turtle_goal_interfaces'" in out
-    assert "  built    good_nodes (ament_python)\n             hello -> good_nodes.hello:main" in out
+    assert "  built    good_nodes (ament_python)\n             hello -> lib/good_nodes/hello" in out
     assert "Traceback" not in out
     assert grader_main(["build", str(WS), "--cache-dir", str(cache_dir), "--json"]) == 1
     packages = json.loads(capsys.readouterr().out)["packages"]

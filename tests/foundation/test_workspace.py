@@ -30,8 +30,8 @@ def built(cache_dir: Path):
 def test_builds_python_and_interface_packages(built) -> None:
     assert built.ok, {n: p.log_excerpt for n, p in built.packages.items()}
     assert built.packages["demo_interfaces"].build_type == "ament_cmake"
-    assert built.packages["demo_nodes"].executables == {
-        "make_goal": "demo_nodes.make_goal:main", "hello": "demo_nodes.hello:run"}
+    assert built.packages["demo_nodes"].executables == {     # what `ros2 pkg executables` lists
+        "make_goal": "lib/demo_nodes/make_goal", "hello": "lib/demo_nodes/hello"}
     assert not (WS / "build").exists() and not (WS / "install").exists(), "built inside the source tree"
 
 
@@ -41,7 +41,8 @@ def test_runs_executable_that_uses_custom_action_type(built, tmp_path: Path) -> 
         proc = graph.start(ProcessSpec("make_goal", built.argv("demo_nodes", "make_goal",
                                                                args=["--ros-args", "-p", "k:=1"])))
         assert proc.wait(30) == 0, proc.errors()
-    assert "made goal 2.0,7.0 tol=0.1 argv0=make_goal" in proc.output()
+    # started as `ros2 run` starts it: the installed console script, argv[0] its path
+    assert f"made goal 2.0,7.0 tol=0.1 argv0={built.install}/demo_nodes/lib/demo_nodes/make_goal" in proc.output()
     assert "goal x=2.0 start.x=5.5" in proc.errors()  # rclpy logs to stderr
 
 

@@ -4,6 +4,7 @@ environment, the bubblewrap view, the DDS profile, the modes and the probe."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -131,3 +132,32 @@ def test_grader_program_started_as_student_code_stays_jailed_with_the_package_re
     done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
     assert done.stdout.split() == ["False"], done.stderr
     assert "Read-only file system" in done.stderr or "Permission denied" in done.stderr, done.stderr
+
+
+def test_executables_start_in_the_jail_as_ros2_run_starts_them(tmp_path: Path) -> None:
+    """A package's installed executables, found by the ament index and started by their '#!'
+    line: `#!/usr/bin/env python3` gets the ROS Python (rclpy imports), a shell script and a
+    binary run directly; each in the jail, which shows the install prefix read-only."""
+    require_protections("filesystem")
+    from grader.rosenv import child_env
+    from grader.workspace.executables import INDEX, command, find_executable
+
+    prefix = tmp_path / "install" / "pkg"
+    (prefix / INDEX).mkdir(parents=True)
+    (prefix / INDEX / "pkg").write_text("")
+    lib = prefix / "lib" / "pkg"
+    lib.mkdir(parents=True)
+    (lib / "py_node").write_text("#!/usr/bin/env python3\nimport sys, rclpy\nprint('py', sys.argv[0], *sys.argv[1:])\n")
+    (lib / "sh_node").write_text("#!/bin/sh\necho sh \"$@\"\n")
+    shutil.copy(shutil.which("echo") or "/bin/echo", lib / "bin_node")
+    for f in lib.iterdir():
+        f.chmod(0o755)
+    jail = Jail(bwrap=probe().bwrap, ro=(str(tmp_path / "install"),), uid=65534 if probe().uid_drop else None)
+    env = child_env(prefixes=[prefix], base={"PATH": os.environ.get("PATH", "")})
+    out = {}
+    for name in ("py_node", "sh_node", "bin_node"):
+        argv = command(find_executable("pkg", name, [prefix]), ["a", "b"])
+        p = prepare(jail, argv, env)
+        done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
+        out[name] = done.stdout.strip() or done.stderr
+    assert out == {"py_node": f"py {lib / 'py_node'} a b", "sh_node": "sh a b", "bin_node": "a b"}, out
