@@ -57,9 +57,13 @@ def find_launch_file(build: Any, package: str, name: str) -> tuple[Path | None, 
                 if pkg is not None and pkg.status != "built":
                     return found[0], (f"package '{package}' was not built, so {name} is not installed; "
                                       f"the grader read {rel}.")
-                return found[0], (f"{name} is not installed by {package}'s setup.py (add it to data_files, "
-                                  f"e.g. share/{package}/launch); `ros2 launch` would not find it. "
-                                  f"The grader used {rel}.")
+                if pkg is not None and pkg.build_type.startswith("ament_cmake"):
+                    how = (f"is not installed by {package}'s CMakeLists.txt (add install(DIRECTORY launch "
+                           "DESTINATION share/${PROJECT_NAME}))")
+                else:
+                    how = (f"is not installed by {package}'s setup.py (add it to data_files, "
+                           f"e.g. share/{package}/launch)")
+                return found[0], f"{name} {how}; `ros2 launch` would not find it. The grader used {rel}."
     return None, ""
 
 

@@ -145,15 +145,15 @@ class BuildResult:
         ``turtle_control.goal_publisher:main`` in the package's installed Python modules, whatever
         its script is called, and runs it as its console script would.
         """
-        pkg = self.require_package(package)
-        try:
-            if executable:
+        problem = None
+        if executable:
+            try:
                 return command(self.executable(package, executable, nested=nested), args)
-            problem = None
-        except GraderError as exc:
-            if not module:
-                raise
-            problem = exc
+            except GraderError as exc:
+                if not module:
+                    raise
+                problem = exc
+        pkg = self.require_package(package)
         mod, _, func = (module or "").partition(":")
         site = self.install / package / PY_SITE / mod.replace(".", "/")
         if site.with_suffix(".py").is_file() or (site / "__init__.py").is_file():

@@ -238,3 +238,31 @@ def test_a_launch_file_node_that_needs_rclcpp_says_so(built) -> None:
     assert talker.argv and not talker.error
     assert cpp.error.startswith("needs_rclcpp.launch.py:9: package 'styles_rclcpp' failed to build: "
                                 "grading machine lacks rclcpp"), cpp.error
+
+
+@pytest.mark.slow
+def test_a_launch_file_an_ament_cmake_package_does_not_install_says_how_to_install_it(built) -> None:
+    from grader.scenario import resolve
+
+    run = resolve("launch", _scenario([{"name": "app", "package": "styles_cmake",
+                                        "launch": "talker.launch.py"}]), built)
+    (note,) = run.notes["app"]
+    assert note.startswith("talker.launch.py is not installed by styles_cmake's CMakeLists.txt (add "
+                           "install(DIRECTORY launch DESTINATION share/${PROJECT_NAME}))"), note
+    assert run.launched["app"][0].argv                 # still run, from the sources
+
+
+
+def test_a_package_outside_the_submission_is_found_in_a_sourced_ros(tmp_path: Path, monkeypatch) -> None:
+    """`ros2 run` finds a package of the sourced ROS (an underlay) as well as the workspace's."""
+    from grader.workspace.build import BuildResult, PackageBuild
+
+    ros = _package(tmp_path / "opt_ros", "demo_nodes_py", {"lib/demo_nodes_py/talker": ("#!/usr/bin/env python3\n", 0o755)})
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(ros))
+    build = BuildResult("sub", "d", tmp_path / "area", {"mine": PackageBuild("mine", "ament_python", "built")})
+    assert build.argv("demo_nodes_py", "talker") == [sys.executable, str(ros / "lib/demo_nodes_py/talker")]
+    with pytest.raises(GraderError, match=r"package 'mine' is built but not in the ament index .* "
+                                          r"data_files=\[\('share/ament_index/resource_index/packages'"):
+        build.argv("mine", "node")
+    with pytest.raises(GraderError, match=r"package 'other' is not in the submission \(packages found: mine\)"):
+        build.argv("other", "node")
