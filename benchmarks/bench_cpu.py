@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import statistics
 import sys
@@ -84,6 +85,8 @@ def role(argv: list[str]) -> str:
                          ("setup.py", "colcon"), ("rosidl", "colcon"), ("ament", "colcon")):
         if needle in text:
             return name
+    if any(re.search(r"/install/[^/]+/lib/[^/]+/[^/]+$", a) for a in argv[:2]):
+        return "student node"          # an executable started as `ros2 run` starts it
     return "other: " + (argv[2] if len(argv) > 2 and argv[1] == "-m" else Path(argv[-1]).name)[:40]
 
 

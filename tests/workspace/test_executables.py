@@ -26,6 +26,9 @@ from grader.rosenv import PY_SITE
 from grader.workspace.executables import (INDEX, command, executable_paths, find_executable, listing,
                                           package_prefix)
 
+#: the build of tests/workspace/ws (rosidl, C++ and five CMake configures) takes ~3 min on 2 free cores
+pytestmark = pytest.mark.timeout(900)
+
 WS = Path(__file__).parent / "ws"
 STYLES = {"styles_py": "py_talker", "styles_cmake": "cmake_talker", "styles_mixed": "mixed_node",
           "styles_cpp": "cpp_hello"}
