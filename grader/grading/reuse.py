@@ -31,7 +31,7 @@ from grader.scenario.model import Scenario
 #: files of a scenario folder that make up its recording
 RECORDING = ("bag", "logs", "canvas.png", "scenario.json", "run.json", "scenario.log")
 #: bump when the scenario runtime changes what it records for the same inputs
-RECORDING_FORMAT = 1
+RECORDING_FORMAT = 2        # 2: executables found and started as `ros2 run` does (install(PROGRAMS) nodes run)
 _DEPEND = re.compile(r"<(?:depend|exec_depend|build_depend|buildtool_depend)[^>]*>\s*([A-Za-z0-9_]+)\s*<")
 _NAME = re.compile(r"<name>\s*([A-Za-z0-9_]+)\s*</name>")
 

@@ -98,27 +98,35 @@ def scan_source(text: str) -> list[tuple[int, str]]:
 
 
 def package_files(build: Any, package: str) -> list[Path]:
-    """The installed Python modules of a built package (what its nodes import)."""
+    """The installed Python code of a built package: its modules (what its nodes import) and its
+    Python executables in ``lib/<package>/`` (e.g. ``install(PROGRAMS)`` scripts, found as
+    ``ros2 run`` finds them)."""
     from grader.rosenv import PY_SITE
+    from grader.workspace.executables import executable_paths, is_python_script
 
     pkg = getattr(build, "packages", {}).get(package)
     if pkg is None or pkg.status != "built":
         return []
-    site = Path(build.install) / package / PY_SITE
-    return sorted(site.rglob("*.py")) if site.is_dir() else []
+    prefix = Path(build.install) / package
+    site = prefix / PY_SITE
+    modules = sorted(site.rglob("*.py")) if site.is_dir() else []
+    return modules + [p for p in executable_paths(package, prefix) if is_python_script(p)]
 
 
 def scan_packages(build: Any, packages: Iterable[str]) -> list[str]:
-    """``package/module.py:LINE: call`` for every wall-clock use in the packages' modules."""
+    """``package/module.py:LINE: call`` (``lib/package/script:LINE: call`` for an executable
+    script) for every wall-clock use in the packages' Python code."""
     from grader.rosenv import PY_SITE
 
     hits: list[str] = []
     for package in sorted(packages):
-        site = Path(build.install) / package / PY_SITE
+        prefix = Path(build.install) / package
+        site = prefix / PY_SITE
         for path in package_files(build, package):
             text = path.read_text(errors="replace")
+            shown = path.relative_to(site) if path.is_relative_to(site) else path.relative_to(prefix)
             for line, what in scan_source(text):
-                hits.append(f"{path.relative_to(site)}:{line}: {what}")
+                hits.append(f"{shown}:{line}: {what}")
     return hits
 
 

@@ -122,3 +122,11 @@ def command(path: Path, args: Sequence[str] = ()) -> list[str]:
         return [str(path), *args]
     raise GraderError(f"{path.name} is neither a program nor a script with a '#!' line, so `ros2 run` "
                       "cannot start it: make its first line #!/usr/bin/env python3")
+
+
+def is_python_script(path: Path) -> bool:
+    """Whether ``path`` starts with the ROS Python (a Python ``#!`` line)."""
+    try:
+        return command(path)[0] == sys.executable and Path(path).is_file()
+    except GraderError:
+        return False

@@ -76,6 +76,14 @@ def test_pacing_reason_names_the_file_and_why(tmp_path: Path) -> None:
     reason = pacing_reason(build, run)
     assert reason.startswith("wall-clock pacing in node code (server_pkg/server.py:6: time.sleep())")
     assert "; server_pkg/server.py:4: rclpy.executors.MultiThreadedExecutor(): " in reason
+    # a node installed as a script (CMake install(PROGRAMS)), not as a module, is scanned too
+    (site / "server.py").write_text("def main():\n    pass\n")
+    script = tmp_path / "install" / "server_pkg" / "lib" / "server_pkg" / "paced_node"
+    script.parent.mkdir(parents=True)
+    script.write_text("#!/usr/bin/env python3\nimport time\n\ntime.sleep(0.1)\n")
+    script.chmod(0o755)
+    reason = pacing_reason(build, run)
+    assert reason.startswith("wall-clock pacing in node code (lib/server_pkg/paced_node:4: time.sleep())"), reason
 
 
 # -- the watchdog's rule ----------------------------------------------------------------------------
