@@ -20,6 +20,7 @@ SUBSYSTEMS = (
     "grader.bag.cli",
     "grader.grading.cli",
     "grader.grading.shards",
+    "grader.cache.cli",
     "grader.rubric.guide",
     "grader.scores.cli",
     "grader.lms.cli",

@@ -4,6 +4,8 @@
 Python API for grading several labs at once within one budget (the fixture test grades every
 lab's fixtures side by side this way). Ctrl-C cancels what has not started and stops running
 scenarios cleanly (their bags are finalised); finished submissions and ``grades.csv`` are kept.
+When it ends, the cache is brought under its size cap and the batch's hit counts are kept
+(``grader.cache.store.end_batch``).
 """
 
 from __future__ import annotations
@@ -20,19 +22,24 @@ from grader.grading.schedule import Slots
 def grade_batch(submissions: list[Path], rubric: Any, out: Path, *, slots: Slots,
                 cache_dir: Path | None = None, reuse: bool = True,
                 on_done: Callable[[str, Any, str | None], None] | None = None,
-                progress: Callable[[str], None] | None = None, time_scale: float = 1.0) -> dict[str, str]:
+                progress: Callable[[str], None] | None = None, time_scale: float = 1.0,
+                cache_max_size: str | None = None) -> dict[str, str]:
     """Grade ``submissions`` into ``out``; returns ``{submission id: why it has no result}``.
 
     ``on_done(id, graded or None, error or None)`` is called as each one finishes; ``progress``
     gets status lines when there is a single submission; ``time_scale`` as for
     ``grade_submission``. ``grades.csv``/``index.html`` are
     rewritten after each submission, so they are current even if the batch is interrupted.
+    ``cache_max_size``: the cache's cap (``5G``; default ``$GRADER_CACHE_MAX_SIZE`` or 5 GB).
     """
+    from grader.cache import default_cache_dir
+    from grader.cache.store import end_batch
     from grader.grading.outputs import write_batch_outputs
     from grader.grading.pipeline import grade_submission, submission_id
 
     out.mkdir(parents=True, exist_ok=True)
     failures: dict[str, str] = {}
+    uses: list[dict[str, int]] = []
     # more submissions in flight than slots: one builds or analyzes while others' scenarios run
     with ThreadPoolExecutor(max_workers=slots.n + 1) as pool:
         futures = {pool.submit(grade_submission, s, rubric, out, cache_dir=cache_dir,
@@ -49,6 +56,8 @@ def grade_batch(submissions: list[Path], rubric: Any, out: Path, *, slots: Slots
                     graded, error = None, "interrupted before it finished (no result written)"
                 if error:
                     failures[sid] = error
+                else:
+                    uses.append(graded.cache)
                 if on_done:
                     on_done(sid, graded, error)
                 try:
@@ -61,4 +70,7 @@ def grade_batch(submissions: list[Path], rubric: Any, out: Path, *, slots: Slots
                 f.cancel()
             cancel_all()          # running scenarios finalize their bags and stop
             raise
+    ended = end_batch(Path(cache_dir or default_cache_dir()), uses, cache_max_size)
+    if ended.get("message"):
+        print(f"grader: {ended['message']}", file=sys.stderr)
     return failures

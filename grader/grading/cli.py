@@ -28,6 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
     g.add_argument("--no-reuse", action="store_true",
                    help="run every scenario, even when an identical one was recorded before")
+    _cache_cap_option(g)
     _time_scale_option(g)
     g.set_defaults(func=run_grade)
 
@@ -42,6 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     c.add_argument("--jobs", type=_positive, default=None, help="scenarios run at once (default: twice the cores)")
     c.add_argument("--no-reuse", action="store_true",
                    help="run every scenario, even those whose packages did not change since the last check")
+    _cache_cap_option(c)
     _time_scale_option(c)
     c.set_defaults(func=run_check)
 
@@ -51,6 +53,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("path", type=Path, help="OUT folder of a batch, or OUT/<id> of one submission")
     r.add_argument("--rubric", type=Path, required=True)
     r.set_defaults(func=run_regrade)
+
+
+def _cache_cap_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--cache-max-size", type=_size, default=None, metavar="SIZE",
+                        help="when done, remove the least recently used cache entries until the cache "
+                             "fits SIZE (e.g. 5G, 500M; 0: no cap; default $GRADER_CACHE_MAX_SIZE or 5G)")
+
+
+def _size(text: str) -> str:
+    from grader.cache.store import parse_size
+
+    try:
+        parse_size(text)
+    except GraderError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def _time_scale_option(parser: argparse.ArgumentParser) -> None:
@@ -160,7 +178,8 @@ def run_grade(args: argparse.Namespace) -> int:
     try:
         failures = grade_batch(todo, rubric, args.out, slots=Slots(args.jobs or default_jobs()),
                                cache_dir=args.cache_dir, reuse=not args.no_reuse, on_done=done,
-                               progress=progress.status, time_scale=args.time_scale)
+                               progress=progress.status, time_scale=args.time_scale,
+                               cache_max_size=args.cache_max_size)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -194,6 +213,12 @@ def run_check(args: argparse.Namespace) -> int:
                               sid="check", progress=progress.status, slots=Slots(args.jobs or default_jobs()),
                               reuse=not args.no_reuse, time_scale=args.time_scale)
     progress.close()
+    from grader.cache import default_cache_dir
+    from grader.cache.store import end_batch
+
+    ended = end_batch(Path(args.cache_dir or default_cache_dir()), [graded.cache], args.cache_max_size)
+    if ended.get("message"):
+        print(f"grader: {ended['message']}", file=sys.stderr)
     ok = print_check_table(graded, rubric)
     print(f"report: {graded.out / 'report.html'}")
     return 0 if ok else 1
@@ -202,19 +227,28 @@ def run_check(args: argparse.Namespace) -> int:
 def run_regrade(args: argparse.Namespace) -> int:
     from grader.grading.outputs import write_batch_outputs
     from grader.grading.pipeline import SCENARIOS_DIR, regrade_submission
+    from grader.grading.provenance import by_other_grader
     from grader.rubric.load import load_rubric
 
     rubric = load_rubric(args.rubric)
     path = args.path
-    if (path / SCENARIOS_DIR).is_dir():
-        graded = regrade_submission(path, rubric)
-        print(f"{graded.id}: {graded.result.auto_score:g}/{graded.result.auto_max:g}")
-        return 0
-    subs = sorted(p for p in path.iterdir() if (p / SCENARIOS_DIR).is_dir()) if path.is_dir() else []
+    single = (path / SCENARIOS_DIR).is_dir()
+    subs = [path] if single else sorted(p for p in path.iterdir() if (p / SCENARIOS_DIR).is_dir()) \
+        if path.is_dir() else []
     if not subs:
         raise GraderError(f"{path} holds no graded submissions (no */{SCENARIOS_DIR}/ folders).")
+    other_made = []
     for sub in subs:
         graded = regrade_submission(sub, rubric)
-        print(f"{graded.id}: {graded.result.auto_score:g}/{graded.result.auto_max:g}")
-    write_batch_outputs(path, rubric)
+        other = by_other_grader(graded.recordings)
+        note = f"  (rests on recordings another grader made: {', '.join(other)})" if other else ""
+        print(f"{graded.id}: {graded.result.auto_score:g}/{graded.result.auto_max:g}{note}")
+        other_made += [graded.id] if other else []
+    if not single:
+        write_batch_outputs(path, rubric)
+    if other_made:
+        # the grades are recomputed by this grader, from recordings an earlier (or other) one made
+        print(f"note: {len(other_made)} of {len(subs)} grades rest on recordings made by another grader "
+              "version or ROS installation (each report says which, result.json: recordings_by_other_grader); "
+              "`grader grade --no-reuse` records them again with this one")
     return 0

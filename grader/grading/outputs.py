@@ -37,6 +37,7 @@ def effective_params(rubric) -> dict[str, dict]:
 
 def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[str, str] | None = None) -> None:
     """result.json (+ build, errors, timings, previous grading) and report.html for one submission."""
+    from grader.grading.provenance import by_other_grader, notes, scenario_recordings
     from grader.report.html import write_html
     from grader.report.result import write_result
     from grader.sandbox.scenario import recorded_summary
@@ -60,13 +61,21 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
         extra["sandbox"] = sandbox
     if getattr(graded, "previous", None):
         extra["previous"] = graded.previous
+    # the key and maker of each recording, and those another grader made (a regrade after an
+    # upgrade, or a recording reused from before it): instructors are told, students are not
+    recordings = dict(getattr(graded, "recordings", {}) or {}) or scenario_recordings(graded.out)
+    other = by_other_grader(recordings) if recordings else {}
+    extra["recordings"] = recordings
+    if other:
+        extra["recordings_by_other_grader"] = other
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
     if time_scales:                 # --time-scale: how each scenario ran, and why not faster
         extra["time_scale"] = time_scales
     out_dir, sid = graded.out.parent, graded.out.name
     write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
-               problems=problems, params=effective_params(rubric), notes=time_scale_notes(time_scales))
+               problems=problems, params=effective_params(rubric),
+               notes=time_scale_notes(time_scales) + ([] if public_only else notes(other, recordings)))
 
 
 def write_batch_outputs(out: Path, rubric) -> None:

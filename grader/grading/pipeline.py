@@ -58,6 +58,8 @@ class GradedSubmission:
     errors: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     reused: dict[str, dict] = field(default_factory=dict)     # scenario -> where its recording came from
+    recordings: dict[str, dict] = field(default_factory=dict)  # scenario -> key, made_by, reused_from
+    cache: dict[str, int] = field(default_factory=dict)        # cache hits and misses (grader.cache.store)
     time_scales: dict[str, dict] = field(default_factory=dict)  # scenario -> requested/used/fallback (--time-scale)
     previous: dict | None = None      # a regrade's summary of the result it replaced (class view diff)
 
@@ -218,6 +220,10 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     submission; writes its folder. ``reuse``: copy a scenario's recording when everything it
     runs is identical to an earlier run (see grader.grading.reuse). ``time_scale`` > 1: run
     scenarios that may on simulated time, that much faster (see grader.grading.timescale)."""
+    from grader.cache.locks import Holds
+    from grader.cache.store import submission_cache_use
+    from grader.grading.provenance import scenario_recordings
+    from grader.grading.reuse import record_or_reuse
     from grader.grading.timescale import expected_rates
 
     from grader.grading.schedule import Slots
@@ -240,9 +246,10 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     say(f"{sid}: building")
     t0 = time.monotonic()
     build = None
+    holds = Holds()          # the build areas this submission runs stay out of a prune's reach
     try:
         with slots.taken():
-            build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support))
+            build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support), holds=holds)
         shutil.copy(build.build_log, out / "build.log") if build.build_log.exists() else None
         errors += [f"submission: {w}" for w in build.warnings]
         if not build.ok:
@@ -263,9 +270,10 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     # longest first (by its step limits): when slots run short, a short scenario waits, not the
     # one that sets the submission's wall time
     longest_first = sorted(scenario_ids, key=lambda sc: -rubric.scenarios[sc].budget_s)
-    with ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
-        runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings,
-                                   time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else ())
+    with holds, ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
+        runs = {sc_id: pool.submit(record_or_reuse, sid, sc_id, rubric.scenarios[sc_id], build,
+                                   out / SCENARIOS_DIR / sc_id, slots, recordings, time_scale,
+                                   expected_rates(rubric, sc_id) if time_scale > 1 else ())
                 for sc_id in longest_first}
         for sc_id in scenario_ids:
             record = runs[sc_id].result()
@@ -277,6 +285,7 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
             if time_scale > 1 and record.get("time_scale"):
                 time_scales[sc_id] = record["time_scale"]
     timings["scenarios_wall_s"] = round(time.monotonic() - t1, 2)
+    recordings_made = scenario_recordings(out)
 
     say(f"{sid}: analyzing")
     findings, problems = analyze_bags(rubric, items, out)
@@ -287,50 +296,11 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
         result = result.for_student()
     graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
                               build_failed=list(build.failed) if build else ["(no build)"],
-                              errors=errors, timings=timings, reused=reused, time_scales=time_scales)
+                              errors=errors, timings=timings, reused=reused, time_scales=time_scales,
+                              recordings=recordings_made,
+                              cache=submission_cache_use(build, recordings_made, reuse))
     write_outputs(graded, rubric, public_only=public_only)
     return graded
-
-
-def recording_settings(time_scale: float = 1.0) -> str:
-    """What, besides the inputs, changes a recording: the sandbox's active protections (a
-    recording made with fewer of them is not reused where more are active) and the time scale."""
-    from grader.sandbox import summary
-
-    info = summary()
-    scaled = f";time_scale={time_scale:g}" if time_scale > 1 else ""
-    return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}{scaled}"
-
-
-def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None,
-             time_scale: float = 1.0, rates: tuple = ()) -> dict:
-    """One scenario: copied from an identical earlier recording, or run (within a slot)."""
-    from grader.grading.reuse import RecordingCache, reusable, scenario_key
-    from grader.grading.timescale import run_at_scale
-    from grader.scenario import resolve
-
-    folder = out / SCENARIOS_DIR / sc_id
-    key = (scenario_key(sc_id, scenario, build, settings=recording_settings(time_scale))
-           if recordings is not None else None)
-    if key is None:
-        with slots.taken():
-            return run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
-    cache = RecordingCache(recordings)
-    with cache.locked(key):
-        t0 = time.monotonic()
-        source = cache.get(key, folder)
-        if source is not None:
-            record = json.loads((folder / "scenario.json").read_text())
-            record.update(reused={"from": source.get("submission"), "key": key,
-                                  "recorded": source.get("recorded")},
-                          parent_wall_s=round(time.monotonic() - t0, 3))
-            (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
-            return record
-        with slots.taken():
-            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
-        if reusable(record):
-            cache.put(key, folder, sid)
-        return record
 
 
 def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:
@@ -342,6 +312,7 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
     if not (sub_out / SCENARIOS_DIR).is_dir():
         raise GraderError(f"{sub_out} has no {SCENARIOS_DIR}/ folder; point at OUT/<submission> "
                           "written by `grader grade`.")
+    from grader.grading.provenance import scenario_recordings
     from grader.report.result import previous_summary
     from grader.report.seal import input_digests, mac_ok
 
@@ -357,12 +328,14 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
     recorded = (old.get("seal") or {}).get("inputs")
     inputs = recorded if recorded is not None and mac_ok(old) else input_digests(sub_out)
 
-    # the run's build/scenario problems and timings still describe the bags; keep them
+    # the run's build/scenario problems and timings still describe the bags; keep them, and
+    # which grader made each recording (provenance: another grader's are named in the report)
     graded = GradedSubmission(sub_out.name, sub_out, result, build_ok=old.get("build", {}).get("ok", True),
                               build_failed=old.get("build", {}).get("failed", []),
                               errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
                               timings=old.get("timings", {}), previous=previous_summary(old),
-                              time_scales=old.get("time_scale", {}))
+                              time_scales=old.get("time_scale", {}), recordings=scenario_recordings(sub_out),
+                              reused=old.get("scenarios_reused") or {})
     write_outputs(graded, rubric, public_only=public_only, inputs=inputs)
     return graded
 

@@ -1,21 +1,32 @@
 """Reusing a scenario's recording when nothing it runs has changed.
 
 A scenario's bag depends only on what runs in it: the rubric's scenario (its model, as JSON), the
-source of every package it starts and of the workspace packages those depend on, the files it
-replays, and the grader itself. When all of these are byte-identical to a run already recorded
-(a template package untouched by half the class, a student re-running ``grader check`` after
-fixing one node), the recording is copied instead of run again. The result says which scenarios
-were reused and from where (never silent); ``--no-reuse`` turns it off.
+source of every package it starts and of the workspace packages those depend on (and their
+build status), the files it replays, how it is run (the sandbox's active protections, the time
+scale and the rates its watchdog expects), and the grader and what it runs on. When all of these
+are identical to a run already recorded (a template package untouched by half the class, a
+student re-running ``grader check`` after fixing one node), the recording is copied instead of
+run again. The result says which scenarios were reused and from where (never silent);
+``--no-reuse`` turns it off.
+
+"The grader" is not a version someone bumps: the key holds the digest of every grader file that
+takes part in making a recording (``grader.cache.code.recording_code``: the import closure of the
+scenario child, its parent side, the launch loader and the build, with the Fast DDS profiles,
+the launch stand-ins and the turtlesim interfaces) and of the ROS 2 and Python it runs on
+(``grader.cache.environment.runtime``: distribution, rclpy, RMW, Fast DDS, every ROS package and
+Python distribution installed). An upgrade, or a developer's edit of the driver, records again.
+Every recording notes who made it (``made_by``: grader version, code and environment digests,
+ROS), in its ``scenario.json`` and in the cache entry, so a reused one names its origin and a
+regrade by another grader can say which grades rest on recordings it did not make.
 
 Recordings live beside the build cache (``<cache>/recordings/<key>/``); a per-key lock makes a
 second submission with the same key wait for the first one's recording instead of running it
-twice.
+twice, and keeps ``grader cache prune`` off an entry while it is read or written.
 """
 
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import hashlib
 import json
 import os
@@ -26,12 +37,13 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from grader import __version__
+from grader.cache import locks
+from grader.cache.code import recording_code
+from grader.cache.environment import runtime
 from grader.scenario.model import Scenario
 
 #: files of a scenario folder that make up its recording
 RECORDING = ("bag", "logs", "canvas.png", "scenario.json", "run.json", "scenario.log")
-#: bump when the scenario runtime changes what it records for the same inputs
-RECORDING_FORMAT = 2        # 2: executables found and started as `ros2 run` does (install(PROGRAMS) nodes run)
 _DEPEND = re.compile(r"<(?:depend|exec_depend|build_depend|buildtool_depend)[^>]*>\s*([A-Za-z0-9_]+)\s*<")
 _NAME = re.compile(r"<name>\s*([A-Za-z0-9_]+)\s*</name>")
 
@@ -75,6 +87,13 @@ def packages_run(scenario: Scenario, packages: dict[str, tuple[Path, set[str]]])
     return closure
 
 
+def made_by() -> dict[str, str]:
+    """Who makes recordings in this process: what ``scenario.json`` and ``result.json`` keep."""
+    env = runtime()
+    return {"grader": __version__, "code": recording_code()[:16], "environment": env["digest"][:16],
+            "ros": f"{env['ros']} ({env['mode']})", "rclpy": env["rclpy"], "rmw": env["rmw"], "dds": env["dds"]}
+
+
 def scenario_key(scenario_id: str, scenario: Scenario, build: Any, settings: str = "") -> str | None:
     """The recording's identity, or None when it cannot be reused (no build). ``settings``: how
     the recording was made beyond the scenario (e.g. its time scale)."""
@@ -82,7 +101,7 @@ def scenario_key(scenario_id: str, scenario: Scenario, build: Any, settings: str
         return None
     packages = workspace_packages(Path(build.root) / "src")
     closure = packages_run(scenario, packages)
-    h = hashlib.sha256(f"{__version__}:{RECORDING_FORMAT}:{settings}:{scenario_id}".encode())
+    h = hashlib.sha256(f"{recording_code()}:{runtime()['digest']}:{settings}:{scenario_id}".encode())
     h.update(scenario.model_dump_json().encode())
     for name in sorted(closure):
         h.update(f"{name}:{_tree_digest(packages[name][0])}".encode())
@@ -102,9 +121,11 @@ class RecordingCache:
 
     @contextlib.contextmanager
     def locked(self, key: str) -> Iterator[None]:
-        self.root.mkdir(parents=True, exist_ok=True)
-        with open(self.root / f"{key}.lock", "w") as lock:
-            fcntl.flock(lock, fcntl.LOCK_EX)
+        """The key's lock, held while its entry is looked up, recorded and copied; taking it
+        marks the entry used (``grader.cache.locks``)."""
+        lock = self.root / f"{key}.lock"
+        with locks.locked(lock):
+            locks.touch(lock)
             yield
 
     def get(self, key: str, dest: Path) -> dict[str, Any] | None:
@@ -130,7 +151,8 @@ class RecordingCache:
             elif src.is_file():
                 shutil.copy2(src, tmp / name)
         (tmp / "source.json").write_text(json.dumps({"submission": submission, "key": key,
-                                                     "recorded": time.strftime("%Y-%m-%dT%H:%M:%S")}))
+                                                     "recorded": time.strftime("%Y-%m-%dT%H:%M:%S"),
+                                                     "made_by": made_by()}))
         final = self.root / key
         shutil.rmtree(final, ignore_errors=True)
         os.replace(tmp, final)
@@ -139,3 +161,57 @@ class RecordingCache:
 def reusable(record: dict[str, Any]) -> bool:
     """A recording worth keeping: the scenario ran to its end without a grader-side problem."""
     return not record.get("errors") and not record.get("interrupted") and bool(record.get("steps"))
+
+
+def recording_settings(time_scale: float = 1.0, rates: tuple = ()) -> str:
+    """What, besides the inputs, changes a recording: the sandbox's active protections (a
+    recording made with fewer of them is not reused where more are active), the time scale and
+    the rates the watchdog of a faster run expects (the rubric's ``publish_rate`` items)."""
+    from grader.sandbox import summary
+
+    info = summary()
+    scaled = f";time_scale={time_scale:g};rates={sorted(map(repr, rates))}" if time_scale > 1 else ""
+    return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}{scaled}"
+
+
+def _note_recording(folder: Path, record: dict[str, Any], key: str | None) -> dict[str, Any]:
+    """Keep the recording's key and maker in the record and its ``scenario.json`` (a copy made
+    from the cache carries the maker of the original)."""
+    record["recording"] = {"key": key, "made_by": made_by()}
+    path = folder / "scenario.json"
+    if path.is_file():
+        saved = json.loads(path.read_text())
+        saved["recording"] = record["recording"]
+        path.write_text(json.dumps(saved, indent=1, default=str))
+    return record
+
+
+def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder: Path, slots: Any,
+                    recordings: Path | None, time_scale: float = 1.0, rates: tuple = ()) -> dict[str, Any]:
+    """One scenario into ``folder``: copied from an identical earlier recording under
+    ``recordings`` (None: ``--no-reuse``), or run within one of ``slots``; returns its record."""
+    from grader.grading.timescale import run_at_scale
+    from grader.scenario import resolve
+
+    key = scenario_key(sc_id, scenario, build, settings=recording_settings(time_scale, rates))
+    if key is None or recordings is None:
+        with slots.taken():
+            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
+        return _note_recording(folder, record, key)
+    cache = RecordingCache(recordings)
+    with cache.locked(key):
+        t0 = time.monotonic()
+        source = cache.get(key, folder)
+        if source is not None:
+            record = json.loads((folder / "scenario.json").read_text())
+            record.update(reused={"from": source.get("submission"), "key": key,
+                                  "recorded": source.get("recorded"), "made_by": source.get("made_by")},
+                          parent_wall_s=round(time.monotonic() - t0, 3))
+            (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
+            return record
+        with slots.taken():
+            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
+        record = _note_recording(folder, record, key)
+        if reusable(record):
+            cache.put(key, folder, sid)
+        return record

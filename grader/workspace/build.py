@@ -15,7 +15,7 @@ from that package's own build instead of built again for every submission.
 
 from __future__ import annotations
 
-import fcntl
+import contextlib
 import json
 import os
 import shutil
@@ -24,8 +24,12 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from grader.cache import default_cache_dir
+from grader.cache.code import build_code
+from grader.cache.environment import build_tools
+from grader.cache.locks import Holds, build_lock, locked, use_lock
 from grader.errors import GraderError
-from grader.rosenv import PY_SITE, child_env, ros_mode
+from grader.rosenv import PY_SITE, child_env
 from grader.sandbox.oneshot import run_jailed
 from grader.workspace.colcon_events import JobOutcome, read_events
 from grader.workspace.executables import (INDEX, command, executable_paths, find_executable,
@@ -39,13 +43,7 @@ BUILD_TIMEOUT_S = 900
 BUILD_MEMORY_MB = 6144     # colcon + compilers of one submission together (cgroup)
 BUILD_PIDS = 2048
 TIMED_OUT = -1
-CACHE_FORMAT = 4          # 4: executables as ros2 run finds them (3: status from colcon's events...)
-
-
-def default_cache_dir() -> Path:
-    base = os.environ.get("GRADER_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "grader")
-    return Path(base) / "builds"
+__all__ = ["BuildResult", "PackageBuild", "build_workspace", "default_cache_dir", "load_result"]
 
 
 @dataclass
@@ -301,34 +299,47 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
 
 def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                     support: dict[str, Path] | None = None, force: bool = False,
-                    trusted: bool = False) -> BuildResult:
+                    trusted: bool = False, holds: Holds | None = None) -> BuildResult:
     """Stage, hash and (unless cached) colcon-build ``submission``.
 
     Packages identical to a ``support`` package are taken from the support packages' own build
     (made once, the first time; see ``package_cache``), not with ``force``. ``trusted``: the
     sources are the instructor's (no student code runs in this build), so its packages may be
-    shared with later builds.
+    shared with later builds. ``holds``: the build area, and the areas packages were copied
+    from, stay held there (safe from ``grader cache prune``) until the caller closes it; without
+    it, until this returns.
+
+    The key (the area's folder name) is the staged sources' digest with the grader's build code
+    (``grader.cache.code.build_code``) and the ROS, Python and build tools' versions
+    (``grader.cache.environment.build_tools``): an upgrade of any of them builds again.
     """
     cache_dir = Path(cache_dir or default_cache_dir())
     cache_dir.mkdir(parents=True, exist_ok=True)
+    with contextlib.ExitStack() as own:
+        holds = holds or own.enter_context(Holds())
+        return _build(Path(submission), cache_dir, support, force, trusted, holds)
+
+
+def _build(submission: Path, cache_dir: Path, support: dict[str, Path] | None, force: bool,
+           trusted: bool, holds: Holds) -> BuildResult:
     if support and not force:
         try:
             with stage_support(support, cache_dir) as support_ws:
                 if support_ws is not None:
-                    build_workspace(support_ws, cache_dir=cache_dir, trusted=True)
+                    build_workspace(support_ws, cache_dir=cache_dir, trusted=True, holds=holds)
         except GraderError:
             pass                  # a support package that cannot be staged is built (and reported) below
     staging = cache_dir / f".staging-{os.getpid()}-{time.monotonic_ns()}"
     try:
-        staging_result = stage_sources(Path(submission), staging / "src", staging, support)
+        staging_result = stage_sources(submission, staging / "src", staging, support)
         staged = staging_result.packages
-        extra = f"{CACHE_FORMAT}:{ros_mode()}:{sys.version_info[:2]}"
+        extra = f"{build_code()}:{build_tools()['digest']}"
         digest = tree_digest(staging / "src", extra=extra)
         keys = package_keys(staged, extra)
         root = cache_dir / digest
         packages_cache = PackageCache(cache_dir)
-        with open(cache_dir / f"{digest}.lock", "w") as lockf:
-            fcntl.flock(lockf, fcntl.LOCK_EX)     # parallel graders build one digest once
+        holds.hold(use_lock(root))               # before the lookup: a prune waits, or went first
+        with locked(build_lock(root)):           # parallel graders build one digest once
             result_file = root / "result.json"
             if result_file.exists() and not force:
                 result = load_result(result_file)
@@ -342,7 +353,7 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                 shutil.rmtree(root)
             root.mkdir(parents=True)
             shutil.move(str(staging / "src"), root / "src")
-            reused = {} if force else packages_cache.reusable(staged, keys)
+            reused = {} if force else packages_cache.reusable(staged, keys, holds)
             copy_installs(root, reused)
             t0 = time.monotonic()
             if len(reused) < len(staged):

@@ -13,9 +13,10 @@ is never shared: the student's other packages' build code (``setup.py``, CMake) 
 jail with write access to the whole ``install/``, so it could have altered it.
 
 A package's key is the content of its own sources, its build type, the keys of the workspace
-packages it depends on (``package.xml``), and the grader's ROS mode and Python, so a student's
+packages it depends on (``package.xml``), and what the workspace key has besides its sources (the
+grader's build code, the ROS, Python and build tools' versions: ``build.py``), so a student's
 copy of a support package gets the support build's key only when it and everything it depends on
-in the workspace are byte-identical. Such a package is copied into the new build area's
+in the workspace are byte-identical, and no package built by another grader or toolchain is taken. Such a package is copied into the new build area's
 ``install/<pkg>`` (:func:`copy_installs`: real copies, ~2.4 MB and ~20 ms for the Lab 3 interface
 package, so nothing a student's build does to its own ``install/`` reaches the shared one), and
 colcon is told ``--packages-skip`` it (the documented way to build on top of packages already
@@ -38,10 +39,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Iterator
 
+from grader.cache.locks import Holds, use_lock
 from grader.workspace.source import SKIP_DIRS, PackageSource, find_packages, tree_digest
 
-#: bump when what a cached package holds changes meaning
-PACKAGE_CACHE_FORMAT = 1
 INDEX_DIR = "packages"
 _DEPEND = re.compile(r"<(?:depend|build_depend|build_export_depend|exec_depend|buildtool_depend|"
                      r"test_depend)[^>]*>\s*([A-Za-z0-9_]+)\s*<")
@@ -82,7 +82,7 @@ def package_keys(staged: list[PackageSource], extra: str) -> dict[str, str]:
         if name in keys:
             return keys[name]
         pkg = by_name[name]
-        h = hashlib.sha256(f"{PACKAGE_CACHE_FORMAT}:{extra}:{pkg.name}:{pkg.build_type}:".encode())
+        h = hashlib.sha256(f"{extra}:{pkg.name}:{pkg.build_type}:".encode())
         h.update(tree_digest(pkg.path).encode())
         for dep in sorted(deps[name]):
             # a dependency cycle cannot build; its members are keyed by name only there
@@ -125,10 +125,18 @@ class PackageCache:
             if pkg.status == "built" and not pkg.reused_from and name in keys:
                 self.put(keys[name], Path(result.root), asdict(pkg))
 
-    def reusable(self, staged: list[PackageSource], keys: dict[str, str]) -> dict[str, CachedPackage]:
+    def reusable(self, staged: list[PackageSource], keys: dict[str, str],
+                 holds: Holds | None = None) -> dict[str, CachedPackage]:
         """The packages that can be taken instead of built: cached, and so is every workspace
-        package they depend on (a dependency rebuilt here could come out differently)."""
+        package they depend on (a dependency rebuilt here could come out differently). With
+        ``holds``, the build areas they are taken from are held (and looked up again once held:
+        a prune may have removed one meanwhile)."""
         found = {p.name: c for p in staged if (c := self.get(p.name, keys[p.name])) is not None}
+        if holds is not None:
+            for name, cached in list(found.items()):
+                holds.hold(use_lock(cached.root))
+                if self.get(name, cached.key) is None:
+                    del found[name]
         deps = workspace_dependencies(staged)
         changed = True
         while changed:

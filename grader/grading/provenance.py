@@ -1,0 +1,72 @@
+"""Which grader made each recording a grade rests on, and which of them another grader made.
+
+A grade is computed from its scenarios' recordings, which may be older than the grader computing
+it: copied from the recording cache (made for another submission, perhaps days ago), or kept by
+``grader regrade`` from the grading run after the grader was upgraded. Each recording's
+``scenario.json`` notes its key and maker (``recording``: ``grader.grading.reuse.made_by``: grader
+version, digest of the grader code that makes recordings, digest of the ROS 2 and Python it ran
+on); a reused one also notes where it came from (``reused``). result.json keeps them all under
+``recordings``, and ``recordings_by_other_grader`` lists the scenarios whose maker differs from the
+grader writing the result, with why: ``grader regrade`` prints them and the instructor's report
+shows them, so an instructor knows which grades rest on recordings another grader version made.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+
+def scenario_recordings(sub_out: Path) -> dict[str, dict[str, Any]]:
+    """``{scenario: {"key", "made_by", "reused_from"?}}`` from each ``scenario.json`` of a
+    graded submission (``made_by`` None: recorded by a grader that did not note it)."""
+    from grader.grading.pipeline import SCENARIOS_DIR
+
+    out: dict[str, dict[str, Any]] = {}
+    for record_file in sorted(Path(sub_out).glob(f"{SCENARIOS_DIR}/*/scenario.json")):
+        try:
+            record = json.loads(record_file.read_text())
+        except (OSError, ValueError):
+            continue
+        noted = record.get("recording") or {}
+        reused = record.get("reused") or None
+        entry: dict[str, Any] = {"key": noted.get("key") or (reused or {}).get("key"),
+                                 "made_by": noted.get("made_by") or (reused or {}).get("made_by")}
+        if reused:
+            entry["reused_from"] = {k: reused.get(k) for k in ("from", "recorded")}
+        out[record_file.parent.name] = entry
+    return out
+
+
+def by_other_grader(recordings: dict[str, dict[str, Any]],
+                    current: dict[str, str] | None = None) -> dict[str, str]:
+    """``{scenario: why}`` for every recording whose maker is not ``current`` (this grader)."""
+    if current is None:
+        from grader.grading.reuse import made_by
+        current = made_by()
+    out: dict[str, str] = {}
+    for sc, entry in sorted(recordings.items()):
+        maker = entry.get("made_by")
+        if not maker:
+            out[sc] = "recorded by an older grader that did not note its version"
+        elif maker.get("code") != current["code"]:
+            out[sc] = (f"recorded by grader {maker.get('grader', '?')} with other recording code "
+                       f"({maker.get('code')}; this grader: {current['grader']}, {current['code']})")
+        elif maker.get("environment") != current["environment"]:
+            out[sc] = (f"recorded with another ROS 2 or Python installation ({maker.get('ros')}, rclpy "
+                       f"{maker.get('rclpy')}, {maker.get('rmw')}; here: {current['ros']}, rclpy "
+                       f"{current['rclpy']}, {current['rmw']}, or another package version)")
+    return out
+
+
+def notes(other: dict[str, str], recordings: dict[str, dict[str, Any]]) -> list[str]:
+    """One line per recording another grader made, for the instructor's report and regrade."""
+    lines = []
+    for sc, why in other.items():
+        origin = (recordings.get(sc) or {}).get("reused_from")
+        source = (f" (reused from {origin.get('from')}'s recording of {origin.get('recorded')})"
+                  if origin else "")
+        lines.append(f"scenario {sc}: its grade rests on a recording {why}{source}; "
+                     "`grader grade --no-reuse` records it again with this grader")
+    return lines
