@@ -60,6 +60,8 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
         extra["sandbox"] = sandbox
     if getattr(graded, "previous", None):
         extra["previous"] = graded.previous
+    if getattr(graded, "intake", None):
+        extra["intake"] = graded.intake           # who and when, as the LMS said (grader.intake)
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
     if time_scales:                 # --time-scale: how each scenario ran, and why not faster
         extra["time_scale"] = time_scales

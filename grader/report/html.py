@@ -207,10 +207,25 @@ def _scores(result: Result) -> str:
     scores = [("Automatic", f"{_num(result.auto_score)} / {_num(result.auto_max)}", "graded from the recordings")]
     if result.manual_max:
         scores.append(("Manual", f"{manual} / {_num(result.manual_max)}", "report and questions, by the instructor"))
+    if result.late is not None:
+        scores.append(("Late", f"−{_num(result.late_penalty)}",
+                       "set by the instructor" if result.late.override_points is not None else "late policy"))
     scores.append(("Total", f"{_num(result.total)} / {_num(result.max_score)}",
                    "final" if result.complete else f"{_num(result.pending_max)} points still to grade"))
     return "".join(f'<div class="score" data-score="{escape(k.lower())}">{escape(k)}'
                    f'<b>{escape(v)}</b><span>{escape(note)}</span></div>' for k, v, note in scores)
+
+
+def _late_html(result: Result) -> str:
+    """The late policy's verdict in words: when it came in, who says so, what it cost."""
+    late = result.late
+    if late is None:
+        return ""
+    text = late.note
+    if late.override_points is not None:
+        text += (f" The instructor set the late penalty to {_num(late.override_points)} point(s)"
+                 + (f" ({late.override_source})." if late.override_source else "."))
+    return f'<p class="sub" id="late">{escape(text)}</p>'
 
 
 def render_html(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
@@ -275,7 +290,7 @@ def render_html(result: Result, submission: str, *, versions: Mapping[str, str] 
 <body><main>
 <header><p class="sub">{escape(result.title)}</p>
 <h1>{"Self-check" if result.student_view else "Grade report"}: <span id="submission">{escape(submission)}</span></h1>
-<div class="scores" id="scores">{_scores(result)}</div>{hidden}</header>
+<div class="scores" id="scores">{_scores(result)}</div>{_late_html(result)}{hidden}</header>
 {_problems_html(problems)}
 {_notes_html(notes)}
 {flags}
