@@ -28,7 +28,7 @@ def read_classroom(root: Path, prefix: str) -> tuple[list[Arrival], list[str]]:
     """``root/<prefix><login>/`` clones; what does not start with the prefix is listed, not graded."""
     arrivals: list[Arrival] = []
     notes: list[str] = []
-    for entry in sorted(p for p in root.iterdir() if not p.name.startswith(".")):
+    for entry in sorted((p for p in root.iterdir() if not p.name.startswith(".")), key=lambda p: p.name.casefold()):
         if not entry.name.startswith(prefix) or entry.name == prefix:
             notes.append(f"{entry.name}: does not start with the prefix {prefix!r} (--classroom-prefix); "
                          "not graded")

@@ -130,7 +130,7 @@ def read_gradescope(root: Path, work: Path) -> tuple[list[Arrival], list[str]]:
         for person in submitters:
             email = str(person.get("email") or "")
             sid = str(person.get("sid") or "")
-            key = email.split("@")[0] if email else (sid or folder_name)
+            key = email.split("@")[0].lower() if email else (sid or folder_name)
             arrival = Arrival("gradescope", key, sub_id, [folder_name], path=path, time=time,
                               lms={"submission_id": sub_id, "name": str(person.get("name") or ""),
                                    "email": email, "sid": sid}, refused=refused)
