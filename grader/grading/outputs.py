@@ -68,7 +68,8 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
     out_dir, sid = graded.out.parent, graded.out.name
     write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
-               problems=problems, params=effective_params(rubric), notes=time_scale_notes(time_scales))
+               problems=problems, params=effective_params(rubric), notes=time_scale_notes(time_scales),
+               intake=getattr(graded, "intake", None))
 
 
 def write_batch_outputs(out: Path, rubric) -> None:

@@ -25,11 +25,13 @@ from grader.errors import GraderError
 from grader.intake.late import SubmissionTime
 from grader.intake.model import Arrival
 from grader.intake.times import archive_time
-from grader.workspace.source import extract_archive, is_archive
+from grader.workspace.source import MAX_UNPACKED_BYTES, extract_archive, is_archive
 
 _FILE = re.compile(r"^(?P<name>[^\W_][\w]*?)(?P<late>_LATE)?_(?P<user>\d+)_(?P<att>\d+)_(?P<file>.+)$")
 _ANON = re.compile(r"^(?P<late>LATE_)?anon_(?P<user>[A-Za-z0-9]+)_(?P<att>\d+)_(?P<file>.+)$")
 _ENTRY = re.compile(r"^(?P<name>[^\W_][\w]*?)(?P<late>_LATE)?_(?P<user>\d+)_(?P<what>text|link)\.html$")
+#: the largest LMS download unpacked (a class of a few hundred students' workspaces)
+DOWNLOAD_MAX_BYTES = 20 * 2**30
 LATE_SOURCE = "Canvas's LATE mark in the file name (the download has no submission times)"
 
 
@@ -80,12 +82,11 @@ def read_canvas(root: Path, work: Path) -> tuple[list[Arrival], list[str]]:
     """The submissions of a Canvas download (a zip, or the folder it unpacks to); ``work``: where
     a zip is unpacked and several files of one student are put together. Returns the arrivals
     and lines about entries that are not Canvas submission files."""
+    skipped: list[str] = []
     if root.is_file():
-        warnings: list[str] = []
-        root = extract_archive(root, work / "download", warnings)
+        root = extract_download(root, work / "download", skipped)
     entries = sorted(p for p in root.iterdir() if not p.name.startswith((".", "__MACOSX")))
     by_user: dict[str, list[CanvasFile]] = {}
-    skipped: list[str] = []
     for entry in entries:
         parsed = parse_name(entry.name)
         if parsed is None:
@@ -117,7 +118,10 @@ def _arrival(files: list[CanvasFile], work: Path) -> Arrival:
         arrival.path = uploads[0].path
         inner = archive_time(uploads[0].path, uploads[0].file) if is_archive(uploads[0].path) else None
     else:
-        arrival.path = _together(uploads, work / "students" / f"{first.name}_{first.user}")
+        try:
+            arrival.path = _together(uploads, work / "students" / f"{first.name}_{first.user}", arrival.notes)
+        except GraderError as exc:
+            arrival.refused = str(exc)
         inner = None
     # Canvas's LATE mark decides; an archive's newest file time only tells by how much (at least)
     arrival.time = SubmissionTime(inner.at if inner else None,
@@ -126,15 +130,16 @@ def _arrival(files: list[CanvasFile], work: Path) -> Arrival:
     return arrival
 
 
-def _together(files: list[CanvasFile], dest: Path) -> Path:
-    """One folder with the student's files under the names they uploaded (archives unpacked)."""
+def _together(files: list[CanvasFile], dest: Path, notes: list[str]) -> Path:
+    """One folder with the student's files under the names they uploaded (archives unpacked;
+    what they skip goes into ``notes``)."""
     if dest.exists():
         shutil.rmtree(dest)
     dest.mkdir(parents=True)
     for f in files:
         name = Path(f.file).name or f.path.name
         if is_archive(f.path):
-            extract_archive(f.path, dest / _stem(name), [])
+            extract_archive(f.path, dest / _stem(name), notes)
         elif f.path.is_dir():
             shutil.copytree(f.path, dest / name, symlinks=True)
         elif f.path.is_file() and not f.path.is_symlink():
@@ -142,6 +147,15 @@ def _together(files: list[CanvasFile], dest: Path) -> Path:
             if target.exists():
                 raise GraderError(f"{f.path.name}: two files named {name} in one Canvas submission")
             shutil.copyfile(f.path, target)
+    return dest
+
+
+def extract_download(archive: Path, dest: Path, notes: list[str]) -> Path:
+    """Unpack an LMS download: a class's archives, so a submission's limits apply to each file
+    (MAX_UNPACKED_BYTES) and the whole may be far larger; what is skipped is listed in ``notes``."""
+    warnings: list[str] = []
+    extract_archive(archive, dest, warnings, max_file=MAX_UNPACKED_BYTES, max_total=DOWNLOAD_MAX_BYTES)
+    notes += warnings
     return dest
 
 

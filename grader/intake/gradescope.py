@@ -27,7 +27,7 @@ import yaml
 from grader.errors import GraderError
 from grader.intake.late import SubmissionTime
 from grader.intake.model import Arrival
-from grader.workspace.source import extract_archive, is_archive
+from grader.workspace.source import is_archive
 
 METADATA = "submission_metadata.yml"
 TIME_SOURCE = "Gradescope's submission time (created_at in submission_metadata.yml)"
@@ -100,8 +100,10 @@ def _when(value: Any) -> datetime | None:
 def read_gradescope(root: Path, work: Path) -> tuple[list[Arrival], list[str]]:
     """The submissions of a Gradescope export (folder or zip); lines about folders without
     metadata and metadata without folders."""
+    notes: list[str] = []
     if root.is_file():
-        root = extract_archive(root, work / "export", [])
+        from grader.intake.canvas import extract_download
+        root = extract_download(root, work / "export", notes)
     meta_path = find_metadata(root)
     if meta_path is None:
         raise GraderError(f"{root} has no {METADATA}: export it from Gradescope with "
@@ -114,7 +116,6 @@ def read_gradescope(root: Path, work: Path) -> tuple[list[Arrival], list[str]]:
         raise GraderError(f"{meta_path} is not a mapping of submission_<id> folders")
     base = meta_path.parent
     arrivals: list[Arrival] = []
-    notes: list[str] = []
     for folder_name, record in sorted(meta.items()):
         record = record if isinstance(record, dict) else {}
         submitters = [s for s in record.get("submitters") or [] if isinstance(s, dict)]

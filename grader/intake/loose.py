@@ -18,6 +18,7 @@ import tarfile
 import zipfile
 from pathlib import Path, PurePosixPath
 
+from grader.errors import GraderError
 from grader.intake.model import Arrival
 from grader.workspace.source import MAX_FILE_BYTES, SKIP_DIRS, extract_archive, is_archive
 
@@ -77,7 +78,10 @@ def check_loose(arrival: Arrival, rubric, work: Path) -> None:
                            "rubric does not say which package they belong in (loose_files:); ask for the "
                            "workspace's src/ folder or the package folders")
         return
-    wrap(arrival, spec, work / "loose" / (arrival.id or arrival.key))
+    try:
+        wrap(arrival, spec, work / "loose" / (arrival.id or arrival.key))
+    except GraderError as exc:             # an archive that cannot be unpacked
+        arrival.refused = str(exc)
 
 
 def wrap(arrival: Arrival, spec, dest: Path) -> None:

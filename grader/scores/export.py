@@ -161,8 +161,12 @@ def _match(results: Mapping[str, Result], roster: Roster | None, report: ExportR
     ids its intake record kept (Canvas ID, SIS ids, e-mail, SID)."""
     if roster is None:
         return [(None, sid) for sid in sorted(results)]
+    from grader.intake.match import safe_id
+
     owner: dict[int, str] = {}
     by_sub = roster.by_submission()
+    # an intake made the id safe for a folder ("Jane Doe" -> Jane_Doe): it is still that row's
+    by_sub.update({safe_id(k): v for k, v in list(by_sub.items()) if safe_id(k) not in by_sub})
     for sid in sorted(results):
         if sid in by_sub:
             owner.setdefault(by_sub[sid].line, sid)

@@ -185,4 +185,4 @@ def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
         return
     canvases = {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
     write_html(stage, g.sid, result, versions=versions, canvas_png=canvases or None,
-               problems=list(g.doc.get("errors") or []))
+               problems=list(g.doc.get("errors") or []), intake=g.doc.get("intake"))

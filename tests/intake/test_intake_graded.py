@@ -105,6 +105,7 @@ def test_canvas_penalties_in_result_grades_report_and_class_view(canvas_out: Pat
             "23:59 EST: 2 days begun; 20% of the lab&#x27;s points deducted. Time from Canvas&#x27;s LATE mark")\
         in report
     assert 'data-score="late">Late<b>−20</b><span>late policy</span>' in report
+    assert '<p class="sub" id="who">Doe, Jane · Canvas user id 101 · doejane_LATE_101_9001_ws.zip</p>' in report
     index = (canvas_out / "index.html").read_text()
     assert '<button type="button" class="sort">Late penalty</button>' in index and "−20 (1 day 3 h)" in index
 
