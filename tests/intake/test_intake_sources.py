@@ -251,3 +251,18 @@ def test_clear_errors(tmp_path: Path) -> None:
         read_intake(tmp_path / "empty", load_rubric(FIRST_RUBRIC), work=tmp_path / "w")
     with pytest.raises(GraderError, match="need --classroom-prefix"):
         read_intake(tmp_path / "empty", load_rubric(FIRST_RUBRIC), work=tmp_path / "w", kind="classroom")
+
+
+@pytest.mark.parametrize("name, parts", [
+    ("doejane_LATE_12345_67890_lab3_ws.zip", ("doejane", "12345", "67890", "lab3_ws.zip", True, "")),
+    ("o_brienpat_12_34_ws-1.zip", ("o_brienpat", "12", "34", "ws-1.zip", False, "")),     # name with _
+    ("doejane_12_34_lab_1_2_x.py", ("doejane", "12", "34", "lab_1_2_x.py", False, "")),
+    ("LATE_anon_Ab1Cd_34_ws.zip", ("anon_Ab1Cd", "Ab1Cd", "34", "ws.zip", True, "")),   # anonymous grading
+    ("doejane_LATE_12345_link.html", ("doejane", "12345", "", "link.html", True, "link")),
+    ("notes.txt", None), ("alice.zip", None),
+])
+def test_canvas_file_names(name: str, parts) -> None:
+    from grader.intake.canvas import parse_name
+
+    got = parse_name(name)
+    assert (None if got is None else (got.name, got.user, got.attachment, got.file, got.late, got.entry)) == parts
