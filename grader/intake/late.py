@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, fields, replace
 from datetime import datetime
 from typing import Any, Mapping
 
-from grader.rubric.intake_fields import UNIT_SECONDS, LatePolicy
+from grader.rubric.intake_fields import LatePolicy
 
 
 @dataclass(frozen=True)
@@ -57,6 +57,7 @@ class LatePenalty:
     percent: float                    # penalty in percent of `of`
     of: str                           # max | earned
     grace_minutes: float = 0.0
+    lms_late: bool | None = None      # the LMS's own verdict (Canvas's LATE mark), if it gave one
     late_days_used: int = 0
     late_days_left: int | None = None
     override_points: float | None = None
@@ -117,6 +118,7 @@ def assess(policy: LatePolicy, when: SubmissionTime | None, days_left: int | Non
     late_s = (at - due).total_seconds() if at is not None else None
     lms_late = when.lms_late if when else None
     counted: float | None
+    unmeasured = lms_late is True and (late_s is None or late_s <= 0)   # late, by how much nobody says
     if lms_late is False:
         counted = 0.0                        # the LMS says on time (extensions live there)
     elif lms_late is True:
@@ -136,8 +138,8 @@ def assess(policy: LatePolicy, when: SubmissionTime | None, days_left: int | Non
         percent = round(min(policy.cap, charged * step), 4)
     penalty = LatePenalty(
         due=due.isoformat(), zone=zone, submitted_at=at.isoformat() if at else None, time_source=source,
-        late_s=None if counted is None else round(counted, 1), units=units, per=policy.per,
-        percent=percent, of=policy.of, grace_minutes=policy.grace_minutes,
+        late_s=None if counted is None or unmeasured else round(counted, 1), units=units, per=policy.per,
+        percent=percent, of=policy.of, grace_minutes=policy.grace_minutes, lms_late=lms_late,
         late_days_used=used, late_days_left=left)
     return replace(penalty, note=_note(policy, penalty, at, late_s, lms_late, due, zone))
 
@@ -177,10 +179,10 @@ def _note(policy: LatePolicy, p: LatePenalty, at: datetime | None, late_s: float
 def late_by_text(p: LatePenalty) -> str:
     """``2 days`` / ``on time`` / ``unknown``: for tables."""
     if p.late_s is None:
-        return "unknown"
+        return "late (LMS mark), by an unknown time" if p.lms_late else "unknown"
     if p.late_s <= 0:
         return "on time"
     return duration_words(p.late_s)
 
 
-__all__ = ["LatePenalty", "SubmissionTime", "UNIT_SECONDS", "assess", "duration_words", "late_by_text"]
+__all__ = ["LatePenalty", "SubmissionTime", "assess", "duration_words", "late_by_text"]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from grader.intake.late import SubmissionTime, assess
+from grader.intake.late import SubmissionTime, assess, late_by_text
 from grader.rubric.intake_fields import LatePolicy
 from grader.rubric.load import RubricError, load_rubric
 
@@ -69,7 +69,8 @@ def test_the_lms_verdict_decides_and_a_time_only_measures() -> None:
     pol = policy(percent=10)
     # Canvas marks it late, the download has no time: the least lateness the evidence shows
     marked = assess(pol, SubmissionTime(None, "Canvas's LATE mark", lms_late=True))
-    assert (marked.units, marked.percent) == (1, 10)
+    assert (marked.units, marked.percent, marked.late_s) == (1, 10, None)
+    assert late_by_text(marked) == "late (LMS mark), by an unknown time"
     assert marked.note.startswith("The LMS marks it late (due 2025-02-14 23:59 EST) but the download carries no "
                                   "submission time, so it counts as late by the least the evidence shows")
     # ... and within a grace period that could cover it, no penalty
