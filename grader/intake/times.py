@@ -24,13 +24,15 @@ def last_commit_time(repo: Path) -> SubmissionTime | None:
     """The committer date of HEAD in ``repo`` (a clone), or None when it is not one.
 
     git reads the student's own ``.git/config``: nothing that runs a program is involved in
-    ``git log`` (no hooks, pager, fsmonitor or external diff; they are switched off anyway), and
-    the global and system configuration are not read."""
-    if not (repo / ".git").exists():
-        return None
+    ``git log`` (no hooks, pager, fsmonitor, signature check or external diff; they are switched
+    off anyway), the global and system configuration are not read, and only a ``.git`` folder of
+    the clone itself is read (not a link or a ``gitdir:`` file pointing elsewhere)."""
+    dot_git = repo / ".git"
+    if dot_git.is_symlink() or not dot_git.is_dir():
+        return None            # not a clone (a .git file or link would point at another repository)
     env = {k: v for k, v in os.environ.items() if not k.startswith("GIT_")}
     env.update(GIT_CONFIG_NOSYSTEM="1", GIT_CONFIG_GLOBAL=os.devnull, GIT_TERMINAL_PROMPT="0",
-               GIT_OPTIONAL_LOCKS="0")
+               GIT_OPTIONAL_LOCKS="0", GIT_NO_REPLACE_OBJECTS="1", GIT_CEILING_DIRECTORIES=str(repo.resolve().parent))
     try:
         proc = subprocess.run(
             ["git", "-c", "core.fsmonitor=false", "-c", "core.hooksPath=" + os.devnull,

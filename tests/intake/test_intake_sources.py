@@ -266,3 +266,16 @@ def test_canvas_file_names(name: str, parts) -> None:
 
     got = parse_name(name)
     assert (None if got is None else (got.name, got.user, got.attachment, got.file, got.late, got.entry)) == parts
+
+
+def test_a_git_link_to_another_repository_gives_no_time(tmp_path: Path) -> None:
+    """A submission whose .git is a link to another repository (the grader's own, say) gets no
+    commit time from it (git would read that repository's history)."""
+    from grader.intake.times import last_commit_time
+
+    repo = clone(LAB3 / "wrong_topic", tmp_path / "lab3-eve", ["2025-02-14T21:00:00-05:00"])
+    assert last_commit_time(repo).at.isoformat() == "2025-02-14T21:00:00-05:00"
+    other = tmp_path / "other"
+    shutil.copytree(LAB3 / "wrong_topic", other)
+    (other / ".git").symlink_to(repo / ".git")
+    assert last_commit_time(other) is None
