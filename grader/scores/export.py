@@ -55,7 +55,7 @@ LONG_COLUMNS = ["submission", "student", "student_id", "sis_user_id", "sis_login
 _CANVAS_ID = re.compile(r"\s\(\d+\)$")
 GRADESCOPE_LATE_COLUMNS = ["Submission ID", "Submission Time", "Lateness (H:M:S)", "Late Penalty", "Time Source"]
 #: roster fields an intake record's student may be found by, strongest first
-_IDENTITY = ("id", "sis_user_id", "sis_login_id", "email", "sid")
+_IDENTITY = ("id", "sis_user_id", "sis_login_id", "email", "sid", "submission")
 
 
 class PendingScores(GraderError):
@@ -173,7 +173,7 @@ def _match(results: Mapping[str, Result], roster: Roster | None, report: ExportR
     for sid in sorted(results):
         if sid in by_sub:
             continue
-        student = _by_identity(roster, ((intake or {}).get(sid) or {}).get("student") or {})
+        student = _by_identity(roster, _kept_ids((intake or {}).get(sid) or {}))
         if student is not None and student.line not in owner:
             owner[student.line] = sid
     matched = set(owner.values())
@@ -185,6 +185,16 @@ def _match(results: Mapping[str, Result], roster: Roster | None, report: ExportR
         else:
             report.no_submission.append(student)
     return pairs
+
+
+def _kept_ids(intake: Mapping) -> dict[str, str]:
+    """The roster fields an intake record knows: its roster row's, else the LMS's own (a batch
+    graded without --roster: Canvas user id, Gradescope e-mail and SID, GitHub login)."""
+    lms = intake.get("lms") or {}
+    ids = {"id": lms.get("canvas_user_id"), "email": lms.get("email"), "sid": lms.get("sid"),
+           "submission": lms.get("github_login")}
+    ids.update({k: v for k, v in (intake.get("student") or {}).items() if v})
+    return {k: str(v) for k, v in ids.items() if v}
 
 
 def _by_identity(roster: Roster, kept: Mapping[str, str]) -> Student | None:

@@ -253,3 +253,22 @@ def test_classroom_clones_late_by_their_last_commit(tmp_path: Path) -> None:
     doc = json.loads((out / "bob" / "result.json").read_text())
     assert doc["late"]["due"] == "2025-02-15T00:30:00-05:00" and doc["intake"]["due_override"]["due"] == \
         "2025-02-15 00:30"
+
+
+def test_graded_without_roster_the_export_finds_students_by_canvas_id(tmp_path: Path, capsys) -> None:
+    """Graded without --roster (ids are Canvas's names), exported with the gradebook: the Canvas
+    user id each submission kept finds its row."""
+    zips = tmp_path / "zips"
+    zips.mkdir()
+    ws = zip_tree(LAB3 / "wrong_topic" / "src", zips / "a.zip", datetime(2025, 2, 14, 20, 0)).read_bytes()
+    download = canvas_zip(tmp_path / "submissions.zip", {"roerick_102_9002_ws.zip": ws, "smithbob_777_9003_ws.zip": ws})
+    out = tmp_path / "OUT"
+    rubric = load_rubric(LAB3_RUBRIC)
+    batch = read_intake(download, rubric, work=out / ".intake")
+    assert [a.id for a in batch.arrivals] == ["roerick", "smithbob"]
+    recorded_intake(batch.arrivals, {a.id: LAB3_BAGS / "wrong_topic" for a in batch.arrivals}, out, rubric)
+    (tmp_path / "roster.csv").write_text(CANVAS_ROSTER)
+    assert grader_main(["scores", "export", str(out), "--roster", str(tmp_path / "roster.csv"), "--format",
+                        "canvas", "--partial", "-o", str(tmp_path / "c.csv")]) == 0
+    assert (tmp_path / "c.csv").read_text().splitlines()[2:] == ['"Roe, Rick",102,UID2,rroe,ENEE467-0101,6']
+    assert "submission smithbob has no roster row: not exported" in capsys.readouterr().err
