@@ -7,6 +7,7 @@ identical workspaces take the first one's build and recordings."""
 from __future__ import annotations
 
 import csv
+import json
 from datetime import datetime
 from pathlib import Path
 
@@ -63,13 +64,16 @@ def test_grade_a_canvas_download_then_export_it(tmp_path: Path, capsys) -> None:
     assert "wrapped into package my_first_package" in table[4]
 
     rows = {r["submission"]: r for r in csv.DictReader((out / "grades.csv").open())}
+    not_passed = {sid: [f"{i['id']}: {i['feedback'][:300]}" for i in json.loads((out / sid / "result.json")
+                                                                               .read_text())["items"]
+                        if i["status"] != "pass"] for sid in rows}
     # the loose files earn every point, as the package does: wrapping changes nothing
     assert {sid: (r["auto_total"], r["late_penalty"], r["total"], r["lms_id"], r["student"])
             for sid, r in rows.items()} == {
         "apoe": ("20", "0", "20", "103", "Poe, Ann"),
         "jdoe": ("20", "4", "16", "101", "Doe, Jane"),
         "rroe": ("20", "0", "20", "102", "Roe, Rick"),
-        "smithbob": ("20", "0", "20", "777", "")}
+        "smithbob": ("20", "0", "20", "777", "")}, not_passed
     assert "Submitted 2025-02-16 02:59 EST, 1 day 3 h after the due date" in (out / "jdoe" / "report.html").read_text()
 
     assert grader_main(["scores", "export", str(out), "--roster", str(tmp_path / "roster.csv"), "--format",
