@@ -60,13 +60,16 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
         extra["sandbox"] = sandbox
     if getattr(graded, "previous", None):
         extra["previous"] = graded.previous
+    if getattr(graded, "intake", None):
+        extra["intake"] = graded.intake           # who and when, as the LMS said (grader.intake)
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
     if time_scales:                 # --time-scale: how each scenario ran, and why not faster
         extra["time_scale"] = time_scales
     out_dir, sid = graded.out.parent, graded.out.name
     write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
-               problems=problems, params=effective_params(rubric), notes=time_scale_notes(time_scales))
+               problems=problems, params=effective_params(rubric), notes=time_scale_notes(time_scales),
+               intake=getattr(graded, "intake", None))
 
 
 def write_batch_outputs(out: Path, rubric) -> None:

@@ -60,6 +60,7 @@ class GradedSubmission:
     reused: dict[str, dict] = field(default_factory=dict)     # scenario -> where its recording came from
     time_scales: dict[str, dict] = field(default_factory=dict)  # scenario -> requested/used/fallback (--time-scale)
     previous: dict | None = None      # a regrade's summary of the result it replaced (class view diff)
+    intake: dict | None = None        # how it arrived: LMS ids, student, time (grader.intake)
 
 
 def selected_items(rubric, public_only: bool) -> list:
@@ -213,12 +214,17 @@ def analyze_bags(rubric, items: list, sub_out: Path,
 def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | None = None,
                      public_only: bool = False, sid: str | None = None,
                      progress: Callable[[str], None] | None = None, slots=None,
-                     reuse: bool = True, time_scale: float = 1.0) -> GradedSubmission:
+                     reuse: bool = True, time_scale: float = 1.0, intake: dict | None = None,
+                     due_override: dict | None = None) -> GradedSubmission:
     """Build, run the needed scenarios (side by side, within ``slots``), analyze and score one
     submission; writes its folder. ``reuse``: copy a scenario's recording when everything it
     runs is identical to an earlier run (see grader.grading.reuse). ``time_scale`` > 1: run
-    scenarios that may on simulated time, that much faster (see grader.grading.timescale)."""
+    scenarios that may on simulated time, that much faster (see grader.grading.timescale).
+    ``intake``: how it arrived (grader.intake: ids, student, time), kept in ``intake.json``; with
+    the rubric's late policy (its due date replaced by ``due_override``) it sets the penalty."""
     from grader.grading.timescale import expected_rates
+    from grader.intake.apply import apply_intake
+    from grader.intake.model import public_record, write_record
 
     from grader.grading.schedule import Slots
     from grader.rubric.score import score
@@ -233,6 +239,8 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
         if out.exists():
             shutil.rmtree(out)
         out.mkdir(parents=True)
+    if intake is not None:
+        write_record(out, intake, due_override)
     timings: dict[str, float] = {}
     errors: list[str] = []
     say = progress or (lambda _msg: None)
@@ -283,11 +291,14 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     errors += problems
     result, kept = apply_saved_manual_scores(out, score(rubric, findings))
     errors += kept
+    result, late_notes = apply_intake(out, rubric, result)
+    errors += late_notes
     if public_only:
         result = result.for_student()
     graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
                               build_failed=list(build.failed) if build else ["(no build)"],
-                              errors=errors, timings=timings, reused=reused, time_scales=time_scales)
+                              errors=errors, timings=timings, reused=reused, time_scales=time_scales,
+                              intake=public_record(out))
     write_outputs(graded, rubric, public_only=public_only)
     return graded
 
@@ -336,6 +347,8 @@ def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings
 def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:
     """Recompute a submission's grade from its recorded bags only (no build, no ROS)."""
     from grader.rubric.score import score
+    from grader.intake.apply import apply_intake
+    from grader.intake.model import public_record
     from grader.scores.store import apply_saved_manual_scores
 
     sub_out = Path(sub_out)
@@ -352,7 +365,8 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
     unusable, notes = recordings_to_refuse(sub_out, old)
     findings, problems = analyze_bags(rubric, items, sub_out, unusable)
     result, kept = apply_saved_manual_scores(sub_out, score(rubric, findings))   # merged manual scores
-    problems = notes + problems + kept
+    result, late_notes = apply_intake(sub_out, rubric, result)                   # late policy, again
+    problems = notes + problems + kept + late_notes
     # the seal keeps the digests of what was graded; a result without one is sealed as it is now
     recorded = (old.get("seal") or {}).get("inputs")
     inputs = recorded if recorded is not None and mac_ok(old) else input_digests(sub_out)
@@ -362,7 +376,7 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
                               build_failed=old.get("build", {}).get("failed", []),
                               errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
                               timings=old.get("timings", {}), previous=previous_summary(old),
-                              time_scales=old.get("time_scale", {}))
+                              time_scales=old.get("time_scale", {}), intake=public_record(sub_out))
     write_outputs(graded, rubric, public_only=public_only, inputs=inputs)
     return graded
 

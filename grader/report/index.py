@@ -20,7 +20,7 @@ from grader.report.result import atomic_write, check_submission_id
 from grader.report.style import CSS, INDEX_JS
 from grader.rubric.score import ItemResult, Result
 
-NUMERIC = {"auto", "total", "time", "delta"}      # right-aligned columns of the submissions table
+NUMERIC = {"auto", "total", "time", "delta", "late"}      # right-aligned columns of the submissions table
 CATEGORIES = (("pass", "passed"), ("partial", "partly"), ("fail", "failed"), ("error", "not checked"))
 
 
@@ -83,6 +83,15 @@ def _cell(points: Any, status: Any) -> str:
 
 def _num(v: float | None) -> str:
     return "—" if v is None else f"{v:g}"
+
+
+def _late_cell(result: Result) -> str:
+    """−5 (2 days), 0 (on time), — (no late policy)."""
+    from grader.intake.late import late_by_text
+
+    if result.late is None:
+        return "—"
+    return f"−{result.late_penalty:g} ({escape(late_by_text(result.late))})"
 
 
 def _failed_items(result: Result) -> list[ItemResult]:
@@ -183,6 +192,7 @@ def _sub_table(subs: Sequence[Submission]) -> str:
     options = "".join(f'<option value="{escape(i.id)}">{escape(i.id)}</option>'
                       for i in first.items if i.kind in ("auto", "advisory"))
     regraded = any(s.previous is not None for s in subs)
+    late = any(s.result.late is not None for s in subs)
     rows = []
     for s in sorted(subs, key=lambda s: s.id):
         r = s.result
@@ -199,17 +209,22 @@ def _sub_table(subs: Sequence[Submission]) -> str:
             f'<td>{"<br>".join(escape(c) for c in s.crashes) or "—"}</td>',
             f'<td class="num">{_num(s.time_s)}</td>',
         ]
+        if late:
+            cells.insert(3, f'<td class="num" title="{escape(r.late.note if r.late else "")}">{_late_cell(r)}</td>')
         if regraded:
             cells.append(f'<td class="num">{"—" if delta is None else ("+" if delta > 0 else "") + f"{delta:g}"}</td>')
         data = {"submission": s.id, "auto": f"{r.auto_score:g}", "total": "" if r.total is None else f"{r.total:g}",
                 "failed": " ".join(i.id for i in failed), "nfailed": str(len(failed)), "flags": " ".join(flags),
                 "build": "failed" if s.build_failed else "ok", "crashes": str(len(s.crashes)),
-                "time": "" if s.time_s is None else f"{s.time_s:g}", "delta": "" if delta is None else f"{delta:g}"}
+                "time": "" if s.time_s is None else f"{s.time_s:g}", "delta": "" if delta is None else f"{delta:g}",
+                "late": f"{r.late_penalty:g}" if r.late is not None else ""}
         attrs = " ".join(f'data-{k}="{escape(v)}"' for k, v in data.items())
         rows.append(f"<tr {attrs}>{''.join(cells)}</tr>")
     cols = [("submission", "Submission", "text"), ("auto", "Automatic", "num"), ("total", "Total", "num"),
             ("nfailed", "Items not passed", "num"), ("flags", "Integrity flags", "text"),
             ("build", "Build", "text"), ("crashes", "Crashes", "num"), ("time", "Time (s)", "num")]
+    if late:
+        cols.insert(3, ("late", "Late penalty", "num"))
     if regraded:
         cols.append(("delta", "Change at regrade", "num"))
     head = "".join(f'<th scope="col" data-key="{k}" data-type="{t}"{" class=num" if k in NUMERIC else ""}>'

@@ -17,6 +17,7 @@ from typing import Annotated, Any, Collection, Literal, Mapping, Union
 
 from pydantic import BeforeValidator, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
+from grader.rubric.intake_fields import LatePolicy, LooseFiles, intake_problems
 from grader.scenario.fields import Model, PackageName, _named, with_rules
 from grader.scenario.model import Scenario
 
@@ -293,6 +294,9 @@ class Rubric(Model):
     sections: Annotated[tuple[SectionSpec, ...], Field(strict=False)] = ()
     scenarios: dict[ScenarioId, Scenario] = {}
     items: Annotated[tuple[Item, ...], Field(min_length=1, strict=False)]
+    # how submissions arrive (grader.intake): the late policy and bare-file submissions
+    late: LatePolicy | None = Field(None, description="due date and late policy (grader.intake)")
+    loose_files: LooseFiles | None = Field(None, description="how bare .py files become a package")
 
     model_config = {**Model.model_config, "populate_by_name": True}
     _source: Path = PrivateAttr(default=Path("rubric.yaml"))
@@ -406,6 +410,7 @@ class Rubric(Model):
                 out.append((f"{at}.requires", "only auto items earn points that can be gated"))
         out += self._cycles()
         out += self._sums()
+        out += intake_problems(self)
         return out
 
     def _cycles(self) -> list[tuple[str, str]]:

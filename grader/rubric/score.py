@@ -11,10 +11,13 @@ from __future__ import annotations
 import math
 import string
 from dataclasses import dataclass, field, replace
-from typing import Any, Iterable, Mapping, Protocol
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Protocol
 
 from grader.errors import GraderError
 from grader.rubric.schema import STATUSES, Item, Rubric, Section, SectionSpec
+
+if TYPE_CHECKING:
+    from grader.intake.late import LatePenalty
 
 PENDING = "pending"          # status of a manual item nobody graded yet
 _RANK = {"fail": 0, "partial": 1, "error": 2, "pass": 3}
@@ -86,6 +89,7 @@ class Result:
     student_view: bool = False
     hidden_items: int = 0          # removed by for_student()
     hidden_points: float = 0.0
+    late: "LatePenalty | None" = None   # the late policy's verdict (grader.intake.late), if any
 
     def item(self, item_id: str) -> ItemResult:
         for item in self.items:
@@ -127,13 +131,23 @@ class Result:
         return _sum(i.max_points for i in self.items)
 
     @property
+    def late_penalty(self) -> float:
+        """Points the late policy deducts (0 without one); never more than ``score``."""
+        return 0.0 if self.late is None else self.late.points(self.score, self.max_score)
+
+    @property
+    def final_score(self) -> float:
+        """``score`` less the late penalty: what a gradebook gets."""
+        return round(self.score - self.late_penalty, 2)
+
+    @property
     def complete(self) -> bool:
         return not any(i.status == PENDING for i in self.items)
 
     @property
     def total(self) -> float | None:
-        """The final grade, once every manual item is graded; None before."""
-        return self.score if self.complete else None
+        """The final grade (late penalty deducted), once every manual item is graded; None before."""
+        return self.final_score if self.complete else None
 
     @property
     def integrity_flags(self) -> tuple[Notice, ...]:
