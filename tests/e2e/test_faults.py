@@ -24,6 +24,17 @@ FAULTS = REPO / "fixtures" / "faults"
 SPEC = yaml.safe_load((FAULTS / "expected.yaml").read_text())
 MARK = "grader-fault-"
 
+
+def plant_links(folder: Path) -> None:
+    """``symlink_folder``'s hostile links (fixtures/faults/make_archives.py)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("fault_archives", FAULTS / "make_archives.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.plant_links(folder)
+
+
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
 
@@ -58,6 +69,7 @@ def batch(tmp_path_factory) -> dict:
     shutil.copytree(FAULTS, subs, symlinks=True,
                     ignore=lambda d, names: [n for n in names if Path(d) == FAULTS and Path(d, n).is_file()
                                              and not n.endswith((".zip", ".tar.gz"))])
+    plant_links(subs / "symlink_folder")          # its links to /etc/passwd and / (never committed)
     huge = subs / "huge_file"
     shutil.copytree(FAULTS / "honest", huge)
     with open(huge / "src" / "turtle_goal" / "recording.bag", "wb") as f:     # 300 MB, sparse
@@ -123,6 +135,8 @@ def test_the_reasons_are_in_the_results(batch: dict) -> None:
         return json.dumps(result(batch, sid).get("errors", [])) + json.dumps(result(batch, sid)["items"])
 
     assert "symbolic link" in problems("symlink_folder")
+    linked = json.dumps(result(batch, "symlink_folder"))
+    assert "rootdir -> /" in linked and "leak -> /etc/passwd" in linked       # the planted links were met
     assert "outside the archive" in problems("zip_slip") and "symbolic link" in problems("zip_slip")
     assert "link" in problems("symlink_tar")
     assert "MiB" in problems("huge_file")
