@@ -1,8 +1,8 @@
 """The grader as students, TAs and Gradescope get it: a wheel built from a fresh clone, installed
 outside the repository.
 
-One module fixture does what an instructor and Gradescope do: `grader gradescope` in a fresh
-clone (it builds the wheel with pip), the zip unpacked into a temporary root laid out like
+One module fixture does what an instructor and Gradescope do: `grader gradescope` in a real
+`git clone` of the tree under test (it builds the wheel with pip; ``gitclone.py``), the zip unpacked into a temporary root laid out like
 ``/autograder``, and the bundle's ``setup.sh`` run there: it creates a clean python3.11 venv
 outside the repository, pip-installs the wheel and runs `grader setup` and `grader doctor`, the
 very steps the README gives students. Then:
@@ -34,6 +34,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 import yaml
+from gitclone import git_clone
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures" / "submissions" / "enee467_lab3"
@@ -58,26 +59,13 @@ def sh(cmd: list[str], *, cwd: Path, env: dict[str, str], timeout: float = 900) 
     return proc
 
 
-def fresh_clone(dest: Path) -> Path:
-    """The tracked files of this checkout, as a clone has them (uncommitted edits included, so the
-    test checks the tree under test; untracked files left out, as a clone would)."""
-    files = subprocess.run(["git", "-C", str(REPO), "ls-files", "-z"], capture_output=True,
-                           check=True).stdout.decode().split("\0")
-    for name in filter(None, files):
-        src = REPO / name
-        if src.is_file():
-            (dest / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(src, dest / name)
-    return dest
-
-
 @pytest.fixture(scope="module")
 def autograder(tmp_path_factory) -> Path:
     """An /autograder-like root after Gradescope's image build: source/ + grader-venv/."""
     if shutil.which("python3.11") is None or not (REPO / ".git").exists():
         pytest.skip("needs python3.11 and a git checkout")
     tmp = tmp_path_factory.mktemp("installed")
-    clone = fresh_clone(tmp / "clone")
+    clone = git_clone(tmp / "clone")
     bundle = tmp / "autograder.zip"
     sh([sys.executable, "-m", "grader.cli", "gradescope", "--rubric", "rubrics/enee467_lab3.yaml",
         "-o", bundle], cwd=clone, env=clean_env(PYTHONPATH=str(clone)))
