@@ -12,6 +12,7 @@ import hashlib
 import json
 import os
 import shutil
+import sysconfig
 from pathlib import Path
 
 import pytest
@@ -122,6 +123,10 @@ def test_nothing_outside_the_output_changed(batch: dict) -> None:
     assert batch["home_after"] == batch["home_before"]
     assert not list(Path("/tmp").glob(f"{MARK}*"))
     assert not list(batch["out"].parent.glob(f"**/{MARK}*"))
+    site = Path(sysconfig.get_paths()["purelib"])            # the venv every student process runs in
+    assert not list(site.glob(f"{MARK}*"))
+    for planted in (site / "sitecustomize.py", site / "grader" / "__init__.py"):
+        assert not planted.exists() or MARK not in planted.read_text()
 
 
 def test_every_result_is_the_graders(batch: dict) -> None:
@@ -147,3 +152,6 @@ def test_the_reasons_are_in_the_results(batch: dict) -> None:
     snooped = "".join(f.read_text(errors="replace") for f in (batch["out"] / "read_rubric").glob("scenarios/*/logs/*"))
     assert "Goal setter service, turtle controller and launch file" not in snooped      # the rubric's title
     assert "SNOOPED ENV" in snooped and "caller-secret-7f3a" not in snooped     # a minimal environment
+    tampered = "".join(f.read_text(errors="replace") for f in (batch["out"] / "autograder_tamper").glob("scenarios/*/logs/*"))
+    assert "TAMPER run start" in tampered and "sitecustomize.py: " in tampered and ": done" not in tampered
+    assert "SNOOPED" not in tampered
