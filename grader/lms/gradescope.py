@@ -170,6 +170,7 @@ def prepare_image(root: Path, rubric_path: Path, *, cache_dir: Path | None = Non
 
     rubric = load_rubric(rubric_path)
     cache = Path(cache_dir or Path(root) / CACHE_DIR)
+    cache.mkdir(parents=True, exist_ok=True)
     built = build_support(dict(rubric.support), cache) if rubric.support else None
     if built is not None and not built.ok:
         raise GraderError("the rubric's support packages did not build: " + "; ".join(
