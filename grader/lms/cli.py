@@ -29,6 +29,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the autograder root (default: $GRADER_AUTOGRADER_ROOT or /autograder)")
     s.set_defaults(func=run_setup)
 
+    c = sub.add_parser("classroom-result", help="grader check's result as a GitHub Classroom autograding runner",
+                       description="Prints `result=<base64 JSON>` for $GITHUB_OUTPUT: the runner document "
+                                   "GitHub Classroom's autograding reporter reads (one test per public "
+                                   "automatic item, with its points). Appends to $GITHUB_OUTPUT itself when "
+                                   "that is set. A missing result.json gives an `error` runner.")
+    c.add_argument("result", type=Path, help="grader check's result.json (e.g. grader-report/check/result.json)")
+    c.set_defaults(func=run_classroom_result)
+
     r = sub.add_parser("gradescope-run", help="grade a Gradescope submission (run_autograder calls this)",
                        description="Grades ROOT/submission with every item of the rubric and writes "
                                    "ROOT/results/results.json in Gradescope's format.")
@@ -53,6 +61,24 @@ def run_bundle(args: argparse.Namespace) -> int:
         print(f"  manual items, to create as Gradescope questions: {manual}")
     print(f"  on Gradescope: base image {BASE_IMAGE}; in the autograder settings give it 2 CPUs, "
           "4 GB of memory and a 20 minute timeout (it runs ROS 2 live)")
+    return 0
+
+
+def run_classroom_result(args: argparse.Namespace) -> int:
+    import os
+    import sys
+
+    from grader.lms.classroom import points, step_output
+
+    line, runner = step_output(args.result)
+    target = os.environ.get("GITHUB_OUTPUT")
+    if target:
+        with open(target, "a") as f:
+            f.write(line + "\n")
+    else:
+        print(line)
+    got, most = points(runner)
+    print(f"Points {got:g}/{most:g} ({runner['status']})", file=sys.stderr)
     return 0
 
 
