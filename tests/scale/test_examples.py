@@ -205,6 +205,7 @@ def test_classroom_runner_result_is_what_the_reporter_reads(tmp_path: Path) -> N
 
 @pytest.mark.slow
 @pytest.mark.ros
+@pytest.mark.timeout(1200)
 def test_classroom_workflow_steps_report_the_points(tmp_path: Path) -> None:
     """The workflow's own `grader` and Summary steps, run as GitHub runs a `run:` step (bash -eo
     pipefail, GITHUB_OUTPUT and GITHUB_STEP_SUMMARY files), in a student repository holding a Lab 3
