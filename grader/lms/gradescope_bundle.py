@@ -75,7 +75,7 @@ if [ ${{#need[@]}} -gt 0 ]; then
   fi
 fi
 
-"$PY" -m venv "$VENV"
+[ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"      # run again (a rebuilt image): keep the venv
 "$VENV/bin/python" -m pip install -q --disable-pip-version-check "pip=={pip}"
 "$VENV/bin/python" -m pip install -q --disable-pip-version-check "$SOURCE/{wheel}"
 "$VENV/bin/grader" setup --wheels
