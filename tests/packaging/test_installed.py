@@ -343,7 +343,8 @@ def test_gradescope_grades_hostile_submissions_in_the_jail(goal_setter_image: tu
     assert {k for k in after["cache"] if TAMPER in k} == set()
 
     honest = json.loads((roots["honest"] / "results" / "results.json").read_text())
-    rubric_text = (image / "source" / "rubric" / "rubrics" / "goal_setter.yaml").read_text()
+    rubric = next((image / "source" / "rubric").rglob("goal_setter.yaml"))     # where the bundle staged it
+    rubric_text = rubric.read_text()
     title = "Goal setter service, turtle controller and launch file"
     assert title in rubric_text
     for fault, root in roots.items():
@@ -376,7 +377,7 @@ def test_gradescope_grades_hostile_submissions_in_the_jail(goal_setter_image: tu
     # the honest submission graded by `grader grade` outside Gradescope: the same results
     subs = tmp_path / "local-subs"
     shutil.copytree(FAULTS / "honest", subs / "honest")
-    sh([venv_grader(autograder), "grade", subs, "--rubric", image / "source" / "rubric" / "rubrics" / "goal_setter.yaml",
+    sh([venv_grader(autograder), "grade", subs, "--rubric", rubric,
         "-o", tmp_path / "local", "--cache-dir", tmp_path / "local-cache", "--jobs", "2"], cwd=tmp_path, env=clean_env())
     local = json.loads((tmp_path / "local" / "honest" / "result.json").read_text())
     local_tests = {i["id"]: (float(i["points"] or 0), float(i["max_points"]), i["status"])
