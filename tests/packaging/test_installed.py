@@ -359,7 +359,7 @@ def test_gradescope_grades_hostile_submissions_in_the_jail(goal_setter_image: tu
         assert {"filesystem", "unprivileged user"} <= set(sandbox["active"]), sandbox
         logs = "".join(f.read_text(errors="replace")
                        for f in (root / "grader-out" / "submission").rglob("*.log"))
-        assert "SNOOPED" not in logs and title not in logs, fault      # nothing of source/ or the rubrics
+        assert not re.search(r"SNOOPED /", logs) and title not in logs, fault      # nothing of source/ or the rubrics
     tamper_logs = "".join(f.read_text(errors="replace")
                           for f in (roots["autograder_tamper"] / "grader-out" / "submission").rglob("*.log"))
     root = roots["autograder_tamper"]
