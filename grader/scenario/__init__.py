@@ -99,6 +99,9 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
 
     sandbox = ScenarioSandbox(prefixes=run.prefixes, env=env, memory_mb=run.scenario.limits.memory_mb,
                               name=run.id)
+    from grader.rosenv import trusted_env     # the students' Python trees: imported last, never run at start-up
+
+    env = trusted_env(env, [Path(p) for p in run.prefixes])
     with sandbox, open(out / "scenario.log", "wb") as log:
         argv = sandbox.argv([sys.executable, "-m", "grader.scenario.run", str(run_file), str(out)])
         proc = subprocess.Popen(argv, env=sandbox.env(env), stdout=log, stderr=subprocess.STDOUT,

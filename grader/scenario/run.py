@@ -390,6 +390,9 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m grader.scenario.run RUN.json OUT_DIR", file=sys.stderr)
         return 2
     run = ScenarioRun.model_validate_json(Path(argv[0]).read_text())
+    from grader.rosenv import add_student_paths
+
+    add_student_paths()        # the students' interface types, after the grader's own modules
     import faulthandler
     faulthandler.enable()      # a crash in rclpy leaves the Python stacks in scenario.log
     # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks

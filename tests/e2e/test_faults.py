@@ -12,6 +12,7 @@ import hashlib
 import json
 import os
 import shutil
+import sysconfig
 from pathlib import Path
 
 import pytest
@@ -23,6 +24,17 @@ REPO = Path(__file__).resolve().parents[2]
 FAULTS = REPO / "fixtures" / "faults"
 SPEC = yaml.safe_load((FAULTS / "expected.yaml").read_text())
 MARK = "grader-fault-"
+
+
+def plant_links(folder: Path) -> None:
+    """``symlink_folder``'s hostile links (fixtures/faults/make_archives.py)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("fault_archives", FAULTS / "make_archives.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.plant_links(folder)
+
 
 pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
 
@@ -58,6 +70,7 @@ def batch(tmp_path_factory) -> dict:
     shutil.copytree(FAULTS, subs, symlinks=True,
                     ignore=lambda d, names: [n for n in names if Path(d) == FAULTS and Path(d, n).is_file()
                                              and not n.endswith((".zip", ".tar.gz"))])
+    plant_links(subs / "symlink_folder")          # its links to /etc/passwd and / (never committed)
     huge = subs / "huge_file"
     shutil.copytree(FAULTS / "honest", huge)
     with open(huge / "src" / "turtle_goal" / "recording.bag", "wb") as f:     # 300 MB, sparse
@@ -110,6 +123,10 @@ def test_nothing_outside_the_output_changed(batch: dict) -> None:
     assert batch["home_after"] == batch["home_before"]
     assert not list(Path("/tmp").glob(f"{MARK}*"))
     assert not list(batch["out"].parent.glob(f"**/{MARK}*"))
+    site = Path(sysconfig.get_paths()["purelib"])            # the venv every student process runs in
+    assert not list(site.glob(f"{MARK}*"))
+    for planted in (site / "sitecustomize.py", site / "grader" / "__init__.py"):
+        assert not planted.exists() or MARK not in planted.read_text()
 
 
 def test_every_result_is_the_graders(batch: dict) -> None:
@@ -123,6 +140,8 @@ def test_the_reasons_are_in_the_results(batch: dict) -> None:
         return json.dumps(result(batch, sid).get("errors", [])) + json.dumps(result(batch, sid)["items"])
 
     assert "symbolic link" in problems("symlink_folder")
+    linked = json.dumps(result(batch, "symlink_folder"))
+    assert "rootdir -> /" in linked and "leak -> /etc/passwd" in linked       # the planted links were met
     assert "outside the archive" in problems("zip_slip") and "symbolic link" in problems("zip_slip")
     assert "link" in problems("symlink_tar")
     assert "MiB" in problems("huge_file")
@@ -133,3 +152,6 @@ def test_the_reasons_are_in_the_results(batch: dict) -> None:
     snooped = "".join(f.read_text(errors="replace") for f in (batch["out"] / "read_rubric").glob("scenarios/*/logs/*"))
     assert "Goal setter service, turtle controller and launch file" not in snooped      # the rubric's title
     assert "SNOOPED ENV" in snooped and "caller-secret-7f3a" not in snooped     # a minimal environment
+    tampered = "".join(f.read_text(errors="replace") for f in (batch["out"] / "autograder_tamper").glob("scenarios/*/logs/*"))
+    assert "TAMPER run start" in tampered and "sitecustomize.py: " in tampered and ": done" not in tampered
+    assert "SNOOPED" not in tampered
