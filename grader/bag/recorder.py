@@ -435,6 +435,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from grader.rosenv import add_student_paths
+
+    add_student_paths()     # started with a trusted env: the students' types, after our own modules
     return run(build_parser().parse_args(argv))
 
 
