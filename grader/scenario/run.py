@@ -248,6 +248,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
+                _wait_recorded(driver, recorder, record)
             start_hold = contextlib.ExitStack()
             if scale:
                 # the clock is held from here until the autostarted processes are up: a recorder
@@ -331,6 +332,28 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
+
+
+def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[str, Any]) -> None:
+    """Go on only once the recorder has recorded the simulator's poses (both topics).
+
+    The driver hearing the simulator says nothing about the recorder: it is another DDS
+    participant, and discovery between two participants takes up to ~1 s on a loaded machine
+    (grader/dds/fastdds_profile.xml). A scenario whose student code cannot start ends ~0.5 s
+    after this point; ``make demo`` recorded such a scenario (goal_setter's handout, graded
+    while other submissions were built) with no pose at all, and its pose integrity check
+    became "could not check" instead of "pass" (a test reproduces it with a recorder that
+    discovers the simulator late)."""
+    from grader.sim import truth_pose_topic
+
+    if recorder is None:
+        return
+    wanted = [driver.pose_topic or "/turtle1/pose"]
+    wanted.append(truth_pose_topic(wanted[0]))
+    if not driver.wait_until(lambda: all(recorder.recorded(t) for t in wanted), RECORDER_READY_S, wall=True):
+        missing = [t for t in wanted if not recorder.recorded(t)]
+        record["errors"].append(f"the recorder recorded nothing on {', '.join(missing)} within "
+                                f"{RECORDER_READY_S:.0f} s of the simulator's first pose")
 
 
 def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dict[str, Any],

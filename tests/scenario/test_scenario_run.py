@@ -86,3 +86,38 @@ def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path, time_scal
         held = {(m.clock.sec, m.clock.nanosec) for topic, t, m in msgs
                 if topic == "/clock" and marker_wall <= t <= marker_wall + 100_000_000}
         assert len(held) == 1, sorted(held)
+
+
+@pytest.mark.ros
+def test_a_scenario_starts_only_once_the_simulators_poses_are_recorded(tmp_path: Path, monkeypatch) -> None:
+    """The recorder is a DDS participant of its own: on a loaded machine it can discover the
+    simulator up to ~1 s after the driver does. A scenario whose student code cannot start ends
+    ~0.5 s later (``make demo``: goal_setter's handout had no pose in its bag, and its pose
+    integrity check could not run). Here the recorder is made to see the simulator's topics 2 s
+    late; the scenario still records its poses from the start. (Fails without the wait.)"""
+    import time
+
+    from grader.bag.frames import load_frames
+    from grader.bag.recorder import Recorder
+    from grader.scenario import run as scenario_run
+
+    for key in scenario_run.DISCOVERY_ENV:          # run_scenario_here sets them for its own nodes
+        monkeypatch.delenv(key, raising=False)
+    t0 = time.monotonic()
+    wanted = Recorder.wanted
+
+    def late(self, topic: str) -> bool:
+        if "turtle1/" in topic and time.monotonic() - t0 < 2.0:
+            return False
+        return wanted(self, topic)
+
+    monkeypatch.setattr(Recorder, "wanted", late)
+    scenario = Scenario.model_validate({"steps": [{"id": "short", "wait": 0.1}], "limits": {"wall_s": 30}})
+    record = scenario_run.run_scenario_here(resolve("late", scenario, None), tmp_path / "late")
+    assert record["errors"] == [], record
+    frames = load_frames(tmp_path / "late" / "bag")
+    events = [json.loads(d) for d in frames["/grader/events"]["data"]]
+    start = next(e["wall"] for e in events if e["event"] == "scenario_start")
+    for name in ("/turtle1/pose", "/grader/sim/turtle1/pose"):
+        assert name in frames and len(frames[name]) > 0, name
+        assert frames[name].index[0] <= start, name      # recorded before the scenario began
