@@ -39,7 +39,8 @@ SIM_READY_S = 15.0
 #: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
 #: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario
 STUDENT_STOP_GRACE_S = 2.0
-#: on simulated time: wall seconds a starting process may hold the clock until its node is up
+#: wall seconds a starting process may hold the clock until its node is up (at 1x: scenario time
+#: stands still meanwhile, so a step's limit never pays for a start-up; see ScenarioClock.held)
 NODE_UP_S = 15.0
 #: then wall seconds until the clock owner has matched the new nodes' /clock readers
 CLOCK_MATCH_S = 5.0
@@ -144,12 +145,12 @@ class Launcher:
                 self._wait_up(before, [lp.name])
 
     def _wait_up(self, before: tuple[set, int | None], names: list[str]) -> None:
-        """On simulated time, while the clock is held: wait (wall time) until the started
-        processes' nodes are in the graph with their topics recorded and the clock owner has
-        matched their ``/clock`` readers (or the processes ended), then a moment for their first
-        ``/clock``. ``before``: the student nodes and matched readers before they started."""
+        """While the clock is held: wait (wall time) until the started processes' nodes are in
+        the graph with their topics recorded (or the processes ended); on simulated time also
+        until the clock owner has matched their ``/clock`` readers, then a moment for their
+        first ``/clock``. ``before``: the student nodes and matched readers before they started."""
         clock = self.driver.clock
-        if not clock.simulated or not names:
+        if not names:
             return
         driver = self.driver
         before, readers = before
@@ -166,7 +167,7 @@ class Launcher:
             return not alive() or readers is None or now is None or \
                 now >= readers + len(driver.student_nodes() - before)
 
-        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and \
+        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and clock.simulated and \
                 driver.wait_until(clocked, CLOCK_MATCH_S, poll=0.02, wall=True):
             time.sleep(FIRST_CLOCK_S)
 

@@ -63,10 +63,11 @@ class ScenarioClock:
         return self.node.get_clock().now().nanoseconds / 1e9
 
     def now(self) -> float:
-        """Scenario seconds: monotonic at 1x; simulated + held wall time when scaled."""
-        if not self.simulated:
-            return time.monotonic()
+        """Scenario seconds: at 1x the wall clock less the time held (student processes
+        starting); scaled, simulated time plus the wall time held."""
         since = self._held_since
+        if not self.simulated:
+            return time.monotonic() - self.held_s - (time.monotonic() - since if since is not None else 0.0)
         return self.sim_s() + self.held_s + (time.monotonic() - since if since is not None else 0.0)
 
     def _poll(self, poll: float) -> float:
@@ -106,7 +107,7 @@ class ScenarioClock:
     def sleep_until(self, t: float) -> None:
         """Sleep until scenario time ``t`` (returns at once when it has passed)."""
         if not self.simulated:
-            delay = t - time.monotonic()
+            delay = t - self.now()
             if delay > 0:
                 time.sleep(delay)
             return
@@ -121,10 +122,26 @@ class ScenarioClock:
     # -- holding the clock while student processes start ---------------------------------------
     @contextlib.contextmanager
     def held(self) -> Iterator[None]:
-        """Hold the clock for the block (nested holds share one; a no-op at 1x). The clock
-        holds at its next grid point (:func:`grader.sim.clock.hold_point`: a starting node's
-        timers keep their phase)."""
-        if not self.simulated or self.hold_service is None:
+        """Hold the clock for the block (nested holds share one). The clock holds at its next
+        grid point (:func:`grader.sim.clock.hold_point`: a starting node's timers keep their
+        phase). At 1x nothing stops, but scenario time does not count the block either: a
+        step's limit never pays for a process's start-up, which a loaded machine stretches
+        (measured at load 29: the Lab 3 client took 9.5 s to come up, its step allowed 10)."""
+        if not self.simulated:
+            with self._lock:
+                self._holds += 1
+                if self._holds == 1:
+                    self._held_since = time.monotonic()
+            try:
+                yield
+            finally:
+                with self._lock:
+                    self._holds -= 1
+                    if self._holds == 0 and self._held_since is not None:
+                        self.held_s += time.monotonic() - self._held_since
+                        self._held_since = None
+            return
+        if self.hold_service is None:
             yield
             return
         with self._lock:
@@ -178,7 +195,7 @@ class ScenarioClock:
 
     def clock_readers(self) -> int | None:
         """While held: how many ``/clock`` readers the clock owner has matched (None otherwise)."""
-        if self._held_since is None:
+        if not self.simulated or self._held_since is None:
             return None
         reply = self._call(True)
         return reply[1] if reply else None
