@@ -93,6 +93,8 @@ EVIDENCE = {
     "K2_unwrapped": ("K2 if theta_e is not wrapped", "1/s"),
     "R2_angular_unwrapped": ("R² if theta_e is not wrapped", ""),
     "rows_where_wrap_matters": ("messages where wrapping changes theta_e", ""),
+    "rows_turning_fast": ("messages left out of the angular fit: theta_e changed too much in a tick", ""),
+    "max_tick_turn": ("theta_e change per tick beyond which a message is left out", "rad"),
     "wrap": ("theta_e wrapped to [−π, π]", ""),
     "r2_min": ("R² needed", ""),
     "min_d": ("closest distance used in the angular fit", "m"),

@@ -288,6 +288,20 @@ class Driver:
                 return None
             time.sleep(0.1)
 
+    def delivered(self, topic: str, timeout_s: float) -> bool:
+        """Wait (wall seconds) until every reliable reader of the driver's publisher on ``topic``
+        has acknowledged what was published (DDS acks: the samples are in the readers' queues);
+        True at once without such a publisher or readers."""
+        from rclpy.duration import Duration
+
+        pub = self._pubs.get(topic)
+        if pub is None:
+            return True
+        try:
+            return bool(pub.wait_for_all_acked(Duration(nanoseconds=int(timeout_s * 1e9))))
+        except Exception:  # noqa: BLE001 - an RMW without the call: nothing to wait for
+            return True
+
     def publisher(self, topic: str, type_name: str):
         if topic not in self._pubs:
             self._pubs[topic] = self.node.create_publisher(self._import(type_name), topic, 10)

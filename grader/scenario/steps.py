@@ -124,6 +124,13 @@ PLACE_WAIT_S = 2.0
 #: controller that spins fast (theta_e in degrees, no wrap) faced a different heading at every
 #: hand-over (issue 22: ex2.turn_direction 0.75/3 in one run, 3/3 in the next)
 PLACE_HANDOFF_S = 0.15
+#: ... and longer on a loaded machine: first until the goal's readers have acknowledged it (DDS),
+#: then until the turtle's controller has sent this many commands since (the later ones computed
+#: with the new goal: an executor takes every ready message before it runs a timer again), each
+#: wait at most HANDOFF_MAX_S of wall time. At load 29 a goal took over 0.1 s to reach a correct
+#: controller, and its first "new" command was still for the old goal (turn_direction 3/4).
+HANDOFF_COMMANDS = 2
+HANDOFF_MAX_S = 2.0
 
 
 def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> dict[str, Any]:
@@ -159,12 +166,26 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> d
             "seen": None if pose is None else [round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)]}
 
 
-def _hand_over(driver: Driver) -> None:
-    """The turtle stays held ``PLACE_HANDOFF_S`` of scenario time, and at least as much wall
-    time (the goal's way to the student's node takes wall time at any speed)."""
+def _hand_over(rt: Runtime, step: m.Step) -> None:
+    """Keep the placed turtle held until its controller has the step's goal: the goal message
+    acknowledged by its readers, ``PLACE_HANDOFF_S`` of scenario time (and at least as much wall
+    time: the goal's way takes wall time at any speed), and ``HANDOFF_COMMANDS`` commands on the
+    turtle's cmd_vel since the acknowledgement (each wait at most ``HANDOFF_MAX_S``)."""
+    driver = rt.driver
     wall_end = time.monotonic() + PLACE_HANDOFF_S
+    sent = rt.scenario.goal_topic if step.goal is not None else step.publish.topic if step.publish else None
+    if sent is not None:
+        driver.delivered(sent, HANDOFF_MAX_S)
+    cmd = handoff_topic(step.place)
+    base = driver.counts.get(cmd, 0)
     driver.clock.sleep(PLACE_HANDOFF_S)
     time.sleep(max(0.0, wall_end - time.monotonic()))
+    driver.wait_until(lambda: driver.counts.get(cmd, 0) - base >= HANDOFF_COMMANDS, HANDOFF_MAX_S, wall=True)
+
+
+def handoff_topic(place: m.Placement) -> str:
+    """The placed turtle's command topic: its commands show the controller has the new goal."""
+    return f"/{place.turtle}/cmd_vel"
 
 
 def placement_topic(place: m.Placement) -> str:
@@ -325,6 +346,7 @@ def prepare(rt: Runtime) -> None:
         if step.place is not None:
             rt.driver.watch_pose(placement_topic(step.place))
             rt.driver.prepare_turtle_hold()      # its client discovered before it is needed
+            rt.driver.count_messages(handoff_topic(step.place), "geometry_msgs/msg/Twist", wait_s=0.0)
 
 
 # --------------------------------------------------------------------------------- conditions
@@ -425,7 +447,7 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
         # held from before the teleport until the goal is handed over (callbacks run last first)
         driver.hold_turtles(True, step.id)
         handoff.callback(driver.hold_turtles, False, step.id)
-        handoff.callback(_hand_over, driver)
+        handoff.callback(_hand_over, rt, step)
         state.detail = {"placed": _place(rt, step, step.place, state)}
     if step.target is not None and not isinstance(action, m.Goal):
         # a goal set some other way (e.g. a service call): it is active from before the action,
