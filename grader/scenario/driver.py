@@ -123,6 +123,7 @@ class Driver:
         self._hold_client: Any = None              # the simulator's hold_turtles (placements)
         self._held_since: float | None = None
         self.turtle_hold_requests = 0
+        self.commands: dict[str, list] = {}       # topic -> [count, last (linear.x, linear.y, angular.z)]
         self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
                                       self._on_rosout, QoSProfile(depth=1000))
         if time_scale > 1:   # output lines reach the bag as often, in scenario time, as at 1x
@@ -288,19 +289,20 @@ class Driver:
                 return None
             time.sleep(0.1)
 
-    def delivered(self, topic: str, timeout_s: float) -> bool:
-        """Wait (wall seconds) until every reliable reader of the driver's publisher on ``topic``
-        has acknowledged what was published (DDS acks: the samples are in the readers' queues);
-        True at once without such a publisher or readers."""
-        from rclpy.duration import Duration
+    def watch_commands(self, topic: str) -> None:
+        """Keep the velocity commands on ``topic`` (a Twist topic) in ``commands[topic]``: how
+        many so far and the last one (linear.x, linear.y, angular.z), so a hand-over can tell
+        when a controller's commands change with its new goal."""
+        if topic in self._subs:
+            return
+        self.commands[topic] = [0, None]
 
-        pub = self._pubs.get(topic)
-        if pub is None:
-            return True
-        try:
-            return bool(pub.wait_for_all_acked(Duration(nanoseconds=int(timeout_s * 1e9))))
-        except Exception:  # noqa: BLE001 - an RMW without the call: nothing to wait for
-            return True
+        def on_cmd(msg: Any) -> None:
+            entry = self.commands[topic]
+            entry[0] += 1
+            entry[1] = (msg.linear.x, msg.linear.y, msg.angular.z)
+
+        self._subs[topic] = self.node.create_subscription(self._import("geometry_msgs/msg/Twist"), topic, on_cmd, 100)
 
     def publisher(self, topic: str, type_name: str):
         if topic not in self._pubs:

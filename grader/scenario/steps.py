@@ -124,13 +124,16 @@ PLACE_WAIT_S = 2.0
 #: controller that spins fast (theta_e in degrees, no wrap) faced a different heading at every
 #: hand-over (issue 22: ex2.turn_direction 0.75/3 in one run, 3/3 in the next)
 PLACE_HANDOFF_S = 0.15
-#: ... and longer on a loaded machine: first until the goal's readers have acknowledged it (DDS),
-#: then until the turtle's controller has sent this many commands since (the later ones computed
-#: with the new goal: an executor takes every ready message before it runs a timer again), each
-#: wait at most HANDOFF_MAX_S of wall time. At load 29 a goal took over 0.1 s to reach a correct
-#: controller, and its first "new" command was still for the old goal (turn_direction 3/4).
-HANDOFF_COMMANDS = 2
+#: ... and longer on a loaded machine: until the turtle's controller has sent a command that differs
+#: from its last one before the goal (the held pose is constant, so a changed command is one
+#: computed with the new goal) and one more after that, at most HANDOFF_MAX_S of wall time. At
+#: load 29 a goal took over 0.1 s to reach a correct controller, whose last command before the
+#: release was then still for the old goal (turn_direction 3/4 in one run of three). (DDS's own
+#: acknowledgement, Publisher.wait_for_all_acked, never came within 2 s from a sandboxed reader.)
 HANDOFF_MAX_S = 2.0
+#: wall seconds a placement waits for the controller's commands from the placed pose (two of them)
+#: before the goal is sent, so that the command the hand-over compares with is already from there
+PLACE_SETTLE_S = 0.25
 
 
 def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> dict[str, Any]:
@@ -166,21 +169,38 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> d
             "seen": None if pose is None else [round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)]}
 
 
-def _hand_over(rt: Runtime, step: m.Step) -> None:
-    """Keep the placed turtle held until its controller has the step's goal: the goal message
-    acknowledged by its readers, ``PLACE_HANDOFF_S`` of scenario time (and at least as much wall
-    time: the goal's way takes wall time at any speed), and ``HANDOFF_COMMANDS`` commands on the
-    turtle's cmd_vel since the acknowledgement (each wait at most ``HANDOFF_MAX_S``)."""
+def _hand_over(rt: Runtime, step: m.Step, state: StepState, before: tuple[int, Any]) -> None:
+    """Keep the placed turtle held until its controller has the step's goal: ``PLACE_HANDOFF_S``
+    of scenario time (and at least as much wall time: the goal's way takes wall time at any
+    speed), then until it has sent a command other than its last one before the goal (``before``:
+    the count and last command then, :func:`_command_at_placement`) and one more, at most
+    ``HANDOFF_MAX_S``. What happened goes into the step's record (``handoff``)."""
     driver = rt.driver
-    wall_end = time.monotonic() + PLACE_HANDOFF_S
-    sent = rt.scenario.goal_topic if step.goal is not None else step.publish.topic if step.publish else None
-    if sent is not None:
-        driver.delivered(sent, HANDOFF_MAX_S)
-    cmd = handoff_topic(step.place)
-    base = driver.counts.get(cmd, 0)
+    t0 = time.monotonic()
     driver.clock.sleep(PLACE_HANDOFF_S)
-    time.sleep(max(0.0, wall_end - time.monotonic()))
-    driver.wait_until(lambda: driver.counts.get(cmd, 0) - base >= HANDOFF_COMMANDS, HANDOFF_MAX_S, wall=True)
+    time.sleep(max(0.0, t0 + PLACE_HANDOFF_S - time.monotonic()))
+    entry = driver.commands.get(handoff_topic(step.place), [0, None])
+    seen: list[int] = []
+
+    def taken() -> bool:
+        if not seen and entry[0] > before[0] and entry[1] != before[1]:
+            seen.append(entry[0])           # the first command that differs (the new goal's)
+        return bool(seen) and entry[0] > seen[0]
+
+    ok = driver.wait_until(taken, HANDOFF_MAX_S, poll=0.002, wall=True)
+    state.detail["handoff"] = {"new_command": ok, "commands": entry[0] - before[0],
+                               "held_s": round(time.monotonic() - t0, 3)}
+
+
+def _command_at_placement(rt: Runtime, step: m.Step) -> tuple[int, Any]:
+    """The controller's command once it has seen the placement (still for the old goal): wait
+    until it has sent two commands since the placement showed (at most ``PLACE_SETTLE_S``; a
+    controller without a goal may send none), then note how many it sent and the last one."""
+    driver = rt.driver
+    entry = driver.commands.get(handoff_topic(step.place), [0, None])
+    start = entry[0]
+    driver.wait_until(lambda: entry[0] >= start + 2, PLACE_SETTLE_S, poll=0.002, wall=True)
+    return entry[0], entry[1]
 
 
 def handoff_topic(place: m.Placement) -> str:
@@ -346,7 +366,7 @@ def prepare(rt: Runtime) -> None:
         if step.place is not None:
             rt.driver.watch_pose(placement_topic(step.place))
             rt.driver.prepare_turtle_hold()      # its client discovered before it is needed
-            rt.driver.count_messages(handoff_topic(step.place), "geometry_msgs/msg/Twist", wait_s=0.0)
+            rt.driver.watch_commands(handoff_topic(step.place))
 
 
 # --------------------------------------------------------------------------------- conditions
@@ -447,8 +467,8 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
         # held from before the teleport until the goal is handed over (callbacks run last first)
         driver.hold_turtles(True, step.id)
         handoff.callback(driver.hold_turtles, False, step.id)
-        handoff.callback(_hand_over, rt, step)
         state.detail = {"placed": _place(rt, step, step.place, state)}
+        handoff.callback(_hand_over, rt, step, state, _command_at_placement(rt, step))
     if step.target is not None and not isinstance(action, m.Goal):
         # a goal set some other way (e.g. a service call): it is active from before the action,
         # so whatever the student's nodes do in answer (even a teleport) falls inside its window
