@@ -112,8 +112,9 @@ def unburn(procs: list[subprocess.Popen]) -> None:
         p.wait()
 
 
-def grade(lab: str, subs: Path, out: Path, jobs: int, cache: Path, scenarios: list[str] | None) -> float:
-    """One lab's class graded like ``grader grade --no-reuse --jobs J``; wall seconds."""
+def grade(lab: str, subs: Path, out: Path, jobs: int, cache: Path, scenarios: list[str] | None) -> tuple[float, int]:
+    """One lab's class graded like ``grader grade --no-reuse --jobs J``; wall seconds and the
+    most scenarios that ran at once (``--jobs`` is an upper bound: grader.grading.schedule)."""
     from grader.grading.batch import grade_batch
     from grader.grading.pipeline import discover_submissions
     from grader.grading.schedule import Slots
@@ -124,8 +125,9 @@ def grade(lab: str, subs: Path, out: Path, jobs: int, cache: Path, scenarios: li
         keep = [i for i in rubric.items if not i.automatic or set(i.scenario) & set(scenarios)]
         rubric = rubric.model_copy(update={"items": keep})
     t0 = time.monotonic()
-    grade_batch(discover_submissions(subs), rubric, out, slots=Slots(jobs), cache_dir=cache, reuse=False)
-    return time.monotonic() - t0
+    slots = Slots(jobs)
+    grade_batch(discover_submissions(subs), rubric, out, slots=slots, cache_dir=cache, reuse=False)
+    return time.monotonic() - t0, slots.peak
 
 
 def item_outcomes(out: Path) -> dict[tuple[str, str], dict[str, Any]]:
@@ -197,17 +199,18 @@ def main() -> int:
         for run, (j, k) in enumerate(zip(jobs, loads)):
             burners = burn(k)
             t0, load0 = time.monotonic(), os.getloadavg()[0]
+            peak = 0
             try:
                 for lab in labs:
                     out = work / f"run{run + 1}" / lab
                     shutil.rmtree(out, ignore_errors=True)
-                    grade(lab, classes[lab], out, j, work / "cache", args.scenarios)
+                    peak = max(peak, grade(lab, classes[lab], out, j, work / "cache", args.scenarios)[1])
                     for (sub, item), got in item_outcomes(out).items():
                         seen[(lab, sub, item)].append(got)
             finally:
                 unburn(burners)
             walls.append(time.monotonic() - t0)
-            print(f"run {run + 1}: --jobs {j}, {k} CPU burner(s): {walls[-1]:.0f} s "
+            print(f"run {run + 1}: --jobs {j}, {k} CPU burner(s): {walls[-1]:.0f} s, at most {peak} at once "
                   f"(load {load0:.1f} -> {os.getloadavg()[0]:.1f})", flush=True)
         differing = {key: v for key, v in seen.items()
                      if len({(o["status"], o["points"]) for o in v}) > 1 or len(v) != len(jobs)}
