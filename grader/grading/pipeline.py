@@ -321,15 +321,21 @@ def _record_one(sid: str, sc_id: str, scenario, build, folder: Path, slots, reco
     """One recording of a scenario: copied from an identical earlier recording, or run (within
     a slot). Run ``run`` > 1 of a repeated scenario is a recording of its own (its own key)."""
     from grader.grading.reuse import RecordingCache, reusable, scenario_key
+    from grader.grading.starvation import record_unstarved
     from grader.grading.timescale import run_at_scale
     from grader.scenario import resolve
 
     settings = recording_settings(time_scale) + (f";run={run}" if run > 1 else "")
     key = (scenario_key(sc_id, scenario, build, settings=settings)
            if recordings is not None else None)
+
+    def make() -> dict:              # made again while the machine starves it (grader.grading.starvation)
+        return record_unstarved(lambda: run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build,
+                                                     rates), folder)
+
     if key is None:
         with slots.taken():
-            return run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
+            return make()
     cache = RecordingCache(recordings)
     with cache.locked(key):
         t0 = time.monotonic()
@@ -342,10 +348,10 @@ def _record_one(sid: str, sc_id: str, scenario, build, folder: Path, slots, reco
             (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
             return record
         with slots.taken():
-            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
-        if reusable(record):
+            made = make()
+        if reusable(made):
             cache.put(key, folder, sid)
-        return record
+        return made
 
 
 def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:

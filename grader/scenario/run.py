@@ -29,6 +29,7 @@ from typing import Any, Iterator
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
+from grader.scenario.cpuwait import cpu_wait
 from grader.scenario.events import Event
 from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
@@ -215,7 +216,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
         record["time_scale"] = {"used": scale}
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
-    driver = recorder = None
+    driver = recorder = sim = None
     with RosGraph(out) as graph:
         record["domain_id"] = graph.domain_id
         _discover_like(graph)
@@ -311,6 +312,9 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 driver.event(Event.SCENARIO_ERROR, error=f"{type(exc).__name__}: {exc}")
         finally:
             record["output_cut"] = graph.output_cuts()
+            # how starved the run was (before anything is stopped): see grader.scenario.cpuwait
+            record["cpu_wait"] = cpu_wait({"scenario": os.getpid(), "turtlesim": sim.pid if sim is not None else None,
+                                           **{n: p.pid for n, p in students.items() if p.alive()}})
             # on simulated time the shutdown's wall time must not run the simulation on
             if scale and driver is not None and not driver.clock.stop():
                 record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "
