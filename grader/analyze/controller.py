@@ -74,7 +74,12 @@ EVIDENCE = {
     "wrap_matters": ("wrapping changes the turn", ""),
     "evaluated": ("judged", ""),
     "initial_turn": ("first turned", ""),
-    "first_cmd_angular_z": ("first angular.z sent", "rad/s"),
+    "first_cmd_angular_z": ("angular.z of the controller's first command for the goal", "rad/s"),
+    "commanded_turn": ("the controller's first command for the goal turned", ""),
+    "command_sent_s": ("that command sent this long after the goal", "s"),
+    "turn": ("turned (the verdict)", ""),
+    "basis": ("judged from", ""),
+    "judged_from_s": ("judged from this long after the goal was sent", "s"),
     "ambiguous": ("either way is fine (near 180°)", ""),
     "short_way": ("turned the short way", ""),
     "min_turn_deg": ("goals judged from a turn of", "deg"),
@@ -88,6 +93,8 @@ EVIDENCE = {
     "K2_unwrapped": ("K2 if theta_e is not wrapped", "1/s"),
     "R2_angular_unwrapped": ("R² if theta_e is not wrapped", ""),
     "rows_where_wrap_matters": ("messages where wrapping changes theta_e", ""),
+    "rows_turning_fast": ("messages left out of the angular fit: theta_e changed too much in a tick", ""),
+    "max_tick_turn": ("theta_e change per tick beyond which a message is left out", "rad"),
     "wrap": ("theta_e wrapped to [−π, π]", ""),
     "r2_min": ("R² needed", ""),
     "min_d": ("closest distance used in the angular fit", "m"),
@@ -264,15 +271,27 @@ def _wall_contacts(frames: Frames, t: np.ndarray, x: np.ndarray, y: np.ndarray, 
     "min_turn_deg": 90.0,     # goals whose required turn is at least this are evaluated
     "wrap_turn_deg": 10.0,    # ... and goals where wrapping changes the turn, if at least this
     "ambiguous_deg": 10.0,    # within this of 180 deg both directions are accepted
-    "detect_deg": 5.0,        # heading change that marks the initial rotation
-    "react_s": 0.1,           # the turn is measured from this long after the goal (commands the
-                              # controller computed before it had the goal still act until then)
+    "detect_deg": 5.0,        # heading change that marks the turtle's first turn (evidence, and the
+                              # verdict for a controller that turns without cmd_vel)
+    "react_s": 0.1,           # a goal handed over without a hold: commands and turns count from
+                              # this long after it (the controller may still be steering for the
+                              # previous goal until its new one arrives)
     "cmd_topic": "/turtle1/cmd_vel",
 })
 def turn_direction(frames: Frames, p: dict) -> Finding:
     """For goals needing a large turn (or where the naive angle difference crosses +-pi), did the
-    turtle start rotating the short way? Judged from the heading in /turtle1/pose (what the turtle
-    did), with the first angular.z on cmd_vel as supporting evidence.
+    controller turn the short way? Judged from the sign of angular.z of the command the controller
+    computed for the goal from the pose it was handed over at, against the turn needed from there.
+
+    Why a command and not the path: when the step places the turtle, the simulator holds it still
+    until the goal has been handed over (``turtles_released``), so the last command sent before
+    the release was computed from the placement and the new goal, the same in every run. The
+    path that follows is chaotic for exactly the controllers this item is about: one whose
+    heading error is in degrees turns up to 3 rad per 16 ms tick, overshoots at once and turns
+    back, so which way its heading seems to go, and the sign of its later commands, depend on
+    its timer's phase. Without a hold, the first turning command from ``react_s`` after the goal
+    decides. The heading the turtle took is kept as evidence, and decides only for a controller
+    that sends no turning command (e.g. one that uses rotate_absolute).
     """
     pose = _pose(frames, p)
     if pose is None:
@@ -283,6 +302,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
     cmd = topic(frames, p["cmd_topic"])
+    released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
     rows, judged, good = [], 0, 0
     series: list[dict] = []
     for k, g in enumerate(gl, 1):
@@ -305,20 +325,33 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             rows.append(row)
             continue
         row["evaluated"] = True
-        i1 = min(int(np.searchsorted(t, g.t + p["react_s"], side="left")), len(t) - 1)
-        m1 = (t >= t[i1]) & (t <= g.t_end)
-        dth = np.unwrap(th[m1]) - th[i1]
-        over = np.nonzero(np.abs(dth) >= math.radians(p["detect_deg"]))[0]
-        turn = int(np.sign(dth[over[0]])) if len(over) else 0
-        row["initial_turn"] = {1: "left (CCW)", -1: "right (CW)", 0: "none"}[turn]
+        # a held hand-over: the last command before the release (computed from the placement);
+        # else the first turning command from react_s after the goal
+        t_release = released.get(g.extra.get("step"))
+        t_from = t_release if t_release is not None else g.t + p["react_s"]
+        row["judged_from_s"] = float(t_from - g.t)
+        pose_turn = _first_turn(t, th, t_from, g.t_end, p["detect_deg"])
+        row["initial_turn"] = _TURN_WORDS[pose_turn]
+        w_judged = None
         if cmd is not None and "angular.z" in cmd.columns:
-            ct = times(cmd)
+            ct = cmd["pub_t"].to_numpy(float) if "pub_t" in cmd.columns else times(cmd)
+            ct = np.where(np.isfinite(ct), ct, times(cmd))
             w = cmd["angular.z"].to_numpy(float)
-            sel = (ct >= g.t + p["react_s"]) & (ct <= g.t_end) & (np.abs(w) > 1e-3)
-            row["first_cmd_angular_z"] = float(w[sel][0]) if sel.any() else None
+            turning = np.abs(w) > 1e-3
+            during = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
+            after = np.nonzero(turning & (ct > t_from) & (ct <= g.t_end))[0]
+            if len(during):
+                w_judged, row["command_sent_s"] = float(w[during[-1]]), float(ct[during[-1]] - g.t)
+            elif len(after):
+                w_judged, row["command_sent_s"] = float(w[after[0]]), float(ct[after[0]] - g.t)
+            row["first_cmd_angular_z"] = w_judged
+        cmd_turn = int(np.sign(w_judged)) if w_judged is not None else 0
+        row["commanded_turn"] = _TURN_WORDS[cmd_turn]
+        turn = cmd_turn if w_judged is not None else pose_turn
+        row["basis"] = "command" if w_judged is not None else "pose"
         ambiguous = abs(req) >= math.pi - math.radians(p["ambiguous_deg"])
         ok = turn != 0 and (ambiguous or turn == int(np.sign(req)))
-        row.update(ambiguous=bool(ambiguous), short_way=bool(ok))
+        row.update(ambiguous=bool(ambiguous), short_way=bool(ok), turn=_TURN_WORDS[turn])
         judged += 1
         good += ok
         rows.append(row)
@@ -332,19 +365,33 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"The turtle turned the short way for all {judged} large-turn goal(s).", ev)
     bad = [r for r in rows if r.get("evaluated") and not r.get("short_way")]
     r = bad[0]
-    if r["initial_turn"] == "none":
+    if r["turn"] == "none":
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle did not turn at all (needed "
                f"{r['required_turn_deg']:+.0f}°): the angular command should be proportional to "
                "the heading error.")
     else:
+        how = ("the controller's first command for it turned" if r["basis"] == "command"
+               else "the turtle started turning")
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle needed to turn {r['required_turn_deg']:+.0f}° "
-               f"but started turning {r['initial_turn']}, the long way.")
+               f"but {how} {r['turn']}, the long way.")
         if r["wrap_matters"]:
             msg += (" The heading error must be wrapped to (-π, π]: atan2(dy, dx) - theta is not "
                     "(atan2(sin e, cos e) wraps it).")
         else:
             msg += " Check the sign of the heading error and of the angular gain."
     return Finding(value, frac, graded(frac), msg, ev)
+
+
+_TURN_WORDS = {1: "left (CCW)", -1: "right (CW)", 0: "none"}
+
+
+def _first_turn(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, detect_deg: float) -> int:
+    """Which way the heading first moved by ``detect_deg`` after ``t_from`` (+1 left, -1 right, 0)."""
+    i1 = min(int(np.searchsorted(t, t_from, side="left")), len(t) - 1)
+    m1 = (t >= t[i1]) & (t <= t_end)
+    dth = np.unwrap(th[m1]) - th[i1]
+    over = np.nonzero(np.abs(dth) >= math.radians(detect_deg))[0]
+    return int(np.sign(dth[over[0]])) if len(over) else 0
 
 
 def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,

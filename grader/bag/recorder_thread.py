@@ -55,6 +55,13 @@ class RecorderThread:
         if self.error is not None:
             raise GraderError(f"the recorder stopped: {type(self.error).__name__}: {self.error}")
 
+    def recorded(self, topic: str) -> int:
+        """Messages written on ``topic`` so far (0 while the recorder has not subscribed to it or
+        nothing has arrived): the proof that a publisher is being recorded, which a graph query
+        cannot give (the subscription may exist before DDS has matched it with the publisher)."""
+        entry = self.recorder.writer.topics.get(topic)
+        return entry.info.message_count if entry is not None else 0
+
     def stop(self, timeout_s: float = 20.0) -> int | None:
         self.recorder.stop = True
         if self._thread.is_alive():

@@ -17,7 +17,11 @@ def versions() -> dict[str, str]:
 
 
 def _canvases(sub_out: Path) -> dict[str, str]:
-    return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
+    """Each scenario's canvas (of its first run when it ran more than once)."""
+    from grader.grading.repeat import scenario_of
+
+    return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))
+            if scenario_of(p.parent.name) == p.parent.name}
 
 
 def effective_params(rubric) -> dict[str, dict]:

@@ -107,7 +107,8 @@ class _Page:
         if item.kind == "manual":
             return ""
         text = readable.measured_sentence(item, self._visible_params(item), student_view=self.student)
-        return f'<p class="measured">{escape(text)}</p>'
+        runs = readable.spread_text(item.decided)       # a repeated scenario: how its runs came out
+        return f'<p class="measured">{escape(text)}</p>' + (f'<p class="runs">{escape(runs)}</p>' if runs else "")
 
     def card(self, item: ItemResult) -> str:
         """A failing item in full: measured vs expected, feedback, hint, figure, details."""

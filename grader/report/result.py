@@ -76,6 +76,7 @@ def item_to_dict(item: ItemResult) -> dict[str, Any]:
         "hidden_params": list(item.hidden_params),
         "requires": list(item.requires),
         "analyzer": item.analyzer,
+        "decided": jsonable(item.decided),
     }
 
 
@@ -146,7 +147,7 @@ def result_from_dict(doc: Mapping[str, Any]) -> Result:
         feedback=i["feedback"], hint=i.get("hint"), value=i.get("value"),
         fraction=i.get("fraction"), evidence=i.get("evidence") or {}, params=i.get("params") or {},
         hidden_params=tuple(i.get("hidden_params") or ()), requires=tuple(i.get("requires") or ()),
-        analyzer=i.get("analyzer")) for i in doc["items"])
+        analyzer=i.get("analyzer"), decided=i.get("decided") or {}) for i in doc["items"])
     specs = tuple(SectionSpec(section=section(s["section"]), title=s.get("name")) for s in doc.get("sections", []))
     hidden = doc.get("hidden") or {}
     late = None

@@ -49,6 +49,9 @@ class ItemResult:
     fraction: float | None = None
     evidence: Mapping[str, Any] = field(default_factory=dict)
     params: Mapping[str, Any] = field(default_factory=dict)       # thresholds that decided it
+    #: how it was decided (grader.grading.repeat): {"by": "one run", "runs": 1}, or the median of
+    #: repeated runs with how many agreed and each run's outcome and points; {} for manual items
+    decided: Mapping[str, Any] = field(default_factory=dict)
     hidden_params: tuple[str, ...] = ()                           # not shown to students
     requires: tuple[str, ...] = ()                                # items gating its points
     analyzer: str | None = None  # the report looks up evidence labels and figures by analyzer
@@ -319,8 +322,22 @@ def _score_auto(item: Item, finding: FindingLike | None) -> ItemResult:
         points = 0.0
     evidence = getattr(finding, "evidence", None) or {}
     text = _feedback(item, status, finding, fraction, points, evidence)
-    return _result(item, points, status, text, fraction, value=getattr(finding, "value", None),
-                   evidence=evidence, params=getattr(finding, "params", None) or None)
+    decided = dict(getattr(finding, "decided", None) or {"by": "one run", "runs": 1})
+    if decided.get("outcomes"):           # each run's points and status under this item's rule
+        decided["outcomes"] = [{**o, **_scored(item, o.get("status"), o.get("fraction"))}
+                               for o in decided["outcomes"]]
+    return replace(_result(item, points, status, text, fraction, value=getattr(finding, "value", None),
+                           evidence=evidence, params=getattr(finding, "params", None) or None),
+                   decided=decided)
+
+
+def _scored(item: Item, status: Any, fraction: Any) -> dict[str, Any]:
+    """One run's points and status as this item scores them (as in :func:`_score_auto`)."""
+    if item.kind != "auto" or status == "error":
+        return {"points": 0.0, "status": status}
+    points = round(item.partial.credit(_fraction(fraction)) * item.points, 2)
+    return {"points": points,
+            "status": "pass" if points >= item.points - 1e-9 else "fail" if points <= 1e-9 else "partial"}
 
 
 def _fraction(value: Any) -> float:

@@ -120,6 +120,10 @@ class Driver:
         self.lines: dict[str, list[str]] = {}      # process -> output lines seen so far
         self._watch: set[str] = set()              # topics to count once they appear
         self.watchdog: Any = None                  # a RateWatchdog on simulated time (run.py)
+        self._hold_client: Any = None              # the simulator's hold_turtles (placements)
+        self._held_since: float | None = None
+        self.turtle_hold_requests = 0
+        self.commands: dict[str, list] = {}       # topic -> [count, last (linear.x, linear.y, angular.z)]
         self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
                                       self._on_rosout, QoSProfile(depth=1000))
         if time_scale > 1:   # output lines reach the bag as often, in scenario time, as at 1x
@@ -285,10 +289,61 @@ class Driver:
                 return None
             time.sleep(0.1)
 
+    def watch_commands(self, topic: str) -> None:
+        """Keep the velocity commands on ``topic`` (a Twist topic) in ``commands[topic]``: how
+        many so far and the last one (linear.x, linear.y, angular.z), so a hand-over can tell
+        when a controller's commands change with its new goal."""
+        if topic in self._subs:
+            return
+        self.commands[topic] = [0, None]
+
+        def on_cmd(msg: Any) -> None:
+            entry = self.commands[topic]
+            entry[0] += 1
+            entry[1] = (msg.linear.x, msg.linear.y, msg.angular.z)
+
+        self._subs[topic] = self.node.create_subscription(self._import("geometry_msgs/msg/Twist"), topic, on_cmd, 100)
+
     def publisher(self, topic: str, type_name: str):
         if topic not in self._pubs:
             self._pubs[topic] = self.node.create_publisher(self._import(type_name), topic, 10)
         return self._pubs[topic]
+
+    # -- holding the turtles still (grader.sim: ~/hold_turtles) --------------------------------
+    def prepare_turtle_hold(self) -> None:
+        """Create the client of the simulator's ``hold_turtles`` service before the scenario
+        starts (only scenarios that place the turtle use it), so it is discovered in time."""
+        if self._hold_client is None:
+            from std_srvs.srv import SetBool
+
+            from grader.sim import HOLD_TURTLES_SERVICE
+
+            self._hold_client = self.node.create_client(SetBool, f"/{self.sim_node}/{HOLD_TURTLES_SERVICE}")
+
+    def hold_turtles(self, on: bool, step: str | None = None, wait_s: float = 5.0) -> bool:
+        """Hold every turtle still (``on``) or let them move again; True when the simulator
+        answered. Counted in ``turtle_hold_requests`` (the simulator counts what it serves)."""
+        from std_srvs.srv import SetBool
+
+        self.prepare_turtle_hold()
+        ok = False
+        if self._hold_client.wait_for_service(timeout_sec=wait_s):
+            self.turtle_hold_requests += 1
+            with self.executor_paused():
+                future = self._hold_client.call_async(SetBool.Request(data=on))
+            end = time.monotonic() + wait_s
+            while not future.done() and time.monotonic() < end:
+                time.sleep(0.001)
+            ok = future.done() and future.result() is not None
+        if on:
+            self._held_since = time.monotonic()
+            self.event(Event.TURTLES_HELD, step=step, ok=ok)
+        else:
+            held_s = time.monotonic() - self._held_since if self._held_since is not None else None
+            self._held_since = None
+            self.event(Event.TURTLES_RELEASED, step=step, ok=ok,
+                       held_s=None if held_s is None else round(held_s, 3))
+        return ok
 
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float, poll: float = 0.02,
                    *, wall: bool = False) -> bool:

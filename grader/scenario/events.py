@@ -36,6 +36,8 @@ class Event(StrEnum):
     ACTION_GOAL_UNANSWERED = "action_goal_unanswered"  # step, action, waited_s (no response, no status)
     ACTION_RESULT = "action_result"          # step, action, status, result
     ACTION_CANCEL_SENT = "action_cancel_sent"        # step
+    TURTLES_HELD = "turtles_held"            # step, ok (the simulator holds every turtle still)
+    TURTLES_RELEASED = "turtles_released"    # step, ok, held_s (the turtles move again)
     REPLAY_START = "replay_start"            # step, topics, count, rate_hz, bag
     REPLAY_END = "replay_end"                # step, count, outputs, paced, duration_s
     # processes

@@ -326,6 +326,15 @@ class Scenario(Model):
     limits: Limits = Limits()
     real_time: bool = Field(False, description="run at 1x even with --time-scale (the scenario judges "
                             "wall-clock behaviour; say why in a comment)")
+    repeat: int = Field(1, ge=1, le=9, description="run it this many times (odd) and grade each of its items "
+                        "by the median run (an item that stays timing-sensitive; say why in a comment)")
+
+    @field_validator("repeat")
+    @classmethod
+    def _odd_repeat(cls, value: int) -> int:
+        if value % 2 == 0:
+            raise ValueError(f"must be odd (1, 3, 5...): the median of {value} runs would not be one run's result")
+        return value
 
     @model_validator(mode="after")
     def _goal_publishing(self) -> "Scenario":

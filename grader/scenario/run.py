@@ -29,6 +29,7 @@ from typing import Any, Iterator
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
+from grader.scenario.cpuwait import cpu_wait
 from grader.scenario.events import Event
 from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
@@ -39,7 +40,8 @@ SIM_READY_S = 15.0
 #: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
 #: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario
 STUDENT_STOP_GRACE_S = 2.0
-#: on simulated time: wall seconds a starting process may hold the clock until its node is up
+#: wall seconds a starting process may hold the clock until its node is up (at 1x: scenario time
+#: stands still meanwhile, so a step's limit never pays for a start-up; see ScenarioClock.held)
 NODE_UP_S = 15.0
 #: then wall seconds until the clock owner has matched the new nodes' /clock readers
 CLOCK_MATCH_S = 5.0
@@ -144,12 +146,12 @@ class Launcher:
                 self._wait_up(before, [lp.name])
 
     def _wait_up(self, before: tuple[set, int | None], names: list[str]) -> None:
-        """On simulated time, while the clock is held: wait (wall time) until the started
-        processes' nodes are in the graph with their topics recorded and the clock owner has
-        matched their ``/clock`` readers (or the processes ended), then a moment for their first
-        ``/clock``. ``before``: the student nodes and matched readers before they started."""
+        """While the clock is held: wait (wall time) until the started processes' nodes are in
+        the graph with their topics recorded (or the processes ended); on simulated time also
+        until the clock owner has matched their ``/clock`` readers, then a moment for their
+        first ``/clock``. ``before``: the student nodes and matched readers before they started."""
         clock = self.driver.clock
-        if not clock.simulated or not names:
+        if not names:
             return
         driver = self.driver
         before, readers = before
@@ -166,7 +168,7 @@ class Launcher:
             return not alive() or readers is None or now is None or \
                 now >= readers + len(driver.student_nodes() - before)
 
-        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and \
+        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and clock.simulated and \
                 driver.wait_until(clocked, CLOCK_MATCH_S, poll=0.02, wall=True):
             time.sleep(FIRST_CLOCK_S)
 
@@ -214,7 +216,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
         record["time_scale"] = {"used": scale}
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
-    driver = recorder = None
+    driver = recorder = sim = None
     with RosGraph(out) as graph:
         record["domain_id"] = graph.domain_id
         _discover_like(graph)
@@ -248,6 +250,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
+                _wait_recorded(driver, recorder, record)
             start_hold = contextlib.ExitStack()
             if scale:
                 # the clock is held from here until the autostarted processes are up: a recorder
@@ -309,6 +312,9 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 driver.event(Event.SCENARIO_ERROR, error=f"{type(exc).__name__}: {exc}")
         finally:
             record["output_cut"] = graph.output_cuts()
+            # how starved the run was (before anything is stopped): see grader.scenario.cpuwait
+            record["cpu_wait"] = cpu_wait({"scenario": os.getpid(), "turtlesim": sim.pid if sim is not None else None,
+                                           **{n: p.pid for n, p in students.items() if p.alive()}})
             # on simulated time the shutdown's wall time must not run the simulation on
             if scale and driver is not None and not driver.clock.stop():
                 record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "
@@ -331,6 +337,28 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
+
+
+def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[str, Any]) -> None:
+    """Go on only once the recorder has recorded the simulator's poses (both topics).
+
+    The driver hearing the simulator says nothing about the recorder: it is another DDS
+    participant, and discovery between two participants takes up to ~1 s on a loaded machine
+    (grader/dds/fastdds_profile.xml). A scenario whose student code cannot start ends ~0.5 s
+    after this point; ``make demo`` recorded such a scenario (goal_setter's handout, graded
+    while other submissions were built) with no pose at all, and its pose integrity check
+    became "could not check" instead of "pass" (a test reproduces it with a recorder that
+    discovers the simulator late)."""
+    from grader.sim import truth_pose_topic
+
+    if recorder is None:
+        return
+    wanted = [driver.pose_topic or "/turtle1/pose"]
+    wanted.append(truth_pose_topic(wanted[0]))
+    if not driver.wait_until(lambda: all(recorder.recorded(t) for t in wanted), RECORDER_READY_S, wall=True):
+        missing = [t for t in wanted if not recorder.recorded(t)]
+        record["errors"].append(f"the recorder recorded nothing on {', '.join(missing)} within "
+                                f"{RECORDER_READY_S:.0f} s of the simulator's first pose")
 
 
 def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dict[str, Any],

@@ -23,6 +23,9 @@ from typing import Iterable, Sequence
 NODE_NAME = "turtlesim"
 #: grader addition; only offered when the sim was started with a canvas path
 SAVE_CANVAS_SERVICE = "/turtlesim/save_canvas"
+#: grader addition, relative to the simulator's node (``/<node>/hold_turtles``, std_srvs/SetBool):
+#: true holds every turtle still (teleports and commands are taken, nothing moves), false releases
+HOLD_TURTLES_SERVICE = "hold_turtles"
 #: global services of the simulator (all with CONTENTS introspection)
 GLOBAL_SERVICES = ("/clear", "/reset", "/spawn", "/kill")
 #: per-turtle services, relative to ``/<turtle name>/`` (all with CONTENTS introspection)

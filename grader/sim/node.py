@@ -7,7 +7,10 @@ in one executor thread (EventsExecutor by default), like the Qt main loop of the
 
 Grader additions (not in the real turtlesim): every simulator service has service introspection
 (CONTENTS) so calls land in bags as ``<service>/_service_event``; with a canvas path the node
-offers ``~/save_canvas`` (std_srvs/Empty) and writes the PNG again on shutdown. With a time
+offers ``~/save_canvas`` (std_srvs/Empty) and writes the PNG again on shutdown; ``~/hold_turtles``
+(std_srvs/SetBool, introspected like the others) holds every turtle still (teleports and commands
+are taken, nothing moves: :attr:`World.held`) while the scenario driver hands a placed turtle's
+goal over. With a time
 scale (:mod:`grader.sim.clock`) the node owns simulated time: every tick advances ``/clock`` by
 16 ms and the physics runs on that time instead of the wall clock.
 
@@ -42,13 +45,13 @@ from rclpy.service_introspection import ServiceIntrospectionState
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.validate_full_topic_name import validate_full_topic_name
-from std_srvs.srv import Empty
+from std_srvs.srv import Empty, SetBool
 from turtlesim.action import RotateAbsolute
 from turtlesim.msg import Color, Pose
 from turtlesim.srv import Kill, SetPen, Spawn, TeleportAbsolute, TeleportRelative
 
 from grader.executors import make_executor as shared_make_executor
-from grader.sim import truth_pose_topic
+from grader.sim import HOLD_TURTLES_SERVICE, truth_pose_topic
 from grader.sim.canvas import Canvas
 from grader.sim.clock import SimClock, make_clock_node
 from grader.sim.physics import DEFAULT_BACKGROUND, METER, TICK_MS, RotateGoal, Turtle, World
@@ -121,6 +124,8 @@ class TurtlesimNode(Node):
                                  PARAM_EVENTS_QOS)
         if self.canvas_out is not None:
             self.create_service(Empty, "~/save_canvas", self._on_save_canvas)
+        self.hold_requests = 0     # served; the driver compares with the requests it made
+        self._sim_services.append(self._service(SetBool, f"~/{HOLD_TURTLES_SERVICE}", self._on_hold_turtles))
 
         self._log("info", f"Starting turtlesim with node name {self.get_fully_qualified_name()}")
         self.world.spawn_default(self._now_ns())
@@ -266,6 +271,14 @@ class TurtlesimNode(Node):
 
     def _on_kill(self, req: Kill.Request, res: Kill.Response) -> Any:
         self.world.kill(req.name)
+        return res
+
+    def _on_hold_turtles(self, req: SetBool.Request, res: SetBool.Response) -> Any:
+        """``message``: the hold/release requests served, this one included."""
+        self.hold_requests += 1
+        self.world.held = bool(req.data)
+        res.success = True
+        res.message = str(self.hold_requests)
         return res
 
     def _on_save_canvas(self, _req: Empty.Request, res: Empty.Response) -> Any:

@@ -39,6 +39,28 @@ def test_spoofed_pose_jump_without_publisher_info() -> None:
     assert f.evidence["basis"].startswith("pose stream")
 
 
+def test_poses_bunched_and_dropped_by_a_loaded_machine_are_no_flag() -> None:
+    """At --jobs 8 on 2 cores the poses reached the recorder in bursts, a few dropped from the
+    keep-last-7 queue: receive times 0.1 ms apart ("11,000 Hz") and steps of several ticks.
+    Correct code was flagged. With the simulator's own copy of every pose recorded, only a pose
+    it never published counts. (Fails without: flagged for the rate and for jumps.)"""
+    fr = _sim()
+    pose = fr["/turtle1/pose"]
+    t = pose.index.to_numpy().copy()
+    t[100:400] = t[100] + np.arange(300) * 1e-4        # 300 poses delivered at once
+    bunched = pose.set_axis(t).drop(pose.index[[500, 501, 502, 503, 504]])      # and five dropped
+    fr = with_meta({**{k: v for k, v in fr.items() if k != "__meta__"}, "/turtle1/pose": bunched,
+                    "/grader/sim/turtle1/pose": pose}, publishers={"/turtle1/pose": ["/turtlesim"]})
+    f = check(get("integrity_pose_publisher")(fr, {}))
+    assert f.status == "pass", f.feedback
+    assert f.evidence["foreign_poses"] == 0 and "own copy" in f.evidence["basis"]
+    spoofed = bunched.copy()
+    spoofed.iloc[200, spoofed.columns.get_loc("x")] = 1.0           # one pose the simulator never sent
+    fr["/turtle1/pose"] = spoofed
+    f = check(get("integrity_pose_publisher")(fr, {}))
+    assert f.status == "fail" and f.evidence["foreign_poses"] == 1
+
+
 def _service(t, x, seq) -> object:
     return frame(t, **{"info.event_type": 1, "info.sequence_number": seq,
                        "info.client_gid[0]": 7, "request[0].x": x, "request[0].y": 5.0, "request[0].theta": 0.0})

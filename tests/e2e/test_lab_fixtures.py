@@ -138,3 +138,28 @@ def test_regrade_from_bags_reproduces_the_batch(batches: dict[str, Path], tmp_pa
             new = json.loads((tmp_path / lab / s / "result.json").read_text())
             assert [(i["id"], i["points"], i["status"]) for i in new["items"]] == \
                    [(i["id"], i["points"], i["status"]) for i in old["items"]]
+
+
+def test_chaotic_controllers_get_the_same_items_at_another_jobs_budget(batches: dict[str, Path],
+                                                                        tmp_path: Path) -> None:
+    """The same code, the same grade (issue 22): the two chaotic Lab 3 controllers (no_wrap
+    spins at the ±π seam, wrong_sign pins itself to a wall) graded again with a budget of 2
+    scenarios, alone, must get exactly the items the session batch gave them (4 scenarios of
+    four labs side by side). Their controller scenario only: the rest is not chaotic, and
+    bench_flake measures everything on a mutated class."""
+    from grader.grading.batch import grade_batch
+    from grader.grading.schedule import Slots
+
+    rubric = load_rubric(REPO / "rubrics" / LABS["enee467_lab3"])
+    mine = {i.id for i in rubric.items if i.automatic and tuple(i.scenario) == ("ex2_controller",)}
+    items = [i for i in rubric.items if not i.automatic or i.id in mine]
+    subs = [REPO / "fixtures" / "submissions" / "enee467_lab3" / s for s in ("no_wrap", "wrong_sign")]
+    failures = grade_batch(subs, rubric.model_copy(update={"items": items}), tmp_path / "again", slots=Slots(2),
+                           cache_dir=tmp_path / "cache")
+    assert not failures, failures
+    for sub in subs:
+        def outcome(out: Path) -> dict:
+            doc = json.loads((out / sub.name / "result.json").read_text())
+            return {i["id"]: (i["status"], i["points"]) for i in doc["items"] if i["id"] in mine}
+
+        assert outcome(tmp_path / "again") == outcome(batches["enee467_lab3"]), sub.name
