@@ -173,7 +173,7 @@ def refresh(readme: Path, check: bool = False) -> list[str]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    r = sub.add_parser("rubric", help="rubric tools: JSON Schema for editors, the guide's generated tables")
+    r = sub.add_parser("rubric", help="rubric tools: check, audit (mutation testing), JSON Schema, the guide's tables")
     rsub = r.add_subparsers(dest="rubric_command", metavar="ACTION", required=True)
     s = rsub.add_parser("schema", help="print (or write) the rubric JSON Schema")
     s.add_argument("-o", "--out", type=Path, default=None)
@@ -185,6 +185,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     c = rsub.add_parser("check", help="validate a rubric and list what it grades")
     c.add_argument("rubric", type=Path)
     c.set_defaults(func=_run_check)
+    from grader.audit.cli import register_audit
+
+    register_audit(rsub)
 
 
 def _run_schema(args: argparse.Namespace) -> int:
