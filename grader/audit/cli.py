@@ -38,6 +38,9 @@ def register_audit(rsub: argparse._SubParsersAction) -> None:
     a.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
     a.add_argument("--no-reuse", action="store_true", help="run every scenario of every mutant")
     a.add_argument("--resume", action="store_true", help="keep mutants already graded in OUT")
+    a.add_argument("--regrade", action="store_true",
+                   help="grade the recordings already in OUT again with the rubric as it is now (no ROS: after "
+                        "changing items, parameters or analyzers); mutants not yet graded are graded")
     a.add_argument("--quiet-diffs", action="store_true", help="print survivors without their diffs")
     _time_scale_option(a)
     a.set_defaults(func=run_audit_cli)
@@ -82,7 +85,7 @@ def run_audit_cli(args: argparse.Namespace) -> int:
         report = run_audit(args.rubric, out, reference=args.reference, jobs=args.jobs, time_scale=args.time_scale,
                            reuse=not args.no_reuse, cache_dir=args.cache_dir, sample_n=args.sample,
                            operators=args.operators, seed=args.seed, only=args.only, all_files=args.all_files,
-                           resume=args.resume, say=say)
+                           resume=args.resume, regrade=args.regrade, say=say)
     except KeyboardInterrupt:
         print("grader: interrupted; graded mutants are kept: rerun with --resume to continue", file=sys.stderr)
         return 130

@@ -22,8 +22,9 @@ def headline(report: AuditReport) -> list[str]:
         f"errors {report.count('error')}",
         "mutation score " + (f"{report.count('killed')}/{judged} = {100 * score:.1f} %" if score is not None
                              else "n/a (nothing judged)")
-        + f"; wall time {report.wall_s:.0f} s (reference {report.reference_wall_s:.0f} s) at --jobs "
-        f"{report.jobs}, --time-scale {report.time_scale:g}",
+        + (f"; regraded offline from the recordings of an earlier run in {report.wall_s:.0f} s" if report.regraded else
+           f"; wall time {report.wall_s:.0f} s (reference {report.reference_wall_s:.0f} s) at --jobs "
+           f"{report.jobs}, --time-scale {report.time_scale:g}"),
     ]
 
 

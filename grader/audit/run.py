@@ -71,6 +71,7 @@ class AuditReport:
     wall_s: float = 0.0
     reference_wall_s: float = 0.0
     stale_equivalents: list[str] = field(default_factory=list)   # recorded ids no mutant has
+    regraded: bool = False               # --regrade: recordings of an earlier run, analyzed again
 
     def count(self, status: str) -> int:
         return sum(1 for o in self.outcomes if o.status == status)
@@ -138,9 +139,11 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
               time_scale: float = 1.0, reuse: bool = True, cache_dir: Path | None = None,
               sample_n: int | None = None, operators: list[str] | None = None, seed: int = 0,
               only: list[str] | None = None, all_files: bool = False, resume: bool = False,
-              say: Callable[[str], None] = print) -> AuditReport:
+              regrade: bool = False, say: Callable[[str], None] = print) -> AuditReport:
     """Mutate the reference, grade the reference and every chosen mutant, classify them and
-    write ``audit.json`` and ``audit.md`` into ``out``."""
+    write ``audit.json`` and ``audit.md`` into ``out``. ``regrade``: grade the recordings
+    already in ``out`` again with the rubric as it is now (offline: after changing items,
+    parameters or analyzers; a mutant whose scenario changed must be run again)."""
     from grader.grading.batch import grade_batch
     from grader.grading.pipeline import grade_submission
     from grader.grading.schedule import Slots
@@ -166,9 +169,12 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     slots = Slots(jobs)
     t0 = time.monotonic()
 
+    if regrade:
+        _regrade_all(rubric, graded, [REFERENCE_ID] + [m.id for m in chosen], say)
     ref_copy = workspaces / REFERENCE_ID
-    _fresh_copy(ref, ref_copy)
-    if not (resume and (graded / REFERENCE_ID / "result.json").exists()):
+    if not regrade:
+        _fresh_copy(ref, ref_copy)
+    if not ((resume or regrade) and (graded / REFERENCE_ID / "result.json").exists()):
         say(f"grading the reference ({REFERENCE_ID})")
         grade_submission(ref_copy, rubric, graded, cache_dir=cache_dir, sid=REFERENCE_ID, slots=slots,
                          reuse=reuse, time_scale=time_scale)
@@ -185,7 +191,7 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     todo = []
     for m in chosen:
         dest = workspaces / m.id
-        if resume and (graded / m.id / "result.json").exists():
+        if (resume or regrade) and (graded / m.id / "result.json").exists():
             continue
         if dest.exists():
             shutil.rmtree(dest)
@@ -208,7 +214,7 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     report = AuditReport(rubric=display_path(Path(rubric_path).resolve()), lab=rubric.lab, reference=display_path(ref),
                          operators=list(operators or []), made=made, given_files=given, sample=sample_n,
                          seed=seed, time_scale=time_scale, jobs=jobs, outcomes=outcomes,
-                         wall_s=round(time.monotonic() - t0, 1), reference_wall_s=ref_wall)
+                         wall_s=round(time.monotonic() - t0, 1), reference_wall_s=ref_wall, regraded=regrade)
     if sample_n is None and not operators and not only:
         every = {m.id for m in mutants(ref)}
         report.stale_equivalents = sorted(set(equivalents) - every)
@@ -216,6 +222,33 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
 
     write_report(report, out)
     return report
+
+
+def _regrade_all(rubric: Any, graded: Path, ids: list[str], say: Callable[[str], None]) -> None:
+    """Analyze and score the recorded mutants again (no ROS); refuse recordings of a scenario
+    that is not the rubric's any more."""
+    from grader.grading.pipeline import SCENARIOS_DIR, regrade_submission
+    from grader.scenario.model import Scenario
+
+    stale = []
+    for sid in ids:
+        folder = graded / sid
+        if not (folder / SCENARIOS_DIR).is_dir():
+            continue          # never graded: graded now, below
+        for sc_id, scenario in rubric.scenarios.items():
+            run_json = folder / SCENARIOS_DIR / sc_id / "run.json"
+            if run_json.is_file():
+                recorded = Scenario.model_validate_json(json.dumps(json.loads(run_json.read_text())["scenario"]))
+                if recorded != scenario:
+                    stale.append(f"{sid} ({sc_id})")
+    if stale:
+        raise GraderError(f"--regrade: the rubric's scenarios changed since these were recorded: "
+                          f"{', '.join(stale[:5])}{' ...' if len(stale) > 5 else ''}; run the audit again "
+                          "without --regrade (or into a new folder)")
+    for sid in ids:
+        if (graded / sid / SCENARIOS_DIR).is_dir():
+            regrade_submission(graded / sid, rubric)
+    say(f"regraded {len(ids)} recordings with the rubric as it is now")
 
 
 def _fresh_copy(src: Path, dest: Path) -> None:

@@ -221,4 +221,6 @@ def _run_check(args: argparse.Namespace) -> int:
     for sid, sc in rubric.scenarios.items():
         print(f"  scenario {sid}: {len(sc.steps)} steps, up to {sc.budget_s:g} s; processes: "
               + (", ".join(p.name for p in sc.processes) or "none"))
+    if rubric.equivalent_mutants:
+        print(f"  {len(rubric.equivalent_mutants)} equivalent mutant(s) of the reference recorded (grader rubric audit)")
     return 0
