@@ -14,7 +14,8 @@ moving. Judged on the simulator's own poses (``/turtle1/pose`` at 62.5 Hz).
   and the turtle is moving (judged from its positions, not its commanded velocity) for (almost)
   the whole run.
 * ``no_wall_contact``: turtlesim clamps the turtle at the walls and logs "Oh no! I hit the
-  wall!"; neither may happen. The closest approach to a wall is reported.
+  wall!"; neither may happen. The closest approach to a wall is reported; with ``approach_m``
+  it must be at most that: a turtle that circles in the middle never meets a wall to avoid.
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ EVIDENCE = {
     "contacts": ("poses touching a wall", ""), "world_max": ("world size", "m"), "min_clearance": ("clearance required", "m"),
     "pose_topic": ("pose topic", ""), "cmd_topic": ("command topic", ""), "sim_logger": ("the simulator's logger", ""),
     "world_max_m": ("world size", "m"), "contact_points": None,
+    "approach_m": ("must come this close to a wall", "m"),
     "turn": ("turning", ""), "drive": ("driving", ""), "forward_share": ("share of the path driven nose first", SHARE),
     "direction_credit": ("credit for the right radius the wrong way round", SHARE),
 }
@@ -252,6 +254,7 @@ def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
     "sim_logger": "turtlesim",        # the simulator's logger (its "hit the wall" warning)
     "world_max": WORLD_MAX,           # m: the world is [0, world_max] in x and y
     "min_clearance": 0.0,             # m: closer than this to a wall also counts as contact
+    "approach_m": None,               # m: the path must come at least this close to a wall (None: any)
 })
 def no_wall_contact(frames: Frames, p: dict) -> Finding:
     pose = sim_pose(frames, p["pose_topic"])
@@ -275,5 +278,9 @@ def no_wall_contact(frames: Frames, p: dict) -> Finding:
         where = f"({x[touched[0]]:.2f}, {y[touched[0]]:.2f})" if len(touched) else f"({x[i]:.2f}, {y[i]:.2f})"
         return Finding(value, 0.0, "fail", f"The turtle hit the wall at {where} "
                        f"({len(hits)} 'hit the wall' warning(s) from the simulator): turn away earlier.", ev)
+    if p["approach_m"] is not None and clearance[i] > p["approach_m"]:
+        return Finding(value, 0.0, "fail", f"The turtle never came within {p['approach_m']:g} m of a wall (closest "
+                       f"{clearance[i]:.2f} m, at ({x[i]:.2f}, {y[i]:.2f})): it stayed in the middle, so there was "
+                       "no wall to avoid. Drive out towards the walls and turn away before you reach them.", ev)
     return Finding(value, 1.0, "pass", f"No wall contact; the closest approach was {clearance[i]:.2f} m at "
                    f"({x[i]:.2f}, {y[i]:.2f}).", ev)

@@ -168,6 +168,7 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
         + f"; grading {len(chosen)} at --jobs {jobs}, --time-scale {time_scale:g}")
     slots = Slots(jobs)
     t0 = time.monotonic()
+    rubric = _with_untouched_support(rubric, ref, chosen)
 
     if regrade:
         _regrade_all(rubric, graded, [REFERENCE_ID] + [m.id for m in chosen], say)
@@ -222,6 +223,22 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
 
     write_report(report, out)
     return report
+
+
+def _with_untouched_support(rubric: Any, reference: Path, chosen: list[Mutant]) -> Any:
+    """The rubric, with the reference's packages that no chosen mutant changes added to its
+    ``support``: they are built once (grader.workspace.package_cache) instead of once per
+    mutant (an interface package costs ~15 s of CPU to build). Grading is the same: a
+    submission's byte-identical copy of a support package takes the support build."""
+    from grader.workspace.source import find_packages
+
+    touched = {m.file for m in chosen}
+    extra = {}
+    for pkg in find_packages(reference):
+        rel = Path(pkg.path).resolve().relative_to(reference).as_posix()
+        if pkg.name not in rubric.support and not any(f == rel or f.startswith(rel + "/") for f in touched):
+            extra[pkg.name] = Path(pkg.path).resolve()
+    return rubric.model_copy(update={"support": {**rubric.support, **extra}}) if extra else rubric
 
 
 def _regrade_all(rubric: Any, graded: Path, ids: list[str], say: Callable[[str], None]) -> None:
