@@ -80,6 +80,7 @@ RENAMED = "rename_topic-ee7f7777"
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)
 def test_audit_kills_a_broken_mutant_and_lists_survivors_with_diffs(tmp_path: Path) -> None:
     ref = SUBS / "first_nodes" / "reference"
     ids = {m.id: m for m in mutants(ref)}
@@ -92,7 +93,7 @@ def test_audit_kills_a_broken_mutant_and_lists_survivors_with_diffs(tmp_path: Pa
     proc = subprocess.run([sys.executable, "-m", "grader.cli", "rubric", "audit", str(rubric), "--reference", str(ref),
                            "-o", str(out), "--only", KILLABLE, SURVIVOR, RENAMED, "--jobs", "2",
                            "--time-scale", "4", "--cache-dir", str(tmp_path / "cache")],
-                          capture_output=True, text=True, timeout=600, cwd=REPO)
+                          capture_output=True, text=True, timeout=840, cwd=REPO)
     assert proc.returncode == 1, proc.stdout + proc.stderr          # a survivor: exit 1
     doc = json.loads((out / "audit.json").read_text())
     status = {o["mutant"]["id"]: o["status"] for o in doc["outcomes"]}
