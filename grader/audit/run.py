@@ -165,7 +165,8 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     workspaces, graded = out / "workspaces", out / "graded"
     workspaces.mkdir(parents=True, exist_ok=True)
     say(f"{rubric.lab}: {made} mutants of {display_path(ref)}" + (f" ({len(given)} given file(s) left out)" if given else "")
-        + f"; grading {len(chosen)} at --jobs {jobs}, --time-scale {time_scale:g}")
+        + (f"; regrading the {len(chosen)} recorded" if regrade else
+           f"; grading {len(chosen)} at --jobs {jobs}, --time-scale {time_scale:g}"))
     slots = Slots(jobs)
     t0 = time.monotonic()
     rubric = _with_untouched_support(rubric, ref, chosen)
