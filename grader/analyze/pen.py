@@ -104,6 +104,10 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
                        why=None if good else f"set {call['color']} width {call['width']}")
         rows.append(row)
     extra = [{"t": call["t"] - t0, "color": call["color"]} for i, call in enumerate(calls) if not used[i]]
+    # nor can the calls that answer those crossings be judged (grader rubric audit: a crossing
+    # 0.03 s before the end, left out above, and its call 5 ms later counted as a stray call)
+    if end == end:
+        extra = [e for e in extra if e["t"] + t0 < end - p["max_delay_s"] - 0.05]
     matched = sum(1 for r in rows if r["ok"])
     denominator = len(rows) + len(extra)
     ev = {"crossings": rows[:40], "extra_calls": extra[:20], "calls": len(calls), "split_x": p["split_x"]}

@@ -58,8 +58,8 @@ class Source:
         return self.text[a:b]
 
 
-
 def parents_of(tree: ast.AST) -> dict[ast.AST, ast.AST]:
+    """Each node's parent (ast nodes do not know it)."""
     out: dict[ast.AST, ast.AST] = {}
     for node in ast.walk(tree):
         for child in ast.iter_child_nodes(node):
@@ -68,6 +68,7 @@ def parents_of(tree: ast.AST) -> dict[ast.AST, ast.AST]:
 
 
 def scope_of(node: ast.AST, parents: dict[ast.AST, ast.AST]) -> str:
+    """``Class.method`` enclosing ``node`` (part of a mutant's id, so ids survive moved lines)."""
     names = []
     cur = parents.get(node)
     while cur is not None:

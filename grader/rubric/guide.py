@@ -173,7 +173,7 @@ def refresh(readme: Path, check: bool = False) -> list[str]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    r = sub.add_parser("rubric", help="rubric tools: JSON Schema for editors, the guide's generated tables")
+    r = sub.add_parser("rubric", help="rubric tools: check, audit (mutation testing), JSON Schema, the guide's tables")
     rsub = r.add_subparsers(dest="rubric_command", metavar="ACTION", required=True)
     s = rsub.add_parser("schema", help="print (or write) the rubric JSON Schema")
     s.add_argument("-o", "--out", type=Path, default=None)
@@ -185,6 +185,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     c = rsub.add_parser("check", help="validate a rubric and list what it grades")
     c.add_argument("rubric", type=Path)
     c.set_defaults(func=_run_check)
+    from grader.audit.cli import register_audit
+
+    register_audit(rsub)
 
 
 def _run_schema(args: argparse.Namespace) -> int:
@@ -218,4 +221,6 @@ def _run_check(args: argparse.Namespace) -> int:
     for sid, sc in rubric.scenarios.items():
         print(f"  scenario {sid}: {len(sc.steps)} steps, up to {sc.budget_s:g} s; processes: "
               + (", ".join(p.name for p in sc.processes) or "none"))
+    if rubric.equivalent_mutants:
+        print(f"  {len(rubric.equivalent_mutants)} equivalent mutant(s) of the reference recorded (grader rubric audit)")
     return 0

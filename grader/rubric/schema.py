@@ -35,6 +35,7 @@ SectionKind = _named(r"^[a-z][a-z_0-9]*$", "a lower-case section kind like exerc
 SectionNumber = Union[Annotated[int, Field(ge=0)],
                       _named(r"^[A-Za-z0-9._-]+$", "a section number like 1 or '2b'")]
 Text = Annotated[str, Field(min_length=1, pattern=r"\S")]
+MutantId = _named(r"^[a-z][a-z_]*-[0-9a-f]{8}$", "a mutant id like 'flip_sign-1a2b3c4d' (grader rubric audit)")
 Points = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 
@@ -279,6 +280,14 @@ class Item(Model):
         return float(self.points)
 
 
+class EquivalentMutant(Model):
+    """A mutant of the reference solution (``grader rubric audit``) that keeps full marks
+    because it is still a correct solution, not because the rubric cannot see the bug."""
+
+    mutant: MutantId
+    reason: Text = Field(description="why the mutated code is still correct (what it changes and why that is fine)")
+
+
 class Rubric(Model):
     """A lab's whole grading scheme. ``source`` is the file it was loaded from."""
 
@@ -297,6 +306,8 @@ class Rubric(Model):
     # how submissions arrive (grader.intake): the late policy and bare-file submissions
     late: LatePolicy | None = Field(None, description="due date and late policy (grader.intake)")
     loose_files: LooseFiles | None = Field(None, description="how bare .py files become a package")
+    equivalent_mutants: Annotated[tuple[EquivalentMutant, ...], Field(strict=False)] = Field(
+        (), description="mutants of the reference that keep full marks and are correct (grader rubric audit)")
 
     model_config = {**Model.model_config, "populate_by_name": True}
     _source: Path = PrivateAttr(default=Path("rubric.yaml"))
@@ -411,6 +422,24 @@ class Rubric(Model):
         out += self._cycles()
         out += self._sums()
         out += intake_problems(self)
+        out += self._equivalents()
+        return out
+
+    def _equivalents(self) -> list[tuple[str, str]]:
+        from grader.audit.mutate import OPERATORS
+
+        out: list[tuple[str, str]] = []
+        first: dict[str, int] = {}
+        for index, entry in enumerate(self.equivalent_mutants):
+            at = f"equivalent_mutants[{index}].mutant"
+            operator = entry.mutant.rsplit("-", 1)[0]
+            if operator not in OPERATORS:
+                out.append((at, f"unknown mutation operator {operator!r} in {entry.mutant!r} "
+                                f"(known: {', '.join(OPERATORS)}); copy the id from grader rubric audit's report"))
+            if entry.mutant in first:
+                out.append((at, f"mutant {entry.mutant!r} is listed twice (first at "
+                                f"equivalent_mutants[{first[entry.mutant]}])"))
+            first.setdefault(entry.mutant, index)
         return out
 
     def _cycles(self) -> list[tuple[str, str]]:
