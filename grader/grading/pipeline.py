@@ -171,12 +171,22 @@ def combine_findings(item, per_scenario: list):
     return worst_finding(per_scenario) if per_scenario else None
 
 
+class Findings(dict):
+    """Item id -> finding, plus ``contract``: the contract names each scenario's recording shows
+    under another name (``grader.rubric.contract.Mismatch``; scoring blocks the items that
+    depend on them). A dict, so callers that only want the findings need not change."""
+
+    contract: tuple = ()
+
+
 def analyze_bags(rubric, items: list, sub_out: Path,
-                 unusable: dict[str, str] | None = None) -> tuple[dict[str, Any], list[str]]:
+                 unusable: dict[str, str] | None = None) -> tuple[Findings, list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems.
     ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
     finalised): its items become errors saying so."""
     from grader.analyze import Finding
+    from grader.analyze.contract import check_contract
+    from grader.rubric.contract import merge_mismatches
 
     frames_cache: dict[str, dict | Exception] = {}
     problems: list[str] = []
@@ -195,7 +205,7 @@ def analyze_bags(rubric, items: list, sub_out: Path,
                 problems.append(f"scenario {sc}: {exc}")
         return frames_cache[sc]
 
-    findings: dict[str, Any] = {}
+    findings = Findings()
     for item in items:
         per_scenario = []
         for sc in item.scenario:
@@ -207,6 +217,11 @@ def analyze_bags(rubric, items: list, sub_out: Path,
                 continue
             per_scenario.append(analyze_item(item, frames))
         findings[item.id] = combine_findings(item, per_scenario)
+    mismatches = {}
+    for sc, frames in frames_cache.items():
+        if not isinstance(frames, Exception):
+            mismatches[sc] = check_contract(rubric.contract, rubric.scenario_roles(sc), frames)
+    findings.contract = merge_mismatches(mismatches)
     return findings, problems
 
 

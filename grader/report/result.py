@@ -109,6 +109,7 @@ def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, st
              "pending_max": s.pending_max, "items": list(s.item_ids)}
             for s in result.sections],
         "items": [item_to_dict(i) for i in result.items],
+        "contract": [m.to_dict() for m in result.contract],
         "integrity_flags": [_notice_to_dict(n) for n in result.integrity_flags],
         "warnings": [_notice_to_dict(n) for n in result.warnings],
         "versions": dict(versions or {}),
@@ -140,7 +141,10 @@ def result_from_dict(doc: Mapping[str, Any]) -> Result:
         analyzer=i.get("analyzer")) for i in doc["items"])
     specs = tuple(SectionSpec(section=section(s["section"]), title=s.get("name")) for s in doc.get("sections", []))
     hidden = doc.get("hidden") or {}
+    from grader.rubric.contract import Mismatch
+
     return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
+                  contract=tuple(Mismatch.from_dict(m) for m in doc.get("contract") or () if isinstance(m, Mapping)),
                   student_view=doc.get("view") == "student",
                   hidden_items=int(hidden.get("items", 0)), hidden_points=float(hidden.get("points", 0)))
 

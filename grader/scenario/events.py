@@ -45,7 +45,9 @@ class Event(StrEnum):
     PROCESS_EXIT = "process_exit"            # process, returncode, stopped_by_grader, timed_out
     STDIN_READY = "stdin_ready"              # process, nodes
     STDIN_LINE = "stdin_line"                # process, line, delivered
-    LAUNCH_RESOLVED = "launch_resolved"      # process, launch, installed, nodes (declared), notes
+    LAUNCH_RESOLVED = "launch_resolved"      # process, launch (the file found), installed, nodes (declared), notes
+    PACKAGES = "packages"                    # packages {name: {status, executables, launch_files}} of the build
     LIMIT_HIT = "limit_hit"                  # limit (memory|processes|cpu|output), detail; process, stream (output)
     # the ROS graph
-    GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services
+    GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services,
+    #                                          topic_types {topic: [type]}, servers {service: [node]}, service_types

@@ -419,6 +419,14 @@ class RateExpectation(Model):
     rel_tol: PositiveFloat = 0.3
 
 
+class PackageFacts(Model):
+    """What the build made of one package of the submission: the names a contract may fix."""
+
+    status: str                        # built | failed | skipped
+    executables: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    launch_files: Annotated[tuple[str, ...], Field(strict=False)] = ()
+
+
 class ScenarioRun(Model):
     """What crosses to the scenario child: the rubric's scenario as it is, plus what the parent
     resolved against the build (argv of every process, install prefixes, the simulator's name)
@@ -433,3 +441,5 @@ class ScenarioRun(Model):
     launch_installed: dict[str, bool] = {}   # process -> its launch file is in the package's share
     time_scale: Annotated[float, Field(ge=1.0, le=16.0, strict=False)] = 1.0   # 1: the wall clock
     expected_rates: Annotated[tuple[RateExpectation, ...], Field(strict=False)] = ()   # watchdog
+    packages: dict[str, PackageFacts] = {}   # the build's packages (``packages`` event: contract names)
+    launch_files: dict[str, str] = {}        # process -> the launch file found for its ``launch:``

@@ -263,9 +263,12 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
             driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=graph.domain_id,
                          sim_node=run.sim_node)
+            if run.packages:         # the names the build made: a contract's names are looked up in them
+                driver.event(Event.PACKAGES, packages={n: f.model_dump(mode="json") for n, f in run.packages.items()})
             for proc in spec.processes:
                 if proc.launch:
-                    driver.event(Event.LAUNCH_RESOLVED, process=proc.name, launch=proc.launch,
+                    driver.event(Event.LAUNCH_RESOLVED, process=proc.name,
+                                 launch=run.launch_files.get(proc.name, proc.launch),
                                  installed=run.launch_installed.get(proc.name, False),
                                  notes=list(run.notes.get(proc.name, ())),
                                  nodes=[lp.model_dump(include={"name", "node_name", "package", "executable",
