@@ -114,7 +114,8 @@ def _unavailable_nodes(frames: dict) -> list[str]:
 
 
 def _crashed_nodes(frames: dict) -> list[str]:
-    """Student processes that exited on their own, with the last line of what they printed."""
+    """Student processes that exited on their own, with the last line of what they printed: a
+    non-zero exit is a crash; exit code 0 means its main returned (it stopped spinning)."""
     lines = stdout_lines(frames)
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
@@ -124,7 +125,10 @@ def _crashed_nodes(frames: dict) -> list[str]:
         if not e.get("stopped_by_grader"):
             name = e.get("process", "?")
             tail = last_line.get(name, "")
-            out.append(f"{name} exited with code {e.get('returncode')}" + (f" ({tail[:160]})" if tail else ""))
+            code = e.get("returncode")
+            what = (f"{name} returned on its own (exit code 0) while the scenario ran: does it keep spinning?"
+                    if code == 0 else f"{name} crashed (exit code {code})")
+            out.append(what + (f" ({tail[:160]})" if tail else ""))
     if out and limits:
         out.append("limit reached: " + "; ".join(dict.fromkeys(m for m in limits if m)))
     return out
@@ -146,8 +150,8 @@ def analyze_item(item, frames: dict):
     missing = _unavailable_nodes(frames)
     crashed = _crashed_nodes(frames)
     if missing or crashed:
-        why = (["Could not run " + "; ".join(missing)] if missing else []) + \
-              (["Node crashed: " + "; ".join(crashed)] if crashed else [])
+        why = (["Could not run " + "; ".join(missing).rstrip(".") + "."] if missing else []) + \
+              (["Node stopped: " + "; ".join(crashed).rstrip(".") + "."] if crashed else [])
         finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
         finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
         if finding.status == "error" and item.kind != "integrity":

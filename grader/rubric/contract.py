@@ -47,6 +47,10 @@ def _short(value: Any) -> Any:
     return {"name": value} if isinstance(value, str) else value
 
 
+def _a(what: str) -> str:
+    return ("an " if what[0] in "aeiou" else "a ") + what
+
+
 def node_name(name: str) -> str:
     """``my_first_node`` and ``/my_first_node`` name the same node (ROS adds the ``/``)."""
     return "/" + str(name).strip().strip("/")
@@ -207,7 +211,7 @@ def resolve_references(data: Any) -> tuple[Any, list[tuple[tuple, str]]]:
             continue
         for role, entry in group.items():
             if role in table:
-                problems.append((("contract", kind, role), f"role {role!r} is already a {WHAT[table[role][0]]} "
+                problems.append((("contract", kind, role), f"role {role!r} is already {_a(WHAT[table[role][0]])} "
                                  f"(contract.{table[role][0]}.{role}); a role names one thing"))
                 continue
             table[role] = (kind, _short(entry) if isinstance(entry, (str, dict)) else {})
@@ -230,8 +234,8 @@ def _name_of(role: str, table: dict, path: tuple, problems: list, kinds: tuple[s
         return None
     kind, entry = found
     if kinds is not None and kind not in kinds:
-        problems.append((path, f"${role} is a {WHAT[kind]} of the contract; this key needs a "
-                         f"{' or '.join(WHAT[k] for k in kinds)}"))
+        problems.append((path, f"${role} is {_a(WHAT[kind])} of the contract; this key needs "
+                         f"{' or '.join(_a(WHAT[k]) for k in kinds)}"))
         return None
     return entry.get("name")
 

@@ -40,7 +40,7 @@ class Event(StrEnum):
     REPLAY_END = "replay_end"                # step, count, outputs, paced, duration_s
     # processes
     NODE_STARTED = "node_started"            # process, of (rubric process), argv, node_name
-    NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started)
+    NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started), node_name
     NODE_STOPPED = "node_stopped"            # process, returncode
     PROCESS_EXIT = "process_exit"            # process, returncode, stopped_by_grader, timed_out
     STDIN_READY = "stdin_ready"              # process, nodes

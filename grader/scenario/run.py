@@ -174,7 +174,8 @@ class Launcher:
         driver = self.driver
         if not lp.argv:
             driver.event(Event.NODE_UNAVAILABLE, process=lp.name, of=proc.name, package=proc.package,
-                         executable=proc.executable, module=proc.module, launch=proc.launch, error=lp.error)
+                         executable=proc.executable, module=proc.module, launch=proc.launch, error=lp.error,
+                         node_name=lp.node_name)
             return False
         script = list(proc.stdin or ()) if proc.launch is None else []
         gate = threading.Event() if script else None
