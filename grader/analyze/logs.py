@@ -77,6 +77,19 @@ def _logged_by_others(frames: Frames, pattern: re.Pattern, loggers: set[str]) ->
     return out
 
 
+def _console_only(frames: Frames, pattern: re.Pattern, loggers: set[str]) -> list[str]:
+    """Matching lines a student process printed in the ROS console format under one of
+    ``loggers`` that are not on /rosout (a bare ``rclpy.logging.get_logger`` is not a node's)."""
+    mine = {_short(n) for n in loggers}
+    on_rosout = {str(t) for t in _logger_lines(frames, mine)["text"]}
+    console = stdout_lines(frames)
+    if console.empty:
+        return []
+    console = console[console["logger"].notna()]
+    return [str(t) for lg, t in zip(console["logger"], console["text"])
+            if _short(lg) in mine and pattern.search(str(t)) and str(t) not in on_rosout]
+
+
 def _sim_node(frames: Frames) -> str:
     return str(next((e.get("sim_node") for e in events(frames, Event.SCENARIO_START)), None) or "turtlesim")
 
@@ -117,6 +130,10 @@ def logged(frames: Frames, p: dict) -> Finding:
         ev["logged_by"] = {k: v[:3] for k, v in others.items()}
         return Finding.fail(f"{texts[0]!r} was logged by the node {name}, not by {logger}: the node that logs it "
                             f"must be called {logger}.", ev, value=texts[0])
+    console = _console_only(frames, pattern, {logger})
+    if console:
+        return Finding.fail(f"{console[0]!r} reached the console under the name {logger} but not /rosout: log it "
+                            "through the node's own logger, self.get_logger().info(...).", ev, value=console[0])
     printed = _printed(frames, pattern)
     ev["printed"] = printed[:10]
     if printed:

@@ -126,7 +126,7 @@ def print_contract(rubric) -> None:
     lines = rubric.contract.lines()
     if not lines:
         return
-    print(f"{rubric.title}: names this lab fixes (use them exactly; everything else is found by what it does)")
+    print(f"{rubric.title}\nNames this lab fixes (use them exactly; everything else is found by what it does):")
     width = max(len(what) for what, _, _, _ in lines)
     names = max(len(name) for _, name, _, _ in lines)
     for what, name, use, _why in lines:

@@ -204,3 +204,45 @@ def test_a_missing_node_says_what_became_of_its_process(code, words) -> None:
                  (T0 + 1, "process_exit", {"process": "node", "returncode": code, "stopped_by_grader": False})]
     f = get("nodes_running")(with_meta({"/grader/events": events_frame(rows)}), {"nodes": ["/my_first_node"]})
     assert f.status == "fail" and words in f.feedback and "did it crash" not in f.feedback
+
+
+def test_logged_to_the_console_only_is_not_printed() -> None:
+    """A bare rclpy.logging.get_logger('my_first_node') prints in the ROS format, not to /rosout."""
+    line = f"[INFO] [{T0 + 1:.3f}] [my_first_node]: {HELLO}"
+    f = get("logged")(_logs(stdout=[(T0 + 1, "node", "stderr", line)]), {"logger": "my_first_node", "pattern": "Hello"})
+    assert f.status == "fail" and "reached the console under the name my_first_node but not /rosout" in f.feedback
+
+
+def test_boxmuller_values_on_the_console_are_not_print() -> None:
+    pairs = [(T0 + 1 + 0.01 * k, {"data": [0.5, 0.25]}) for k in range(20)]
+    frames = {"/random_numbers": __import__("analyze_synth").frame([t for t, _ in pairs],
+                                                                   **{"data[0]": 0.5, "data[1]": 0.25, "data.len": 2}),
+              "/rosout": rosout_frame([(T0, "other", "start")])}
+    console = [(T0 + 1.005 + 0.01 * k, "subscriber", "stderr", f"[INFO] [{T0 + 1 + 0.01 * k:.3f}] [sub]: {0.1 * k:.4f}")
+               for k in range(20)]
+    plain = [(t, p, "stdout", line.rsplit(": ", 1)[1]) for t, p, _, line in console]
+    f = get("boxmuller_logging")(with_meta({**frames, "/grader/stdout": stdout_frame(console)}), {"topic": "/random_numbers"})
+    assert f.status == "fail" and "not its node's" in f.feedback
+    f = get("boxmuller_logging")(with_meta({**frames, "/grader/stdout": stdout_frame(plain)}), {"topic": "/random_numbers"})
+    assert f.status == "fail" and "with print()" in f.feedback
+
+
+def test_a_recording_that_misses_a_package_is_reused_only_with_the_same_packages(tmp_path) -> None:
+    """Its `packages` event names the student's other packages (the contract's candidates): a
+    recording made for a student whose package was called foo must not speak for one whose is bar."""
+    from types import SimpleNamespace
+
+    from grader.grading.reuse import scenario_key
+    from grader.scenario.model import Scenario
+
+    scenario = Scenario.model_validate({"sim": False, "processes": [{"name": "n", "package": "pkg", "executable": "x"}],
+                                        "steps": [{"id": "w", "wait": 1}]})
+
+    def build(name: str, exes=("x",)):
+        src = tmp_path / name / "src" / name
+        src.mkdir(parents=True, exist_ok=True)
+        (src / "package.xml").write_text(f"<package><name>{name}</name></package>")
+        return SimpleNamespace(root=tmp_path / name, packages={name: SimpleNamespace(status="built", executables=dict.fromkeys(exes))})
+
+    assert scenario_key("s", scenario, build("foo")) != scenario_key("s", scenario, build("bar"))
+    assert scenario_key("s", scenario, build("pkg")) == scenario_key("s", scenario, build("pkg", ("x", "y")))
