@@ -149,12 +149,6 @@ class Contract(Model):
             for role, entry in getattr(self, kind).items():
                 yield kind, role, entry
 
-    def find(self, role: str) -> tuple[str, Entry] | None:
-        for kind, r, entry in self.entries():
-            if r == role:
-                return kind, entry
-        return None
-
     def __bool__(self) -> bool:
         return any(True for _ in self.entries())
 
@@ -181,19 +175,18 @@ class Contract(Model):
 _KEY_KIND = {"package": "packages", "executable": "executables", "launch": "launch_files",
              "topic": "topics", "topics": "topics", "goal_topic": "topics", "pose_topic": "topics",
              "cmd_topic": "topics", "action_name": "actions", "nodes": "nodes", "logger": "nodes"}
-_NAME_UNDER = {"service": "services", "action": "actions", "publish": "topics"}
+_NAME_UNDER = {"service": "services", "action": "actions"}
 
 
-def _expected_kind(path: tuple, value_is_leaf: bool) -> str | None:
+def _expected_kind(path: tuple) -> str | None:
+    """The kind a name at ``path`` must be: ``service: {name: $x}`` a service, ``until:
+    {condition: advertised, service: $x}`` too, ``package: $x`` a package; None: any."""
     keys = [p for p in path if isinstance(p, str)]
     if not keys:
         return None
-    key = keys[-1]
-    if key == "name" and len(keys) >= 2:
-        return _NAME_UNDER.get(keys[-2])
-    if key in ("service", "action") and value_is_leaf:      # until: {condition: advertised, service: ...}
-        return {"service": "services", "action": "actions"}[key]
-    return _KEY_KIND.get(key)
+    if keys[-1] == "name":
+        return _NAME_UNDER.get(keys[-2]) if len(keys) >= 2 else None
+    return _NAME_UNDER.get(keys[-1]) or _KEY_KIND.get(keys[-1])
 
 
 def resolve_references(data: Any) -> tuple[Any, list[tuple[tuple, str]]]:
@@ -272,7 +265,7 @@ def _walk(value: Any, path: tuple, table: dict, problems: list) -> Any:
     if isinstance(value, str):
         match = REF.match(value)
         if match:
-            kind = _expected_kind(path, True)
+            kind = _expected_kind(path)
             name = _name_of(match[1], table, path, problems, (kind,) if kind else None)
             return value if name is None else name
         if "${" in value:

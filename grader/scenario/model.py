@@ -83,7 +83,8 @@ class Process(Model):
     package: PackageName | None = Field(None, description="the ROS package")
     executable: ExecutableName | None = Field(None, description="a console script of the package")
     module: EntryPoint | None = Field(None, description="pkg.module:function, when the script's name varies")
-    launch: LaunchFile | None = Field(None, description="a launch file of the package: starts its nodes")
+    launch: LaunchFile | None = Field(None, description="a launch file of the package: starts its nodes (a "
+                                      "pattern such as '*launch.py': the one launch file the package has)")
     launch_arguments: dict[str, str] = Field({}, description="name: value arguments of the launch file")
     args: Annotated[tuple[str, ...], Field(strict=False, description="extra command-line arguments")] = ()
     parameters: dict[str, ParamValue] = Field({}, description="ROS parameters, typed as written (30.0 is a double)")
