@@ -108,5 +108,7 @@ def launch_installed(frames: Frames, p: dict) -> Finding:
     ev = {"launch": e.get("launch"), "installed": bool(e.get("installed")), "notes": e.get("notes") or []}
     if e.get("installed"):
         return Finding("installed", 1.0, "pass", f"{e.get('launch')} is installed with the package.", ev)
+    if not ev["notes"] and any(c in str(e.get("launch")) for c in "*?["):
+        return Finding.fail(f"The package has no launch file ({e.get('launch')}).", ev, value="no launch file")
     return Finding.fail(" ".join(ev["notes"]) or f"{e.get('launch')} is not installed with the package.", ev,
                         value="not installed")
