@@ -143,6 +143,15 @@ def _nz(c: Any) -> bool:
 
 
 def missing_topic_feedback(frames: Frames, name: str, what: str = "") -> str:
+    """Why ``name`` has no messages, in words that tell the causes apart: a node advertised it
+    and never published, or nothing published there (and what was published instead)."""
+    graph = [n for e in events(frames, Event.GRAPH) if isinstance(e.get("publishers"), dict)
+             for n in e["publishers"].get(name) or []]
+    advertisers = [p for p in dict.fromkeys([*publishers_of(frames, name), *graph]) if not str(p).startswith("grader_")]
+    if advertisers:
+        return (f"{', '.join(advertisers)} advertised {name} but published no message on it"
+                f"{' (' + what + ')' if what else ''}: check that publish() is called, e.g. from a timer "
+                "that keeps running.")
     present = topics_present(frames)
     similar = [t for t in present if _similar(t, name)]
     msg = f"No messages were recorded on {name}{' (' + what + ')' if what else ''}."

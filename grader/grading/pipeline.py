@@ -116,7 +116,8 @@ def _unavailable_nodes(frames: dict) -> list[str]:
 
 
 def _crashed_nodes(frames: dict) -> list[str]:
-    """Student processes that exited on their own, with the last line of what they printed."""
+    """Student processes that exited on their own, with the last line of what they printed: a
+    non-zero exit is a crash; exit code 0 means its main returned (it stopped spinning)."""
     lines = stdout_lines(frames)
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
@@ -126,7 +127,10 @@ def _crashed_nodes(frames: dict) -> list[str]:
         if not e.get("stopped_by_grader"):
             name = e.get("process", "?")
             tail = last_line.get(name, "")
-            out.append(f"{name} exited with code {e.get('returncode')}" + (f" ({tail[:160]})" if tail else ""))
+            code = e.get("returncode")
+            what = (f"{name} returned on its own (exit code 0) while the scenario ran: does it keep spinning?"
+                    if code == 0 else f"{name} crashed (exit code {code})")
+            out.append(what + (f" ({tail[:160]})" if tail else ""))
     if out and limits:
         out.append("limit reached: " + "; ".join(dict.fromkeys(m for m in limits if m)))
     return out
@@ -148,8 +152,8 @@ def analyze_item(item, frames: dict):
     missing = _unavailable_nodes(frames)
     crashed = _crashed_nodes(frames)
     if missing or crashed:
-        why = (["Could not run " + "; ".join(missing)] if missing else []) + \
-              (["Node crashed: " + "; ".join(crashed)] if crashed else [])
+        why = (["Could not run " + "; ".join(missing).rstrip(".") + "."] if missing else []) + \
+              (["Node stopped: " + "; ".join(crashed).rstrip(".") + "."] if crashed else [])
         finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
         finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
         if finding.status == "error" and item.kind != "integrity":
@@ -173,12 +177,22 @@ def combine_findings(item, per_scenario: list):
     return worst_finding(per_scenario) if per_scenario else None
 
 
+class Findings(dict):
+    """Item id -> finding, plus ``contract``: the contract names each scenario's recording shows
+    under another name (``grader.rubric.contract.Mismatch``; scoring blocks the items that
+    depend on them). A dict, so callers that only want the findings need not change."""
+
+    contract: tuple = ()
+
+
 def analyze_bags(rubric, items: list, sub_out: Path,
-                 unusable: dict[str, str] | None = None) -> tuple[dict[str, Any], list[str]]:
+                 unusable: dict[str, str] | None = None) -> tuple[Findings, list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems.
     ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
     finalised): its items become errors saying so."""
     from grader.analyze import Finding
+    from grader.analyze.contract import check_contract
+    from grader.rubric.contract import merge_mismatches
 
     frames_cache: dict[str, dict | Exception] = {}
     problems: list[str] = []
@@ -197,7 +211,7 @@ def analyze_bags(rubric, items: list, sub_out: Path,
                 problems.append(f"scenario {sc}: {exc}")
         return frames_cache[sc]
 
-    findings: dict[str, Any] = {}
+    findings = Findings()
     for item in items:
         per_scenario = []
         for sc in item.scenario:
@@ -213,6 +227,11 @@ def analyze_bags(rubric, items: list, sub_out: Path,
             planned = rubric.scenarios[sc].repeat if sc in rubric.scenarios else 1
             per_scenario.append(median_finding(per_run, planned))
         findings[item.id] = combine_findings(item, per_scenario)
+    mismatches = {}
+    for sc, frames in frames_cache.items():
+        if not isinstance(frames, Exception):
+            mismatches[sc] = check_contract(rubric.contract, rubric.scenario_roles(sc), frames)
+    findings.contract = merge_mismatches(mismatches)
     return findings, problems
 
 

@@ -91,6 +91,11 @@ def scenario_key(scenario_id: str, scenario: Scenario, build: Any, settings: str
     for step in scenario.steps:
         if step.replay is not None:
             h.update(_tree_digest(step.replay.bag).encode())
+    if any(proc.package and proc.package not in packages for proc in scenario.processes):
+        # a package it runs is missing: the recording's `packages` event (the contract's names,
+        # grader.analyze.contract) then speaks of the others, which differ from student to student
+        for name, pkg in sorted(build.packages.items()):
+            h.update(f"{name}:{pkg.status}:{','.join(sorted(pkg.executables))}".encode())
     return h.hexdigest()[:24]
 
 

@@ -158,6 +158,22 @@ def _notices(title: str, css: str, notices: tuple[Notice, ...]) -> str:
     return f'<section class="box {css}" aria-label="{escape(title)}"><h2>{escape(title)}</h2><ul>{items}</ul></section>'
 
 
+def _contract_html(result: Result) -> str:
+    """Names the lab fixes that the submission spells differently: one line each, before the
+    items, with the items each one blocks (their own cards say the same in one sentence)."""
+    if not result.contract:
+        return ""
+    titles = {i.id: i.title for i in result.items}
+    rows = []
+    for m in result.contract:
+        blocked = ", ".join(f'<a href="#item-{escape(b)}">{escape(titles.get(b, b))}</a>' for b in m.blocks)
+        rows.append(f'<li data-role="{escape(m.role)}"><b>{escape(m.feedback)}</b>'
+                    + (f" It blocks: {blocked}." if blocked else "") + "</li>")
+    return (f'<section class="box flags" id="contract" aria-label="Names this lab fixes"><h2>Names this lab '
+            f'fixes</h2><p class="sub">Use these names exactly: the items that depend on a name are checked '
+            f'once it is right.</p><ul>{"".join(rows)}</ul></section>')
+
+
 def _canvas_html(canvas_png: Any) -> str:
     if canvas_png is None:
         return ""
@@ -309,6 +325,7 @@ def render_html(result: Result, submission: str, *, versions: Mapping[str, str] 
 {_who_html(intake)}
 <div class="scores" id="scores">{_scores(result)}</div>{_late_html(result)}{hidden}</header>
 {_problems_html(problems)}
+{_contract_html(result)}
 {_notes_html(notes)}
 {flags}
 {summary}

@@ -18,6 +18,7 @@ from typing import Annotated, Any, Collection, Literal, Mapping, Union
 from pydantic import BeforeValidator, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from grader.rubric.intake_fields import LatePolicy, LooseFiles, intake_problems
+from grader.rubric.contract import Contract, item_roles, resolve_references, scenario_roles
 from grader.scenario.fields import Model, PackageName, _named, with_rules
 from grader.scenario.model import Scenario
 
@@ -300,6 +301,9 @@ class Rubric(Model):
                                        "submission folder); it must earn no points")
     support: dict[PackageName, RubricPath] = Field(
         {}, description="packages supplied when a submission lacks them (e.g. given interfaces)")
+    contract: Contract = Field(Contract(), description="the names students must use exactly (package, "
+                               "executable, node, topic, service, action, launch file), each under a role; "
+                               "the rest of the rubric refers to them as $role")
     sections: Annotated[tuple[SectionSpec, ...], Field(strict=False)] = ()
     scenarios: dict[ScenarioId, Scenario] = {}
     items: Annotated[tuple[Item, ...], Field(min_length=1, strict=False)]
@@ -311,6 +315,28 @@ class Rubric(Model):
 
     model_config = {**Model.model_config, "populate_by_name": True}
     _source: Path = PrivateAttr(default=Path("rubric.yaml"))
+
+    @model_validator(mode="before")
+    @classmethod
+    def _references(cls, value: Any) -> Any:
+        """``$role`` and ``${role}`` become the contract's names (the loader reports the ones it
+        cannot resolve, with their lines; here they are left to fail their field's check)."""
+        return resolve_references(value)[0]
+
+    def item_roles(self, item: Item, scenario_id: str) -> set[str]:
+        """Contract roles ``item`` depends on in ``scenario_id``: those its parameters name and
+        those its scenario runs or drives."""
+        scenario = self.scenarios.get(scenario_id)
+        return item_roles(self.contract, item) | (scenario_roles(self.contract, scenario) if scenario else set())
+
+    def scenario_roles(self, scenario_id: str) -> set[str]:
+        """Contract roles to look for in ``scenario_id``'s recording: what it runs and drives, and
+        what the parameters of the items graded on it name."""
+        out = scenario_roles(self.contract, self.scenarios[scenario_id]) if scenario_id in self.scenarios else set()
+        for item in self.items:
+            if scenario_id in item.scenario:
+                out |= item_roles(self.contract, item)
+        return out
 
     @property
     def source(self) -> Path:

@@ -351,19 +351,35 @@ class Driver:
         return self.clock.wait_until(predicate, timeout_s, poll, wall=wall)
 
     def graph_snapshot(self) -> None:
-        """Publish the nodes, and who publishes and subscribes what: integrity checks and
-        "the launch file starts these nodes" need it."""
+        """Publish the nodes, and who publishes, subscribes and serves what (with the types):
+        integrity checks, "the launch file starts these nodes" and the contract's names found by
+        behaviour (the node that serves /set_goal, whatever it is called) need it."""
         pubs: dict[str, list[str]] = {}
         subs: dict[str, list[str]] = {}
-        nodes = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in self.node.get_node_names_and_namespaces())
+        names = self.node.get_node_names_and_namespaces()
+        nodes = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in names)
         services = sorted(n for n, _ in self.node.get_service_names_and_types())
-        for topic, _types in self.node.get_topic_names_and_types():
+        topic_types: dict[str, list[str]] = {}
+        for topic, types in self.node.get_topic_names_and_types():
             try:
                 pubs[topic] = sorted({i.node_name for i in self.node.get_publishers_info_by_topic(topic)})
                 subs[topic] = sorted({i.node_name for i in self.node.get_subscriptions_info_by_topic(topic)})
+                topic_types[topic] = list(types)
             except Exception:  # noqa: BLE001 - a topic vanishing mid-query is fine
                 continue
-        self.event(Event.GRAPH, nodes=nodes, publishers=pubs, subscribers=subs, services=services)
+        servers: dict[str, list[str]] = {}
+        service_types: dict[str, list[str]] = {}
+        for name, ns in names:
+            try:
+                offered = self.node.get_service_names_and_types_by_node(name, ns)
+            except Exception:  # noqa: BLE001 - the node went away meanwhile
+                continue
+            for service, types in offered:
+                servers.setdefault(service, []).append(name)
+                service_types[service] = list(types)
+        self.event(Event.GRAPH, nodes=nodes, publishers=pubs, subscribers=subs, services=services,
+                   topic_types=topic_types, servers={k: sorted(set(v)) for k, v in servers.items()},
+                   service_types=service_types)
 
     # -- readiness -------------------------------------------------------------------------
     def _student_endpoint(self, topic: str, publisher: bool) -> bool:

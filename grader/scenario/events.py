@@ -42,12 +42,14 @@ class Event(StrEnum):
     REPLAY_END = "replay_end"                # step, count, outputs, paced, duration_s
     # processes
     NODE_STARTED = "node_started"            # process, of (rubric process), argv (whole), node_name
-    NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started)
+    NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started), node_name
     NODE_STOPPED = "node_stopped"            # process, returncode
     PROCESS_EXIT = "process_exit"            # process, returncode, stopped_by_grader, timed_out
     STDIN_READY = "stdin_ready"              # process, nodes
     STDIN_LINE = "stdin_line"                # process, line, delivered
-    LAUNCH_RESOLVED = "launch_resolved"      # process, launch, installed, nodes (declared), notes
+    LAUNCH_RESOLVED = "launch_resolved"      # process, launch (the file found), installed, nodes (declared), notes
+    PACKAGES = "packages"                    # packages {name: {status, executables, launch_files}} of the build
     LIMIT_HIT = "limit_hit"                  # limit (memory|processes|cpu|output), detail; process, stream (output)
     # the ROS graph
-    GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services
+    GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services,
+    #                                          topic_types {topic: [type]}, servers {service: [node]}, service_types

@@ -84,7 +84,8 @@ class Process(Model):
     package: PackageName | None = Field(None, description="the ROS package")
     executable: ExecutableName | None = Field(None, description="an executable of the package, found as `ros2 run` finds it")
     module: EntryPoint | None = Field(None, description="pkg.module:function, when the script's name varies")
-    launch: LaunchFile | None = Field(None, description="a launch file of the package: starts its nodes")
+    launch: LaunchFile | None = Field(None, description="a launch file of the package: starts its nodes (a "
+                                      "pattern such as '*launch.py': the one launch file the package has)")
     launch_arguments: dict[str, str] = Field({}, description="name: value arguments of the launch file")
     args: Annotated[tuple[str, ...], Field(strict=False, description="extra command-line arguments")] = ()
     parameters: dict[str, ParamValue] = Field({}, description="ROS parameters, typed as written (30.0 is a double)")
@@ -429,6 +430,14 @@ class RateExpectation(Model):
     rel_tol: PositiveFloat = 0.3
 
 
+class PackageFacts(Model):
+    """What the build made of one package of the submission: the names a contract may fix."""
+
+    status: str                        # built | failed | skipped
+    executables: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    launch_files: Annotated[tuple[str, ...], Field(strict=False)] = ()
+
+
 class ScenarioRun(Model):
     """What crosses to the scenario child: the rubric's scenario as it is, plus what the parent
     resolved against the build (argv of every process, install prefixes, the simulator's name)
@@ -443,3 +452,5 @@ class ScenarioRun(Model):
     launch_installed: dict[str, bool] = {}   # process -> its launch file is in the package's share
     time_scale: Annotated[float, Field(ge=1.0, le=16.0, strict=False)] = 1.0   # 1: the wall clock
     expected_rates: Annotated[tuple[RateExpectation, ...], Field(strict=False)] = ()   # watchdog
+    packages: dict[str, PackageFacts] = {}   # the build's packages (``packages`` event: contract names)
+    launch_files: dict[str, str] = {}        # process -> the launch file found for its ``launch:``

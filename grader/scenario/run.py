@@ -176,7 +176,8 @@ class Launcher:
         driver = self.driver
         if not lp.argv:
             driver.event(Event.NODE_UNAVAILABLE, process=lp.name, of=proc.name, package=proc.package,
-                         executable=proc.executable, module=proc.module, launch=proc.launch, error=lp.error)
+                         executable=proc.executable, module=proc.module, launch=proc.launch, error=lp.error,
+                         node_name=lp.node_name)
             return False
         script = list(proc.stdin or ()) if proc.launch is None else []
         gate = threading.Event() if script else None
@@ -266,9 +267,12 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
             driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=graph.domain_id,
                          sim_node=run.sim_node)
+            if run.packages:         # the names the build made: a contract's names are looked up in them
+                driver.event(Event.PACKAGES, packages={n: f.model_dump(mode="json") for n, f in run.packages.items()})
             for proc in spec.processes:
                 if proc.launch:
-                    driver.event(Event.LAUNCH_RESOLVED, process=proc.name, launch=proc.launch,
+                    driver.event(Event.LAUNCH_RESOLVED, process=proc.name,
+                                 launch=run.launch_files.get(proc.name, proc.launch),
                                  installed=run.launch_installed.get(proc.name, False),
                                  notes=list(run.notes.get(proc.name, ())),
                                  nodes=[lp.model_dump(include={"name", "node_name", "package", "executable",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -66,6 +67,7 @@ def test_every_lab_has_a_reference_and_buggy_variants() -> None:
         auto = {i.id for i in rubric.items if i.automatic}
         for name in names:      # expected.yaml lists exactly the rubric's automatic items
             assert set(expected(lab, name)["expected"]) == auto, (lab, name)
+            assert set(expected(lab, name).get("feedback") or {}) <= auto, (lab, name)
 
 
 @pytest.mark.parametrize("lab,submission", CASES)
@@ -82,6 +84,10 @@ def test_fixture_grades_as_expected(batches: dict[str, Path], lab: str, submissi
         status = got[item_id]["status"]
         if status not in allowed:
             mismatches.append(f"{item_id}: expected {want}, got {status} — {got[item_id]['feedback'][:200]}")
+    # where the fixture's cause has a sentence of its own, the student must read it
+    for item_id, pattern in (expected(lab, submission).get("feedback") or {}).items():
+        if not re.search(pattern, got[item_id]["feedback"]):
+            mismatches.append(f"{item_id}: feedback {got[item_id]['feedback'][:300]!r} does not match /{pattern}/")
     assert not mismatches, f"{lab}/{submission}:\n" + "\n".join(mismatches)
 
 
