@@ -100,11 +100,24 @@ def test_the_handout_earns_nothing(batches: dict[str, Path], lab: str) -> None:
     assert not earned, f"the handout of {lab} earns points for given code: {earned}"
 
 
-def test_reference_has_full_marks(batches: dict[str, Path]) -> None:
-    for lab, out in batches.items():
-        ref = json.loads((out / "reference" / "result.json").read_text())
-        assert ref["auto_score"] == ref["auto_max"], lab
-        assert ref["integrity_flags"] == [] and ref["warnings"] == [], lab
+#: correct solutions: each earns every automatic point, however it is written. The alternatives
+#: (``alt_*``) differ from the reference the ways students do; the wall-pen lab text gives its
+#: whole node, which is correct by definition
+CORRECT = [(lab, s) for lab, s in CASES if s == "reference" or s.startswith("alt_")] + [("wall_pen", "chapter")]
+
+
+def test_every_lab_has_three_alternative_correct_solutions() -> None:
+    for lab in LABS:
+        assert len([s for lab_, s in CORRECT if lab_ == lab and s.startswith("alt_")]) >= 3, lab
+
+
+@pytest.mark.parametrize("lab,submission", CORRECT)
+def test_correct_solutions_have_full_marks(batches: dict[str, Path], lab: str, submission: str) -> None:
+    result = json.loads((batches[lab] / submission / "result.json").read_text())
+    short = [f"{i['id']}: {i['points']}/{i['max_points']} {i['feedback'][:200]}" for i in result["items"]
+             if i["kind"] == "auto" and i["points"] != i["max_points"]]
+    assert result["auto_score"] == result["auto_max"], f"{lab}/{submission}:\n" + "\n".join(short)
+    assert result["integrity_flags"] == [] and result["warnings"] == [], (lab, submission)
 
 
 def test_batch_outputs(batches: dict[str, Path]) -> None:
