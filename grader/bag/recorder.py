@@ -36,6 +36,10 @@ runs on simulated time (``--time-scale``, unlike ``ros2 bag record --use-sim-tim
 stamps and the ``/rosout`` stamps inside messages can only be wall clock, so the bag keeps one
 time base and the recorded ``/clock`` maps all of them to simulated time when it is read
 (:mod:`grader.bag.timebase`).
+
+Topics under ``/grader/sim_record/`` are never taken from DDS: the prefix holds the simulator's
+own record of its poses (:mod:`grader.sim.record`), which the scenario hands over when it ends
+(:meth:`Recorder.write_record`), so whatever a node publishes under that name stays out of the bag.
 """
 
 from __future__ import annotations
@@ -49,6 +53,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
+
+from grader.sim.record import is_record_topic
 
 READY_LINE = "READY"
 #: messages drained in one wake above which the recorder does not wait for the next batch
@@ -151,9 +157,13 @@ class Recorder:
         self.exclude = re.compile(args.exclude) if args.exclude else None
         self.all = args.all or (not self.topics and not self.regex)
         self._waitset = None
+        #: record files of the simulator to write into the bag before it is closed
+        self.records: list[Path] = []
 
     # -- selection and discovery ---------------------------------------------------------
     def wanted(self, topic: str) -> bool:
+        if is_record_topic(topic):       # the simulator's record comes from its file, never DDS
+            return False
         if topic in self.topics:
             return True
         if self.exclude and self.exclude.search(topic):
@@ -331,6 +341,22 @@ class Recorder:
                 return
             self.spin_once(0.01)
 
+    def write_record(self, path: Path) -> int:
+        """Write the simulator's record of its poses (:mod:`grader.sim.record`) into the bag, each
+        pose at the time the simulator published it; returns how many."""
+        from grader.sim.record import DECLARE, POSE_TYPE, read_record
+
+        n = 0
+        for topic, t_ns, data in read_record(path):
+            if topic not in self.writer.topics:
+                self.writer.add_topic(topic, POSE_TYPE, self.defs.full_text(POSE_TYPE),
+                                      type_hash=self.defs.type_hash(POSE_TYPE))
+            if t_ns == DECLARE:
+                continue
+            n += 1
+            self.writer.write(topic, t_ns, data, t_ns, n)
+        return n
+
     def finish(self) -> int:
         for sub in self.subs.values():
             if sub.handle is not None:
@@ -338,6 +364,11 @@ class Recorder:
                     self.drain(sub)
                 except Exception:  # noqa: BLE001 - context may already be shutting down
                     pass
+        for path in self.records:
+            try:
+                self.write_record(path)
+            except Exception as exc:  # noqa: BLE001 - the bag is still finalized without it
+                _log(f"could not write the simulator's record {path}: {type(exc).__name__}: {exc}")
         meta = self.writer.close()
         try:
             self.node.destroy_node()

@@ -55,7 +55,10 @@ class RecorderThread:
         if self.error is not None:
             raise GraderError(f"the recorder stopped: {type(self.error).__name__}: {self.error}")
 
-    def stop(self, timeout_s: float = 20.0) -> int | None:
+    def stop(self, timeout_s: float = 20.0, records: Sequence[Path] = ()) -> int | None:
+        """``records``: the simulator's record files (:mod:`grader.sim.record`), written into the
+        bag before it is finalized."""
+        self.recorder.records.extend(Path(r) for r in records)
         self.recorder.stop = True
         if self._thread.is_alive():
             self._thread.join(timeout_s)
