@@ -10,6 +10,10 @@ its send time until the next goal (or the end of the recording).
 * ``turn_direction``: with the wrapped theta_e of eq. (3) the turtle always turns the short way;
   a missing wrap (atan2(dy, dx) - theta) makes it turn the long way when the difference crosses
   +-pi, and a wrong sign makes it turn away.
+
+Both judge the simulator's own poses only (``sim_pose``), and a goal during which student code
+moved the turtle without driving it (a teleport, a reset, a kill and spawn: the call's client id
+says whose call it was, :mod:`grader.analyze.provenance`) earns nothing in either.
 The gains and form of Lab 3's law are checked by ``control_law`` (its own module).
 """
 
@@ -20,8 +24,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
-from grader.analyze._common import (WORLD_MAX, Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, teleport_times, thin, times, topic)
+from grader.analyze import Finding, graded, provenance, register
+from grader.analyze._common import (WORLD_MAX, Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, thin, times, topic)
 from grader.analyze.goals import Goal, goals, heading_error
 from grader.analyze.evidence import SHARE, TIME
 from grader.scenario.events import Event
@@ -65,7 +69,7 @@ EVIDENCE = {
     "goal_source": ("where goals are read (events, topic, auto)", ""),
     "trajectory": None,
     "wall_contacts": ("times the turtle hit a wall", ""),
-    "teleported": ("teleport or reset calls while the goal was active", ""),
+    "teleported": ("calls of student code that moved the turtle while the goal was active", ""),
     "wall_points": None,
     # turn_direction
     "start": None,
@@ -79,6 +83,7 @@ EVIDENCE = {
     "short_way": ("turned the short way", ""),
     "min_turn_deg": ("goals judged from a turn of", "deg"),
     "heading_error": None,
+    **provenance.EVIDENCE,
     # control_law
     "rows": ("cmd_vel messages paired with a pose and a goal", ""),
     "K1": ("fitted K1 (linear.x = K1·d_e)", "1/s"),
@@ -166,17 +171,18 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
     v = pose["linear_velocity"].to_numpy(float) if "linear_velocity" in pose.columns else None
-    teleports = teleport_times(frames)
+    moved = provenance.moves(frames, p["pose_topic"])
     rows = []
     score = 0.0
     for k, g in enumerate(gl, 1):
         m = (t >= g.t) & (t <= g.t_end)
         row = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
-        moved = [tp for tp in teleports if g.t <= tp <= g.t_end]
-        if moved:
-            # the turtle was teleported (or reset) while this goal was active: no arrival counts
-            row.update(reached=False, teleported=len(moved), note="the turtle was teleported or reset while "
-                       "this goal was active: an arrival does not count")
+        during = provenance.within(moved, g.t, g.t_end)
+        if during:
+            # student code put the turtle somewhere while this goal was active: no arrival counts
+            row.update(reached=False, teleported=len(during),
+                       note=f"the turtle was moved without driving ({provenance.moved_text(frames, during)}) while "
+                            "this goal was active: a goal reached that way earns nothing")
             rows.append(row)
             continue
         if m.sum() < 2:
@@ -223,9 +229,10 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         times_txt = ", ".join(f"{r['time_to_reach']:.1f} s" for r in rows)
         return Finding(value, 1.0, "pass", f"All {len(gl)} goals reached and held (time to reach: {times_txt}).", ev)
     hint = ""
-    if n_reached == 0:
+    if n_reached == 0 and not any(r.get("teleported") for r in rows):
         hint = (" Check the signs of the distance and heading errors and of the gains, and that the "
                 "velocity commands reach the turtle's cmd_vel topic.")
+    hint += provenance.ignored_poses_note(frames, p["pose_topic"])
     return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
 
 
@@ -283,6 +290,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
     cmd = topic(frames, p["cmd_topic"])
+    moved = provenance.moves(frames, p["pose_topic"])
     rows, judged, good = [], 0, 0
     series: list[dict] = []
     for k, g in enumerate(gl, 1):
@@ -305,6 +313,12 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             rows.append(row)
             continue
         row["evaluated"] = True
+        during = provenance.within(moved, g.t, g.t_end)
+        if during:      # a turn made by a teleport is no turn: this goal earns nothing
+            row.update(short_way=False, teleported=len(during), note=provenance.moved_text(frames, during))
+            judged += 1
+            rows.append(row)
+            continue
         i1 = min(int(np.searchsorted(t, g.t + p["react_s"], side="left")), len(t) - 1)
         m1 = (t >= t[i1]) & (t <= g.t_end)
         dth = np.unwrap(th[m1]) - th[i1]
@@ -332,7 +346,10 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"The turtle turned the short way for all {judged} large-turn goal(s).", ev)
     bad = [r for r in rows if r.get("evaluated") and not r.get("short_way")]
     r = bad[0]
-    if r["initial_turn"] == "none":
+    if r.get("teleported"):
+        msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle was moved without driving ({r['note']}): "
+               "a turn made that way earns nothing.")
+    elif r["initial_turn"] == "none":
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle did not turn at all (needed "
                f"{r['required_turn_deg']:+.0f}°): the angular command should be proportional to "
                "the heading error.")

@@ -5,6 +5,8 @@
   are read off the simulator's poses; each crossing must be followed, within ``max_delay_s`` (a
   few 16 ms pose periods), by exactly one call with that direction's colour, and there must be
   no other calls.
+  A run in which student code moved the turtle without driving it (:mod:`grader.analyze.provenance`)
+  earns nothing: its crossings were not driven.
 * ``canvas_colours``: the canvas the simulator saved at the end (``canvas.png`` beside the bag,
   loaded as the ``__canvas__`` frame: one row per drawn pixel) shows each colour on its side.
 """
@@ -16,13 +18,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import Finding, graded, provenance, register
 from grader.analyze.evidence import SHARE, SINCE_START
 from grader.analyze._common import (sim_pose, Frames, missing_topic_feedback, scenario_end_time, service_calls,
                                     thin, times, topic)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    **provenance.EVIDENCE,
     "crossings": ("crossings of the line", ""), "direction": ("direction", ""), "wanted": ("colour wanted (r, g, b)", ""),
     "ok": ("as expected", ""), "why": ("problem", ""), "delay_s": ("call after the crossing", "s"),
     "color": ("colour set (r, g, b)", ""), "width": ("pen width", ""), "extra_calls": ("calls not at a crossing", ""),
@@ -70,6 +73,9 @@ def _color(request: dict) -> list[int] | None:
     "max_delay_s": 0.1,              # s from the crossing pose to the call reaching the simulator
 })
 def pen_on_crossings(frames: Frames, p: dict) -> Finding:
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return provenance.moved_finding(frames, moved, "each crossing")
     pose = sim_pose(frames, p["pose_topic"])
     if pose is None or "x" not in pose.columns:
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
