@@ -308,6 +308,8 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
         rows.append(row)
     frac = ok_n / len(gs)
     ev = {"goals": rows, "timeline": _timeline(frames, p["pose_topic"])}
+    if any(r.get("teleported") for r in rows):
+        ev["student_moves"] = [c.plain(frames) for c in moved[:10]]
     value = f"{ok_n}/{len(gs)} succeeded"
     unanswered = _unanswered(rows)
     if unanswered:

@@ -172,6 +172,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
     v = pose["linear_velocity"].to_numpy(float) if "linear_velocity" in pose.columns else None
     moved = provenance.moves(frames, p["pose_topic"])
+    counted: list[provenance.Call] = []     # the moves that cost a goal
     rows = []
     score = 0.0
     for k, g in enumerate(gl, 1):
@@ -180,6 +181,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         during = provenance.within(moved, g.t, g.t_end)
         if during:
             # student code put the turtle somewhere while this goal was active: no arrival counts
+            counted += during
             row.update(reached=False, teleported=len(during),
                        note=f"the turtle was moved without driving ({provenance.moved_text(frames, during)}) while "
                             "this goal was active: a goal reached that way earns nothing")
@@ -209,6 +211,8 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     n_reached = sum(1 for r in rows if r.get("reached"))
     ev = {"goals": rows, "tol_reached": p["tol_reached"], "goal_source": gl[0].source,
           "trajectory": _trajectory(t, x, y, gl, pose["theta"].to_numpy(float))}
+    if counted:     # the rubric's advice for a wrong controller is not for these (rubric.score)
+        ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
     ev.update(_wall_contacts(frames, t, x, y))
     value = f"{n_reached}/{len(gl)} reached"
     problems = []
@@ -291,6 +295,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
     cmd = topic(frames, p["cmd_topic"])
     moved = provenance.moves(frames, p["pose_topic"])
+    counted: list[provenance.Call] = []
     rows, judged, good = [], 0, 0
     series: list[dict] = []
     for k, g in enumerate(gl, 1):
@@ -315,6 +320,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         row["evaluated"] = True
         during = provenance.within(moved, g.t, g.t_end)
         if during:      # a turn made by a teleport is no turn: this goal earns nothing
+            counted += during
             row.update(short_way=False, teleported=len(during), note=provenance.moved_text(frames, during))
             judged += 1
             rows.append(row)
@@ -337,6 +343,8 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         good += ok
         rows.append(row)
     ev = {"goals": rows, "heading_error": series}
+    if counted:
+        ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
     if judged == 0:
         return Finding.error("No goal in this scenario required a large turn from where the turtle was, "
                              "so the turn direction could not be judged.", ev)

@@ -147,8 +147,9 @@ def _service_rows(frames: Frames, names: tuple[str, ...]) -> list[float]:
     "list_services": ["/turtle1/set_pen"],
 })
 def integrity_no_teleport(frames: Frames, p: dict) -> Finding:
-    """Flag teleport/reset calls made by student code (by the calling client's id, see
-    :mod:`grader.analyze.provenance`); list set_pen calls."""
+    """Flag teleport/reset calls made by student code, told from the grader's own by the calling client's id; list set_pen calls.
+
+    (:mod:`grader.analyze.provenance`: not by when a call was made.)"""
     if not math.isfinite(end_time(frames)):
         return Finding.error("The bag holds no messages; teleport calls could not be checked.")
     flagged, listed, explained, unknown = [], [], [], []
