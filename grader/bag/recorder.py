@@ -40,12 +40,17 @@ time base and the recorded ``/clock`` maps all of them to simulated time when it
 Topics under ``/grader/sim_record/`` are never taken from DDS: the prefix holds the simulator's
 own record of its poses (:mod:`grader.sim.record`), which the scenario hands over when it ends
 (:meth:`Recorder.write_record`), so whatever a node publishes under that name stays out of the bag.
+Likewise the *local* topics of a recorder running inside the scenario process (the driver's
+``/grader/events`` and ``/grader/stdout``): the driver hands their messages to it in process
+(:meth:`Recorder.post`), and a node publishing on those names over DDS is not recorded, so no
+student node can add an event (say, a service call of the grader's with its own client id).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import queue
 import re
 import signal
 import sys
@@ -159,10 +164,13 @@ class Recorder:
         self._waitset = None
         #: record files of the simulator to write into the bag before it is closed
         self.records: list[Path] = []
+        #: topics written in process only (:meth:`add_local`), never taken from DDS
+        self.local: set[str] = set()
+        self._inbox: queue.SimpleQueue = queue.SimpleQueue()
 
     # -- selection and discovery ---------------------------------------------------------
     def wanted(self, topic: str) -> bool:
-        if is_record_topic(topic):       # the simulator's record comes from its file, never DDS
+        if is_record_topic(topic) or topic in self.local:     # never from DDS (module docstring)
             return False
         if topic in self.topics:
             return True
@@ -322,7 +330,7 @@ class Recorder:
         next_poll = time.monotonic() + poll
         while not self.stop and self.ctx.ok():
             woke = time.monotonic()
-            drained = self.spin_once(min(0.05, poll))
+            drained = self.spin_once(min(0.05, poll)) + self._write_posted()
             self.writer.poll()
             now = time.monotonic()
             if now >= next_poll:
@@ -340,6 +348,26 @@ class Recorder:
                    for s in self.subs.values()):
                 return
             self.spin_once(0.01)
+
+    def add_local(self, topic: str, type_name: str) -> None:
+        """A topic whose messages come only from :meth:`post` (call before :meth:`run`)."""
+        self.local.add(topic)
+        self.writer.add_topic(topic, type_name, self.defs.full_text(type_name),
+                              type_hash=self.defs.type_hash(type_name))
+
+    def post(self, topic: str, data: bytes, t_ns: int | None = None) -> None:
+        """A message of a local topic, from any thread (written by the recorder's own thread)."""
+        self._inbox.put((topic, time.time_ns() if t_ns is None else t_ns, data))
+
+    def _write_posted(self) -> int:
+        n = 0
+        while True:
+            try:
+                topic, t_ns, data = self._inbox.get_nowait()
+            except queue.Empty:
+                return n
+            n += 1
+            self.writer.write(topic, t_ns, data, t_ns, n)
 
     def write_record(self, path: Path) -> int:
         """Write the simulator's record of its poses (:mod:`grader.sim.record`) into the bag, each
@@ -364,6 +392,7 @@ class Recorder:
                     self.drain(sub)
                 except Exception:  # noqa: BLE001 - context may already be shutting down
                     pass
+        self._write_posted()
         for path in self.records:
             try:
                 self.write_record(path)

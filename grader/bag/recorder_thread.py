@@ -27,9 +27,13 @@ class RecorderThread:
     ``stop()`` drains, finalizes the bag and returns the number of messages written."""
 
     def __init__(self, out_dir: Path | str, topics: Sequence[str] | None = None, *, domain_id: int,
-                 extra: Sequence[str] = ()) -> None:
+                 extra: Sequence[str] = (), local: Sequence[str] = ()) -> None:
+        """``local``: ``std_msgs/msg/String`` topics this process writes itself (:meth:`post`);
+        a node publishing on them over DDS is not recorded."""
         argv = recorder_argv(out_dir, topics, extra=extra)[3:]     # the CLI's options and defaults
         self.recorder = Recorder(build_parser().parse_args(argv), domain_id=domain_id)
+        for topic in local:
+            self.recorder.add_local(topic, "std_msgs/msg/String")
         self.ready = threading.Event()
         self.error: BaseException | None = None
         self.messages: int | None = None
@@ -54,6 +58,10 @@ class RecorderThread:
             raise GraderError(f"the recorder did not become ready within {timeout_s:.0f} s.")
         if self.error is not None:
             raise GraderError(f"the recorder stopped: {type(self.error).__name__}: {self.error}")
+
+    def post(self, topic: str, data: bytes) -> None:
+        """A serialized message of a ``local`` topic, stamped now (thread-safe)."""
+        self.recorder.post(topic, data)
 
     def stop(self, timeout_s: float = 20.0, records: Sequence[Path] = ()) -> int | None:
         """``records``: the simulator's record files (:mod:`grader.sim.record`), written into the

@@ -29,7 +29,7 @@ from typing import Any, Iterator
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
-from grader.scenario.events import Event
+from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
 from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
@@ -225,8 +225,11 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if topics is not None and scale:
                 topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
             with _interrupt_after():
+                # the driver's events and output lines go into the bag in process (local topics):
+                # a student node publishing "/grader/events" adds nothing to the recording
                 recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id,
-                                          extra=["--time-scale", repr(scale)] if scale else ())
+                                          extra=["--time-scale", repr(scale)] if scale else (),
+                                          local=(EVENTS_TOPIC, STDOUT_TOPIC))
             # on simulated time the clock owner starts alongside the recorder: the clock is held
             # below until the recorder records it, so nothing is missed
             sim = _start_clock_owner(graph, run, out, record, scale) if scale else None
@@ -237,7 +240,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if not scale:
                 sim = _start_clock_owner(graph, run, out, record, scale)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
-                            clock_node=clock_node)
+                            clock_node=clock_node, sink=recorder.post)
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
             if scale:
                 if not driver.clock.wait_for_clock(SIM_READY_S):
@@ -261,8 +264,6 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             launcher = Launcher(run, graph, driver, students)
             rt = Runtime(driver, run, launcher.start, launcher.members)
             prepare(rt)
-            # give the recorder a moment to discover the driver's topics before anything is sent
-            driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
             driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=graph.domain_id,
                          sim_node=run.sim_node)
             for proc in spec.processes:
