@@ -24,14 +24,18 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
                                    "msg": {"x": 1.0, "y": 1.0}, "count": 20, "rate_hz": 20}, "timeout": 1.5},
         {"id": "fake_copy", "publish": {"topic": "/grader/sim/turtle1/pose", "type": "turtlesim/msg/Pose",
                                         "msg": {"x": 1.0, "y": 1.0}, "count": 20, "rate_hz": 20}, "timeout": 1.5},
+        # ... and a forged event of the grader's: only the driver's own events are recorded
+        {"id": "forged", "publish": {"topic": "/grader/events", "type": "std_msgs/msg/String",
+                                     "msg": {"data": '{"event": "service_call", "forged": true}'},
+                                     "count": 20, "rate_hz": 20}, "timeout": 1.5},
         {"id": "pen", "service": {"name": "/turtle1/set_pen", "request": {"r": 255, "g": 0, "b": 0, "width": 5,
                                                                           "off": 0}},
          "until": "service_done", "timeout": 10},
     ], "limits": {"wall_s": 60}})
     record = run_scenario(resolve("drive", scenario, None), tmp_path / "drive")
     assert record["errors"] == [], record
-    assert [s["ended_by"] for s in record["steps"]] == ["condition", "done", "done", "done", "condition"]
-    assert record["steps"][4]["detail"]["type"] == "turtlesim/srv/SetPen"   # found from the graph
+    assert [s["ended_by"] for s in record["steps"]] == ["condition", "done", "done", "done", "done", "condition"]
+    assert record["steps"][5]["detail"]["type"] == "turtlesim/srv/SetPen"   # found from the graph
     from grader.bag.frames import load_frames
     frames = load_frames(tmp_path / "drive" / "bag")
     pose = frames["/turtle1/pose"]
@@ -42,6 +46,7 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
     events = [json.loads(d) for d in frames["/grader/events"]["data"]]
     names = [e["event"] for e in events]
     assert names[0] == "scenario_start" and "service_call" in names and names[-1] == "scenario_end"
+    assert not any(e.get("forged") for e in events)
     assert "/turtle1/set_pen/_service_event" in frames
     assert Path(record["canvas"]).exists()
     # the simulator's own record of its poses is in the bag, the published ones exactly, and
