@@ -216,11 +216,18 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     ev.update(_wall_contacts(frames, t, x, y))
     value = f"{n_reached}/{len(gl)} reached"
     problems = []
+    moved_goals = [r for r in rows if r.get("teleported")]
+    if moved_goals:     # one sentence for all of them
+        labels = ", ".join(f"{r['goal']} ({r['x']:g}, {r['y']:g})" for r in moved_goals)
+        problems.append(f"goal{'s' if len(moved_goals) > 1 else ''} {labels}: the turtle was moved without "
+                        f"driving ({provenance.moved_text(frames, counted)}) while "
+                        f"{'they were' if len(moved_goals) > 1 else 'it was'} active: a goal reached that way "
+                        "earns nothing")
     for r in rows:
         label = f"goal {r['goal']} ({r['x']:g}, {r['y']:g})"
         if not r.get("reached"):
             if r.get("teleported"):
-                problems.append(f"{label}: {r['note']}")
+                continue
             elif "min_distance" in r:
                 problems.append(f"{label}: closest approach {r['min_distance']:.2f} m "
                                 f"(needs < {p['tol_reached']:g} m), final error {r['final_error']:.2f} m")
