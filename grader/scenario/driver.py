@@ -137,6 +137,7 @@ class Driver:
         self.executor = make_executor(self.ctx)   # EventsExecutor: the CPU goes to student nodes
         self.executor.add_node(self.node)
         self._spin_lock = threading.Lock()
+        self._stopping = False
         self._paused_waiters = 0
         self._spin = threading.Thread(target=self._spin_forever, name="driver-spin", daemon=True)
         self._spin.start()
@@ -169,6 +170,8 @@ class Driver:
                 time.sleep(0.001)          # let a caller of executor_paused() in
             try:
                 with self._spin_lock:
+                    if self._stopping:
+                        break
                     self.executor.spin_once(timeout_sec=0.05)
             except Exception:  # noqa: BLE001 - shutdown races end the loop
                 if not self.rclpy.ok(context=self.ctx):
@@ -400,7 +403,12 @@ class Driver:
             self.flush_outputs()
             time.sleep(0.2)
         finally:
+            # the spin thread ends between two spins before the node goes away: destroying it
+            # under a running spin crashed a scenario process (SIGSEGV in destroy_node, once, while
+            # the fixture bags were recorded again on a loaded machine)
+            with self._spin_lock:
+                self._stopping = True
+            self._spin.join(timeout=2.0)
             self.executor.shutdown(timeout_sec=1.0)
             self.node.destroy_node()
             self.rclpy.try_shutdown(context=self.ctx)
-            self._spin.join(timeout=2.0)
