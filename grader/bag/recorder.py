@@ -38,19 +38,15 @@ time base and the recorded ``/clock`` maps all of them to simulated time when it
 (:mod:`grader.bag.timebase`).
 
 Topics under ``/grader/sim_record/`` are never taken from DDS: the prefix holds the simulator's
-own record of its poses (:mod:`grader.sim.record`), which the scenario hands over when it ends
-(:meth:`Recorder.write_record`), so whatever a node publishes under that name stays out of the bag.
-Likewise the *local* topics of a recorder running inside the scenario process (the driver's
-``/grader/events`` and ``/grader/stdout``): the driver hands their messages to it in process
-(:meth:`Recorder.post`), and a node publishing on those names over DDS is not recorded, so no
-student node can add an event (say, a service call of the grader's with its own client id).
+own record of its poses (:mod:`grader.sim.record`), which the scenario's recorder writes from the
+simulator's file (:mod:`grader.bag.recorder_thread`), so whatever a node publishes under that name
+stays out of the bag.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import queue
 import re
 import signal
 import sys
@@ -162,15 +158,10 @@ class Recorder:
         self.exclude = re.compile(args.exclude) if args.exclude else None
         self.all = args.all or (not self.topics and not self.regex)
         self._waitset = None
-        #: record files of the simulator to write into the bag before it is closed
-        self.records: list[Path] = []
-        #: topics written in process only (:meth:`add_local`), never taken from DDS
-        self.local: set[str] = set()
-        self._inbox: queue.SimpleQueue = queue.SimpleQueue()
 
     # -- selection and discovery ---------------------------------------------------------
     def wanted(self, topic: str) -> bool:
-        if is_record_topic(topic) or topic in self.local:     # never from DDS (module docstring)
+        if is_record_topic(topic):     # never from DDS (module docstring)
             return False
         if topic in self.topics:
             return True
@@ -330,7 +321,7 @@ class Recorder:
         next_poll = time.monotonic() + poll
         while not self.stop and self.ctx.ok():
             woke = time.monotonic()
-            drained = self.spin_once(min(0.05, poll)) + self._write_posted()
+            drained = self.spin_once(min(0.05, poll))
             self.writer.poll()
             now = time.monotonic()
             if now >= next_poll:
@@ -349,42 +340,6 @@ class Recorder:
                 return
             self.spin_once(0.01)
 
-    def add_local(self, topic: str, type_name: str) -> None:
-        """A topic whose messages come only from :meth:`post` (call before :meth:`run`)."""
-        self.local.add(topic)
-        self.writer.add_topic(topic, type_name, self.defs.full_text(type_name),
-                              type_hash=self.defs.type_hash(type_name))
-
-    def post(self, topic: str, data: bytes, t_ns: int | None = None) -> None:
-        """A message of a local topic, from any thread (written by the recorder's own thread)."""
-        self._inbox.put((topic, time.time_ns() if t_ns is None else t_ns, data))
-
-    def _write_posted(self) -> int:
-        n = 0
-        while True:
-            try:
-                topic, t_ns, data = self._inbox.get_nowait()
-            except queue.Empty:
-                return n
-            n += 1
-            self.writer.write(topic, t_ns, data, t_ns, n)
-
-    def write_record(self, path: Path) -> int:
-        """Write the simulator's record of its poses (:mod:`grader.sim.record`) into the bag, each
-        pose at the time the simulator published it; returns how many."""
-        from grader.sim.record import DECLARE, POSE_TYPE, read_record
-
-        n = 0
-        for topic, t_ns, data in read_record(path):
-            if topic not in self.writer.topics:
-                self.writer.add_topic(topic, POSE_TYPE, self.defs.full_text(POSE_TYPE),
-                                      type_hash=self.defs.type_hash(POSE_TYPE))
-            if t_ns == DECLARE:
-                continue
-            n += 1
-            self.writer.write(topic, t_ns, data, t_ns, n)
-        return n
-
     def finish(self) -> int:
         for sub in self.subs.values():
             if sub.handle is not None:
@@ -392,12 +347,6 @@ class Recorder:
                     self.drain(sub)
                 except Exception:  # noqa: BLE001 - context may already be shutting down
                     pass
-        self._write_posted()
-        for path in self.records:
-            try:
-                self.write_record(path)
-            except Exception as exc:  # noqa: BLE001 - the bag is still finalized without it
-                _log(f"could not write the simulator's record {path}: {type(exc).__name__}: {exc}")
         meta = self.writer.close()
         try:
             self.node.destroy_node()
