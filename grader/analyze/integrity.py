@@ -86,7 +86,8 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
     if foreign:
         problems.append(f"{name} was also published by {', '.join(foreign)}")
     truth = sim_pose(frames, name)
-    ev["pose_basis"] = ("the simulator's own record of its poses" if topic(frames, record_topic(name)) is not None
+    recorded = topic(frames, record_topic(name)) is not None
+    ev["pose_basis"] = ("the simulator's own record of its poses" if recorded
                         else "the simulator's copy of its poses (recorded before the record existed)")
     for label, stream in (("", topic(frames, name)), (" (the grader's copy)", topic(frames, truth_pose_topic(name)))):
         if truth is None or stream is None or stream is truth or not {"x", "y", "theta"} <= set(stream.columns):
@@ -99,7 +100,10 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
         if foreign_poses:
             problems.append(f"{foreign_poses} pose(s) on {name}{label} that the simulator never published")
     df = topic(frames, name)
-    if df is not None and len(df) >= 3 and {"x", "y"} <= set(df.columns):
+    # with the simulator's record every foreign pose is named above; the stream's rate and jumps
+    # only guess at them (and a simulator starved on a loaded machine publishes its late ticks in
+    # bursts: measured 9 kHz "rates" at load 60), so they judge only recordings without it
+    if df is not None and not recorded and len(df) >= 3 and {"x", "y"} <= set(df.columns):
         t = times(df)
         st = rate_stats(t)
         ev["rate_hz"] = st["rate_hz"]
@@ -123,7 +127,10 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
                             f"(first at t={unexplained[0]['t']:.2f}, {unexplained[0]['distance']:.2f} m)")
     elif df is None:
         return Finding.error(f"No {name} messages were recorded; the check could not run.", ev)
-    ev["basis"] = "publisher list" if pubs else "pose stream consistency (publisher list not recorded)"
+    ev["basis"] = ("publisher list" if pubs else "") + (" and the simulator's own record" if recorded else "")
+    if not ev["basis"]:
+        ev["basis"] = "pose stream consistency (publisher list not recorded)"
+    ev["basis"] = ev["basis"].strip().removeprefix("and ")
     if problems:
         return Finding("flagged", 0.0, "fail",
                        "Integrity: " + "; ".join(problems) + ". Only the simulator may publish the turtle's pose.", ev)
