@@ -185,9 +185,10 @@ class Driver:
 
     def _emit(self, pub: Any, topic: str, text: str) -> None:
         msg = self.String(data=text)
-        if self.sink is not None:
+        if self.sink is not None:     # the bag only: one serialization, no DDS round trip per line
             self.sink(topic, self._serialize(msg))
-        pub.publish(msg)      # for live observers; the bag takes the sink's copy
+        else:
+            pub.publish(msg)
 
     def _on_rosout(self, msg: Any) -> None:
         if not msg.name.startswith(GRADER_NODE_PREFIX) and msg.name != self.sim_node:
