@@ -89,16 +89,17 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
     recorded = topic(frames, record_topic(name)) is not None
     ev["pose_basis"] = ("the simulator's own record of its poses" if recorded
                         else "the simulator's copy of its poses (recorded before the record existed)")
-    for label, stream in (("", topic(frames, name)), (" (the grader's copy)", topic(frames, truth_pose_topic(name)))):
+    for shown, stream in ((name, topic(frames, name)),
+                          (f"the grader's copy {truth_pose_topic(name)}", topic(frames, truth_pose_topic(name)))):
         if truth is None or stream is None or stream is truth or not {"x", "y", "theta"} <= set(stream.columns):
             continue
         # the simulator publishes every pose on each topic, the very same numbers: a pose there
         # that is not among the simulator's own is someone else's
         foreign_poses = provenance.foreign_poses(truth, stream)
-        if not label:
+        if shown == name:
             ev.update(truth_poses=len(truth), public_poses=len(stream), foreign_poses=foreign_poses)
         if foreign_poses:
-            problems.append(f"{foreign_poses} pose(s) on {name}{label} that the simulator never published")
+            problems.append(f"{foreign_poses} pose(s) on {shown} that the simulator never published")
     df = topic(frames, name)
     # with the simulator's record every foreign pose is named above; the stream's rate and jumps
     # only guess at them (and a simulator starved on a loaded machine publishes its late ticks in
