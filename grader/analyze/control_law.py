@@ -2,7 +2,9 @@
 eq. 2-3), estimated from the bag: each cmd_vel is paired with the latest pose recorded before it
 and the active goal; linear.x ~ K1 d_e and angular.z ~ K2 theta_e are fitted by least squares
 without intercept, and the fit with an unwrapped theta_e is compared to tell a missing wrap.
-Lab 3's own analyzer (its gains and equation numbers are that lab's).
+Lab 3's own analyzer (its gains and equation numbers are that lab's). Goals during which student
+code moved the turtle without driving it (:mod:`grader.analyze.provenance`) are left out: their
+poses were not reached by the commands being fitted.
 
 Which pose a command was computed from is a matter of scheduling: the latest one recorded, or
 the tick before when the controller's pose callback ran late. While the turtle turns slowly
@@ -17,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sentence, since_start, thin, times,
                                     topic)
 from grader.analyze.goals import fit_gain, heading_error
@@ -65,12 +67,14 @@ def control_law(frames: Frames, p: dict) -> Finding:
                        "th": pose["theta"].to_numpy(float)}).sort_values("t", kind="stable")
     for col in ("x", "y", "th"):          # the tick before: the other pose a command may come from
         ps[f"{col}0"] = ps[col].shift(1)
+    moved = provenance.moves(frames, p["pose_topic"])
     gd = pd.DataFrame({"t": [g.t for g in gl], "gx": [g.x for g in gl], "gy": [g.y for g in gl],
-                       "g_end": [g.t_end for g in gl]})
+                       "g_end": [g.t_end for g in gl],
+                       "moved": [bool(provenance.within(moved, g.t, g.t_end)) for g in gl]})
     j = pd.merge_asof(c, ps, on="t", direction="backward")
     j = pd.merge_asof(j, gd, on="t", direction="backward")
     j = j.dropna(subset=["x", "gx"])
-    j = j[(j["t"] <= j["g_end"])]
+    j = j[(j["t"] <= j["g_end"]) & ~j["moved"].astype(bool)]
     goal_t = gd["t"].to_numpy()
     k = np.searchsorted(goal_t, j["t"].to_numpy(), side="right") - 1
     since = j["t"].to_numpy() - goal_t[k]
@@ -80,6 +84,8 @@ def control_law(frames: Frames, p: dict) -> Finding:
     start = np.array([released.get(g.extra.get("step"), g.t + p["skip_after_goal_s"]) for g in gl])
     j = j[(since >= p["skip_after_goal_s"]) & (j["t"].to_numpy() >= start[k])]
     ev: dict = {"rows": int(len(j))}
+    if moved and gd["moved"].all():
+        return provenance.moved_finding(frames, moved, "the control law")
     if len(j) < p["min_rows"]:
         return Finding(len(j), 0.0, "fail",
                        f"Only {len(j)} cmd_vel message(s) while a goal was active: the controller must publish "

@@ -10,6 +10,10 @@ its send time until the next goal (or the end of the recording).
 * ``turn_direction``: with the wrapped theta_e of eq. (3) the turtle always turns the short way;
   a missing wrap (atan2(dy, dx) - theta) makes it turn the long way when the difference crosses
   +-pi, and a wrong sign makes it turn away.
+
+Both judge the simulator's own poses only (``sim_pose``), and a goal during which student code
+moved the turtle without driving it (a teleport, a reset, a kill and spawn: the call's client id
+says whose call it was, :mod:`grader.analyze.provenance`) earns nothing in either.
 The gains and form of Lab 3's law are checked by ``control_law`` (its own module).
 """
 
@@ -20,8 +24,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
-from grader.analyze._common import (WORLD_MAX, Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, teleport_times, thin, times, topic)
+from grader.analyze import Finding, graded, provenance, register
+from grader.analyze._common import (WORLD_MAX, Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, thin, times, topic)
 from grader.analyze.goals import Goal, goals, heading_error
 from grader.analyze.evidence import SHARE, TIME
 from grader.scenario.events import Event
@@ -65,7 +69,7 @@ EVIDENCE = {
     "goal_source": ("where goals are read (events, topic, auto)", ""),
     "trajectory": None,
     "wall_contacts": ("times the turtle hit a wall", ""),
-    "teleported": ("teleport or reset calls while the goal was active", ""),
+    "teleported": ("calls of student code that moved the turtle while the goal was active", ""),
     "wall_points": None,
     # turn_direction
     "start": None,
@@ -84,6 +88,7 @@ EVIDENCE = {
     "short_way": ("turned the short way", ""),
     "min_turn_deg": ("goals judged from a turn of", "deg"),
     "heading_error": None,
+    **provenance.EVIDENCE,
     # control_law
     "rows": ("cmd_vel messages paired with a pose and a goal", ""),
     "K1": ("fitted K1 (linear.x = K1·d_e)", "1/s"),
@@ -173,17 +178,20 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
     v = pose["linear_velocity"].to_numpy(float) if "linear_velocity" in pose.columns else None
-    teleports = teleport_times(frames)
+    moved = provenance.moves(frames, p["pose_topic"])
+    counted: list[provenance.Call] = []     # the moves that cost a goal
     rows = []
     score = 0.0
     for k, g in enumerate(gl, 1):
         m = (t >= g.t) & (t <= g.t_end)
         row = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
-        moved = [tp for tp in teleports if g.t <= tp <= g.t_end]
-        if moved:
-            # the turtle was teleported (or reset) while this goal was active: no arrival counts
-            row.update(reached=False, teleported=len(moved), note="the turtle was teleported or reset while "
-                       "this goal was active: an arrival does not count")
+        during = provenance.within(moved, g.t, g.t_end)
+        if during:
+            # student code put the turtle somewhere while this goal was active: no arrival counts
+            counted += during
+            row.update(reached=False, teleported=len(during),
+                       note=f"the turtle was moved without driving ({provenance.moved_text(frames, during)}) while "
+                            "this goal was active: a goal reached that way earns nothing")
             rows.append(row)
             continue
         if m.sum() < 2:
@@ -210,14 +218,23 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     n_reached = sum(1 for r in rows if r.get("reached"))
     ev = {"goals": rows, "tol_reached": p["tol_reached"], "goal_source": gl[0].source,
           "trajectory": _trajectory(t, x, y, gl, pose["theta"].to_numpy(float))}
+    if counted:     # the rubric's advice for a wrong controller is not for these (rubric.score)
+        ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
     ev.update(_wall_contacts(frames, t, x, y))
     value = f"{n_reached}/{len(gl)} reached"
     problems = []
+    moved_goals = [r for r in rows if r.get("teleported")]
+    if moved_goals:     # one sentence for all of them
+        labels = ", ".join(f"{r['goal']} ({r['x']:g}, {r['y']:g})" for r in moved_goals)
+        problems.append(f"goal{'s' if len(moved_goals) > 1 else ''} {labels}: the turtle was moved without "
+                        f"driving ({provenance.moved_text(frames, counted)}) while "
+                        f"{'they were' if len(moved_goals) > 1 else 'it was'} active: a goal reached that way "
+                        "earns nothing")
     for r in rows:
         label = f"goal {r['goal']} ({r['x']:g}, {r['y']:g})"
         if not r.get("reached"):
             if r.get("teleported"):
-                problems.append(f"{label}: {r['note']}")
+                continue
             elif "min_distance" in r:
                 problems.append(f"{label}: closest approach {r['min_distance']:.2f} m "
                                 f"(needs < {p['tol_reached']:g} m), final error {r['final_error']:.2f} m")
@@ -230,9 +247,10 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         times_txt = ", ".join(f"{r['time_to_reach']:.1f} s" for r in rows)
         return Finding(value, 1.0, "pass", f"All {len(gl)} goals reached and held (time to reach: {times_txt}).", ev)
     hint = ""
-    if n_reached == 0:
+    if n_reached == 0 and not any(r.get("teleported") for r in rows):
         hint = (" Check the signs of the distance and heading errors and of the gains, and that the "
                 "velocity commands reach the turtle's cmd_vel topic.")
+    hint += provenance.ignored_poses_note(frames, p["pose_topic"])
     return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
 
 
@@ -303,6 +321,8 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
     cmd = topic(frames, p["cmd_topic"])
     released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
+    moved = provenance.moves(frames, p["pose_topic"])
+    counted: list[provenance.Call] = []
     rows, judged, good = [], 0, 0
     series: list[dict] = []
     for k, g in enumerate(gl, 1):
@@ -325,6 +345,13 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             rows.append(row)
             continue
         row["evaluated"] = True
+        during = provenance.within(moved, g.t, g.t_end)
+        if during:      # a turn made by a teleport is no turn: this goal earns nothing
+            counted += during
+            row.update(short_way=False, teleported=len(during), note=provenance.moved_text(frames, during))
+            judged += 1
+            rows.append(row)
+            continue
         # a held hand-over: the last command before the release (computed from the placement);
         # else the first turning command from react_s after the goal
         t_release = released.get(g.extra.get("step"))
@@ -356,6 +383,8 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         good += ok
         rows.append(row)
     ev = {"goals": rows, "heading_error": series}
+    if counted:
+        ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
     if judged == 0:
         return Finding.error("No goal in this scenario required a large turn from where the turtle was, "
                              "so the turn direction could not be judged.", ev)
@@ -365,7 +394,10 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"The turtle turned the short way for all {judged} large-turn goal(s).", ev)
     bad = [r for r in rows if r.get("evaluated") and not r.get("short_way")]
     r = bad[0]
-    if r["turn"] == "none":
+    if r.get("teleported"):
+        msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle was moved without driving ({r['note']}): "
+               "a turn made that way earns nothing.")
+    elif r["turn"] == "none":
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle did not turn at all (needed "
                f"{r['required_turn_deg']:+.0f}°): the angular command should be proportional to "
                "the heading error.")

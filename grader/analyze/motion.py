@@ -16,6 +16,10 @@ moving. Judged on the simulator's own poses (``/turtle1/pose`` at 62.5 Hz).
 * ``no_wall_contact``: turtlesim clamps the turtle at the walls and logs "Oh no! I hit the
   wall!"; neither may happen. The closest approach to a wall is reported; with ``approach_m``
   it must be at most that: a turtle that circles in the middle never meets a wall to avoid.
+
+Each judges the whole run on the simulator's own poses; a run in which student code moved the
+turtle without driving it (a teleport, a reset, a kill and spawn: :mod:`grader.analyze.provenance`)
+earns nothing in any of them: its path was not driven.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from grader.analyze import REQUIRED, Finding, register
+from grader.analyze import REQUIRED, Finding, provenance, register
 from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
 from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
@@ -34,6 +38,7 @@ from grader.analyze.rate import rate_stats
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    **provenance.EVIDENCE,
 
     "radius_m": ("fitted radius", "m"), "centre": ("circle centre (x, y)", "m"), "rms_m": ("RMS distance from the circle", "m"),
     "expected_m": ("expected radius", "m"), "rel_error": ("relative error", SHARE), "poses": ("poses used", ""),
@@ -59,6 +64,9 @@ _POSE = {"pose_topic": "/turtle1/pose", "min_speed": 0.05}
 
 def _moving_pose(frames: Frames, p: dict) -> tuple[pd.DataFrame | None, Finding | None]:
     """The poses from the moment the turtle first moved (plus ``skip_s``)."""
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return None, provenance.moved_finding(frames, moved, "the circle")
     df = sim_pose(frames, p["pose_topic"])
     if df is None or not {"x", "y", "theta", "linear_velocity"} <= set(df.columns):
         return None, Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
@@ -196,6 +204,9 @@ def circle_period(frames: Frames, p: dict) -> Finding:
 })
 def keeps_moving(frames: Frames, p: dict) -> Finding:
     """Commands arrive before the simulator's command timeout and the turtle never stalls."""
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return provenance.moved_finding(frames, moved, "its motion")
     pose = sim_pose(frames, p["pose_topic"])
     cmd = topic(frames, p["cmd_topic"])
     if pose is None or "linear_velocity" not in pose.columns:
@@ -257,6 +268,9 @@ def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
     "approach_m": None,               # m: the path must come at least this close to a wall (None: any)
 })
 def no_wall_contact(frames: Frames, p: dict) -> Finding:
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return provenance.moved_finding(frames, moved, "staying clear of the walls")
     pose = sim_pose(frames, p["pose_topic"])
     if pose is None or not {"x", "y"} <= set(pose.columns):
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))

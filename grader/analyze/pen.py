@@ -12,6 +12,8 @@
   when the call reaches the simulator counts (the latest simulator pose before the call, or the
   first pose when the call comes earlier), so a wrong start colour is still a call not at a
   crossing.
+  A run in which student code moved the turtle without driving it (:mod:`grader.analyze.provenance`)
+  earns nothing: its crossings were not driven.
 * ``canvas_colours``: the canvas the simulator saved at the end (``canvas.png`` beside the bag,
   loaded as the ``__canvas__`` frame: one row per drawn pixel) shows each colour on its side.
 """
@@ -23,13 +25,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import Finding, graded, provenance, register
 from grader.analyze.evidence import SHARE, SINCE_START
 from grader.analyze._common import (sim_pose, Frames, missing_topic_feedback, scenario_end_time, service_calls,
                                     thin, times, topic)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    **provenance.EVIDENCE,
     "crossings": ("crossings of the line", ""), "direction": ("direction", ""), "wanted": ("colour wanted (r, g, b)", ""),
     "ok": ("as expected", ""), "why": ("problem", ""), "delay_s": ("call after the crossing", "s"),
     "color": ("colour set (r, g, b)", ""), "width": ("pen width", ""), "extra_calls": ("calls not at a crossing", ""),
@@ -106,6 +109,9 @@ def _start_calls(calls: list[dict], used: list[bool], t_pose: np.ndarray, x_pose
                                      # the side the turtle is on (the initial state; see the module docstring)
 })
 def pen_on_crossings(frames: Frames, p: dict) -> Finding:
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return provenance.moved_finding(frames, moved, "each crossing")
     pose = sim_pose(frames, p["pose_topic"])
     if pose is None or "x" not in pose.columns:
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))

@@ -30,8 +30,10 @@ from grader.scenario.model import Scenario
 
 #: files of a scenario folder that make up its recording
 RECORDING = ("bag", "logs", "canvas.png", "scenario.json", "run.json", "scenario.log")
-#: bump when the scenario runtime changes what it records for the same inputs
-RECORDING_FORMAT = 2        # 2: executables found and started as `ros2 run` does (install(PROGRAMS) nodes run)
+#: bump when the scenario runtime changes what it records for the same inputs (2: executables
+#: found and started as `ros2 run` does; 3: the driver's client ids in its service_call events,
+#: the simulator's record of its poses, events in process)
+RECORDING_FORMAT = 3
 _DEPEND = re.compile(r"<(?:depend|exec_depend|build_depend|buildtool_depend)[^>]*>\s*([A-Za-z0-9_]+)\s*<")
 _NAME = re.compile(r"<name>\s*([A-Za-z0-9_]+)\s*</name>")
 

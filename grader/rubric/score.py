@@ -398,8 +398,14 @@ def _result(item: Item, points: float | None, status: str, feedback: str, fracti
 
 def _feedback(item: Item, status: str, finding: FindingLike, fraction: float,
               points: float, evidence: Mapping[str, Any]) -> str:
-    """The rubric's text for this status (partial falls back to fail), else the analyzer's."""
+    """The rubric's text for this status (partial falls back to fail), else the analyzer's.
+
+    A finding whose evidence lists ``student_moves`` (student code moved the turtle without
+    driving it: grader.analyze.provenance) keeps the analyzer's words: a rubric's advice is
+    written for a solution that is wrong, and would tell a cheat to check its signs."""
     own = str(getattr(finding, "feedback", "") or "")
+    if evidence.get("student_moves"):
+        return own
     template = item.feedback.get(status)
     if template is None and status == "partial":
         template = item.feedback.get("fail")

@@ -2,7 +2,9 @@
 
 Everything it sends and everything it learns (goals, stdin lines, action responses and results,
 process exits) is also published on ``/grader/events``, and student stdout/stderr lines on
-``/grader/stdout``, so the bag alone is enough to recompute a grade.
+``/grader/stdout``, so the bag alone is enough to recompute a grade. With a ``sink`` (the
+scenario's recorder, in this process) they go into the bag from here, not through DDS, where any
+node could publish an "event" of its own (:mod:`grader.bag.recorder`).
 """
 
 from __future__ import annotations
@@ -76,7 +78,8 @@ class Driver:
     """
 
     def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim",
-                 *, time_scale: float = 1.0, clock_node: str | None = None) -> None:
+                 *, time_scale: float = 1.0, clock_node: str | None = None,
+                 sink: Callable[[str, bytes], None] | None = None) -> None:
         import rclpy
         from rclpy.clock import Clock, ClockType
         from rclpy.parameter import Parameter
@@ -96,6 +99,10 @@ class Driver:
                                    f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
                                    paused=self.executor_paused)
         self.String = String
+        #: writes a serialized message of EVENTS_TOPIC / STDOUT_TOPIC straight into the bag
+        self.sink = sink
+        from rclpy.serialization import serialize_message
+        self._serialize = serialize_message
         latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.events_pub = self.node.create_publisher(String, EVENTS_TOPIC, latched)
@@ -134,6 +141,7 @@ class Driver:
         self.executor = make_executor(self.ctx)   # EventsExecutor: the CPU goes to student nodes
         self.executor.add_node(self.node)
         self._spin_lock = threading.Lock()
+        self._stopping = False
         self._paused_waiters = 0
         self._spin = threading.Thread(target=self._spin_forever, name="driver-spin", daemon=True)
         self._spin.start()
@@ -166,6 +174,8 @@ class Driver:
                 time.sleep(0.001)          # let a caller of executor_paused() in
             try:
                 with self._spin_lock:
+                    if self._stopping:
+                        break
                     self.executor.spin_once(timeout_sec=0.05)
             except Exception:  # noqa: BLE001 - shutdown races end the loop
                 if not self.rclpy.ok(context=self.ctx):
@@ -175,7 +185,14 @@ class Driver:
         record = {"event": str(event), "wall": time.time(), **fields}
         with self.lock:
             self.events.append(record)
-        self.events_pub.publish(self.String(data=json.dumps(record, default=str)))
+        self._emit(self.events_pub, EVENTS_TOPIC, json.dumps(record, default=str))
+
+    def _emit(self, pub: Any, topic: str, text: str) -> None:
+        msg = self.String(data=text)
+        if self.sink is not None:     # the bag only: one serialization, no DDS round trip per line
+            self.sink(topic, self._serialize(msg))
+        else:
+            pub.publish(msg)
 
     def _on_rosout(self, msg: Any) -> None:
         if not msg.name.startswith(GRADER_NODE_PREFIX) and msg.name != self.sim_node:
@@ -208,8 +225,8 @@ class Driver:
                 for raw in lines:
                     line = raw.decode(errors="replace").rstrip("\r")
                     self.lines.setdefault(name, []).append(line)
-                    self.stdout_pub.publish(self.String(data=json.dumps(
-                        {"process": name, "stream": stream, "line": line})))
+                    self._emit(self.stdout_pub, STDOUT_TOPIC,
+                               json.dumps({"process": name, "stream": stream, "line": line}))
                     if stream == "stdout" or not line.startswith("["):
                         self.last_output = time.monotonic()
                         self.counts["stdout:student"] = self.counts.get("stdout:student", 0) + 1
@@ -223,8 +240,8 @@ class Driver:
         for path, rest in list(self._tail_rest.items()):
             name = next((n for n, p in self.processes.items() if path in (p.stdout_path, p.stderr_path)), "?")
             stream = "stdout" if path.name.endswith("stdout.log") else "stderr"
-            self.stdout_pub.publish(self.String(data=json.dumps(
-                {"process": name, "stream": stream, "line": rest.decode(errors="replace")})))
+            self._emit(self.stdout_pub, STDOUT_TOPIC,
+                       json.dumps({"process": name, "stream": stream, "line": rest.decode(errors="replace")}))
             del self._tail_rest[path]
 
     def pose_mark(self, topic: str) -> int:
@@ -458,7 +475,12 @@ class Driver:
             self.flush_outputs()
             time.sleep(0.2)
         finally:
+            # the spin thread ends between two spins before the node goes away: destroying it
+            # under a running spin crashed a scenario process (SIGSEGV in destroy_node, once, while
+            # the fixture bags were recorded again on a loaded machine)
+            with self._spin_lock:
+                self._stopping = True
+            self._spin.join(timeout=2.0)
             self.executor.shutdown(timeout_sec=1.0)
             self.node.destroy_node()
             self.rclpy.try_shutdown(context=self.ctx)
-            self._spin.join(timeout=2.0)

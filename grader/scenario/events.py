@@ -26,7 +26,10 @@ class Event(StrEnum):
     STEP_SKIPPED = "step_skipped"            # step, reason, exited
     GOAL_SENT = "goal_sent"                  # step, goal [x, y], topic (None: set by a service)
     MESSAGE_SENT = "message_sent"            # step, topic, type, msg, count
-    SERVICE_CALL = "service_call"            # step, service, type, request
+    SERVICE_CALL = "service_call"            # step, service, type, request, client_gid (the rmw GID
+    #   of the calling client, 16 ints: a service event whose info.client_gid has its first 12
+    #   bytes, the DDS participant, is the driver's call; None + client_gid_error when the rmw
+    #   could not say; absent in recordings made before it was recorded)
     SERVICE_RESPONSE = "service_response"    # step, service, response (None: no response in time)
     SERVICE_MISSING = "service_missing"      # step, service
     ACTION_SERVER_FOUND = "action_server_found"      # step, action

@@ -30,7 +30,7 @@ from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
 from grader.scenario.cpuwait import cpu_wait
-from grader.scenario.events import Event
+from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
 from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
@@ -48,6 +48,8 @@ CLOCK_MATCH_S = 5.0
 #: and for the new nodes to take the held /clock (and the recorder to match their publishers:
 #: DDS matching lags the graph) before the clock runs again
 FIRST_CLOCK_S = 0.3
+#: the simulator's own record of its poses, beside the bag until the recorder takes it in
+SIM_RECORD = "sim_poses.record"
 
 
 class _FallBack(Exception):
@@ -226,8 +228,11 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if topics is not None and scale:
                 topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
             with _interrupt_after():
+                # the driver's events and output lines go into the bag in process (local topics):
+                # a student node publishing "/grader/events" adds nothing to the recording
                 recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id,
-                                          extra=["--time-scale", repr(scale)] if scale else ())
+                                          extra=["--time-scale", repr(scale)] if scale else (),
+                                          local=(EVENTS_TOPIC, STDOUT_TOPIC))
             # on simulated time the clock owner starts alongside the recorder: the clock is held
             # below until the recorder records it, so nothing is missed
             sim = _start_clock_owner(graph, run, out, record, scale) if scale else None
@@ -238,7 +243,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if not scale:
                 sim = _start_clock_owner(graph, run, out, record, scale)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
-                            clock_node=clock_node)
+                            clock_node=clock_node, sink=recorder.post)
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
             if scale:
                 if not driver.clock.wait_for_clock(SIM_READY_S):
@@ -263,8 +268,6 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             launcher = Launcher(run, graph, driver, students)
             rt = Runtime(driver, run, launcher.start, launcher.members)
             prepare(rt)
-            # give the recorder a moment to discover the driver's topics before anything is sent
-            driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
             driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=graph.domain_id,
                          sim_node=run.sim_node)
             if run.packages:         # the names the build made: a contract's names are looked up in them
@@ -336,7 +339,10 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 driver.shutdown()
             graph.stop_all()
             if recorder is not None:
-                recorder.stop()
+                # the simulator has stopped and closed its record: the recorder writes it into
+                # the bag (grader.sim.record: the only poses a grade rests on)
+                recorder.stop(records=[out / SIM_RECORD] if (out / SIM_RECORD).exists() else [])
+                (out / SIM_RECORD).unlink(missing_ok=True)
     record["active_s"] = round(sum(s["duration_s"] for s in record["steps"]), 3)
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
@@ -375,7 +381,8 @@ def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dic
         canvas = out / "canvas.png"
         record["canvas"] = str(canvas)
         return graph.start(ProcessSpec("turtlesim", sim_argv(
-            canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale)))
+            canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale,
+            pose_record=out / SIM_RECORD)))
     if scale:
         graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
     return None

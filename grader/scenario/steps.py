@@ -100,7 +100,7 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
             return out | {"available": False}
         request = fill(cls.Request(), spec.request)
         driver.event(Event.SERVICE_CALL, step=step.id, service=spec.name, type=type_name,
-                     request=to_plain(request))
+                     request=to_plain(request), **_client_id(client))
         future = client.call_async(request)
         driver.wait_until(future.done, spec.response_timeout)
         response = to_plain(future.result()) if future.done() else None
@@ -109,6 +109,18 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
         return out | {"available": True, "type": type_name, "response": response}
     finally:
         state.service_done = True
+
+
+def _client_id(client: Any) -> dict[str, Any]:
+    """The ``client_gid`` of a ``service_call`` event: whose call a service event is, read off
+    the event itself (see :mod:`grader.scenario.client_gid`); ``client_gid_error`` when the rmw
+    could not say."""
+    from grader.scenario.client_gid import client_gid
+
+    try:
+        return {"client_gid": client_gid(client)}
+    except (OSError, AttributeError) as exc:
+        return {"client_gid": None, "client_gid_error": f"{type(exc).__name__}: {exc}"}
 
 
 #: a simulator pose this close to the placement shows the teleport done (the turtle is held still,

@@ -61,9 +61,10 @@ def test_poses_bunched_and_dropped_by_a_loaded_machine_are_no_flag() -> None:
     assert f.status == "fail" and f.evidence["foreign_poses"] == 1
 
 
-def _service(t, x, seq) -> object:
+def _service(t, x, seq, gid=7) -> object:
     return frame(t, **{"info.event_type": 1, "info.sequence_number": seq,
-                       "info.client_gid[0]": 7, "request[0].x": x, "request[0].y": 5.0, "request[0].theta": 0.0})
+                       **{f"info.client_gid[{i}]": gid for i in range(16)},
+                       "request[0].x": x, "request[0].y": 5.0, "request[0].theta": 0.0})
 
 
 def test_teleport_is_flagged_unless_the_driver_made_it() -> None:
@@ -76,10 +77,17 @@ def test_teleport_is_flagged_unless_the_driver_made_it() -> None:
     assert f.status == "fail" and f.value == "2 call(s)" and "teleport_absolute" in f.feedback
     assert f.evidence["flagged_calls"][0]["request"]["x"] == 9.0
     assert len(f.evidence["set_pen_calls"]) == 1
-    # the driver placed the turtle itself at t=3: only the second call is the student's
-    fr["/grader/events"] = events_frame([(T0 + 2.9, "service_call", {"service": "/turtle1/teleport_absolute"})])
+    # the driver placed the turtle itself at t=3 with a client of another participant (gid 8...):
+    # both calls are still the student's, whatever their timing
+    fr["/grader/events"] = events_frame([(T0 + 2.9, "service_call", {"service": "/turtle1/teleport_absolute",
+                                                                      "client_gid": [8] * 16})])
     f = check(get("integrity_no_teleport")(with_meta(fr), {}))
-    assert f.status == "fail" and f.value == "1 call(s)" and len(f.evidence["driver_calls"]) == 1
+    assert f.status == "fail" and f.value == "2 call(s)" and not f.evidence["driver_calls"]
+    # with its own participant's id (gid 7...): they are the grader's
+    fr["/grader/events"] = events_frame([(T0 + 2.9, "service_call", {"service": "/turtle1/teleport_absolute",
+                                                                      "client_gid": [7] * 16})])
+    f = check(get("integrity_no_teleport")(with_meta(fr), {}))
+    assert f.status == "pass" and len(f.evidence["driver_calls"]) == 2
 
 
 def test_no_pose_is_error() -> None:

@@ -19,14 +19,23 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
                                  "msg": {"linear": {"x": 2.0}, "angular": {"z": 1.8}}},
          "until": {"condition": "messages", "topic": "/turtle1/cmd_vel", "count": 1}, "timeout": 5},
         {"id": "coast", "wait": 1.5},
+        # someone else's "poses" on the grader's names: the bag's record must not take them
+        {"id": "fake", "publish": {"topic": "/grader/sim_record/turtle1/pose", "type": "turtlesim/msg/Pose",
+                                   "msg": {"x": 1.0, "y": 1.0}, "count": 20, "rate_hz": 20}, "timeout": 1.5},
+        {"id": "fake_copy", "publish": {"topic": "/grader/sim/turtle1/pose", "type": "turtlesim/msg/Pose",
+                                        "msg": {"x": 1.0, "y": 1.0}, "count": 20, "rate_hz": 20}, "timeout": 1.5},
+        # ... and a forged event of the grader's: only the driver's own events are recorded
+        {"id": "forged", "publish": {"topic": "/grader/events", "type": "std_msgs/msg/String",
+                                     "msg": {"data": '{"event": "service_call", "forged": true}'},
+                                     "count": 20, "rate_hz": 20}, "timeout": 1.5},
         {"id": "pen", "service": {"name": "/turtle1/set_pen", "request": {"r": 255, "g": 0, "b": 0, "width": 5,
                                                                           "off": 0}},
          "until": "service_done", "timeout": 10},
     ], "limits": {"wall_s": 60}})
     record = run_scenario(resolve("drive", scenario, None), tmp_path / "drive")
     assert record["errors"] == [], record
-    assert [s["ended_by"] for s in record["steps"]] == ["condition", "done", "condition"]
-    assert record["steps"][2]["detail"]["type"] == "turtlesim/srv/SetPen"   # found from the graph
+    assert [s["ended_by"] for s in record["steps"]] == ["condition", "done", "done", "done", "done", "condition"]
+    assert record["steps"][5]["detail"]["type"] == "turtlesim/srv/SetPen"   # found from the graph
     from grader.bag.frames import load_frames
     frames = load_frames(tmp_path / "drive" / "bag")
     pose = frames["/turtle1/pose"]
@@ -37,8 +46,20 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
     events = [json.loads(d) for d in frames["/grader/events"]["data"]]
     names = [e["event"] for e in events]
     assert names[0] == "scenario_start" and "service_call" in names and names[-1] == "scenario_end"
+    assert not any(e.get("forged") for e in events)
     assert "/turtle1/set_pen/_service_event" in frames
     assert Path(record["canvas"]).exists()
+    # the simulator's own record of its poses is in the bag, the published ones exactly, and
+    # nothing published under its name got in; poses are judged on it alone
+    from grader.analyze._common import sim_pose
+    from grader.bag.conformance import check_bag
+    rec = frames["/grader/sim_record/turtle1/pose"]
+    assert len(rec) > 100 and not ((rec["x"] == 1.0) & (rec["y"] == 1.0)).any()
+    public = set(zip(pose["x"], pose["y"], pose["theta"]))
+    assert public <= set(zip(rec["x"], rec["y"], rec["theta"]))
+    assert sim_pose(frames, "/turtle1/pose") is rec
+    assert not (tmp_path / "drive" / "sim_poses.record").exists()
+    assert check_bag(tmp_path / "drive" / "bag") == []
 
 
 @pytest.mark.ros
@@ -81,6 +102,11 @@ def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path, time_scal
     assert all(e["ok"] for e in events if e["event"] in ("turtles_held", "turtles_released"))
     calls = [e for e in events if e["event"] == "service_call"]
     assert [c["service"] for c in calls] == ["/turtle1/teleport_absolute"]
+    # the driver recorded its client's id, and the simulator's event of the call names the same
+    # DDS participant: the placement is the grader's by the call itself (grader.analyze.provenance)
+    from grader.analyze import provenance
+    assert len(calls[0]["client_gid"]) == 16, calls[0]
+    assert [c.by for c in provenance.calls(frames, "/turtle1/teleport_absolute")] == [provenance.GRADER]
 
 
 @pytest.mark.ros
