@@ -186,5 +186,11 @@ def test_a_starved_simulators_bursts_are_not_a_second_publisher() -> None:
     fr = with_meta(fr, publishers={"/turtle1/pose": ["/turtlesim"]})
     f = check(get("integrity_pose_publisher")(fr, {}))
     assert f.status == "pass" and "own record" in f.feedback, f.feedback
-    legacy = {k: v for k, v in fr.items() if k != "/grader/sim_record/turtle1/pose"}
-    assert check(get("integrity_pose_publisher")(legacy, {})).status == "fail"     # the old guess
+    # a recording without the record but with the simulator's copy: still exact
+    copy_only = {k: v for k, v in fr.items() if k != "/grader/sim_record/turtle1/pose"}
+    assert check(get("integrity_pose_publisher")(copy_only, {})).status == "pass"
+    # with neither, only the stream can speak: its rate is taken as count over span, so the
+    # bursts average out (a rate from the gaps between receive times read them as ~100 kHz)
+    legacy = {k: v for k, v in copy_only.items() if k != "/grader/sim/turtle1/pose"}
+    f = check(get("integrity_pose_publisher")(legacy, {}))
+    assert f.status == "pass" and f.evidence["rate_hz"] < 70, (f.feedback, f.evidence.get("rate_hz"))
