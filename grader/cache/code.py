@@ -27,17 +27,21 @@ it falls back to 1x), ``grader.grading.reuse`` (what an entry holds), ``grader.l
 file resolved into processes) and ``grader.workspace.build`` (how an executable is found and
 started, and the installs a scenario runs). Besides code, ``EXTRA_DATA`` holds the one input no
 module names by path: the turtlesim interface definitions (``interfaces/``), built into the venv
-by ``grader setup`` and loaded by every node of a scenario. ``tests/cache/test_code_digest.py``
+by ``grader setup`` and loaded by every node of a scenario. ``tests/cache/test_cache_reuse.py``
 runs a real scenario with ``PYTHONPROFILEIMPORTTIME`` and checks that every ``grader`` module the
-scenario child and its grader processes import is in the recording set.
+scenario child and its grader processes import is in the recording set. One package a root
+imports is left out on purpose (``NOT_MAKING``): the analyzers, which the parent reads only for the
+rates a faster run's watchdog expects (the rates are in the key themselves).
 
 The files are read from where Python imports ``grader`` (a checkout or an installed wheel alike),
 keyed by their path inside the package, so the same sources give the same digest anywhere.
 ``__pycache__`` and compiled files are left out. Computed once per process (``lru_cache``).
 
 Cost, measured on the 2-core development machine (``python -m grader.cache.code --time``): the
-recording set is ~95 files; parsing them for the closure and hashing them takes ~85 ms of CPU,
-once per grading process (scenario children never compute it).
+recording set is ~90 files; reading them for the closure and hashing them (with the ~25 of the
+build set) takes 62-68 ms of CPU (5 runs), once per grading process (scenario children never
+compute it); the environment's part (``grader.cache.environment``) ~5 ms more, plus ~40-130 ms of
+wall for the build tools' ``--version`` calls.
 """
 
 from __future__ import annotations
@@ -58,6 +62,11 @@ RECORDING_ROOTS = ("grader.scenario.run", "grader.scenario", "grader.grading.tim
 BUILD_ROOTS = ("grader.workspace.build",)
 #: inputs of a recording that no module names by path (relative to the package)
 EXTRA_DATA = ("interfaces",)
+#: packages a root imports that make no recording: ``grader.analyze`` is imported by
+#: ``grader.grading.timescale.expected_rates`` in the parent only, to read the rates the rubric's
+#: ``publish_rate`` items expect, and those rates enter the key themselves (``recording_settings``);
+#: an analyzer's change regrades from the same bags and must not record every scenario again
+NOT_MAKING = ("grader.analyze",)
 
 PACKAGE = Path(grader.__file__).resolve().parent
 _SKIP = {"__pycache__"}
@@ -113,7 +122,7 @@ def _edges(name: str, package: Path) -> tuple[set[str], set[Path]]:
 
     Read with regular expressions, not ``ast``: parsing the ~85 files of the recording set costs
     ~250 ms of CPU, the expressions ~15 ms (measured on the development machine), and
-    ``tests/cache/test_code_digest.py`` checks that they find every import ``ast`` finds."""
+    ``tests/cache/test_cache_code.py`` checks that they find every import ``ast`` finds."""
     file = module_file(name, package)
     assert file is not None
     text = file.read_bytes()
@@ -137,14 +146,20 @@ def _edges(name: str, package: Path) -> tuple[set[str], set[Path]]:
     return modules, _named_files(text, file)
 
 
-def closure(roots: tuple[str, ...], package: Path = PACKAGE) -> tuple[set[str], set[Path]]:
-    """Every ``grader`` module reachable from ``roots`` and every file they name by path."""
+def _left_out(name: str, skip: tuple[str, ...]) -> bool:
+    return any(name == s or name.startswith(s + ".") for s in skip)
+
+
+def closure(roots: tuple[str, ...], package: Path = PACKAGE,
+            skip: tuple[str, ...] = NOT_MAKING) -> tuple[set[str], set[Path]]:
+    """Every ``grader`` module reachable from ``roots`` and every file they name by path, not
+    following the packages of ``skip`` (see ``NOT_MAKING``)."""
     modules: set[str] = set()
     files: set[Path] = set()
     todo = [m for r in roots for m in sorted(_with_parents(r, package))]
     while todo:
         name = todo.pop()
-        if name in modules:
+        if name in modules or _left_out(name, skip):
             continue
         modules.add(name)
         found, named = _edges(name, package)

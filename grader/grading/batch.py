@@ -19,18 +19,20 @@ from grader.errors import GraderError
 from grader.grading.schedule import Slots
 
 
-def grade_batch(submissions: list[Path], rubric: Any, out: Path, *, slots: Slots,
+def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
                 cache_dir: Path | None = None, reuse: bool = True,
                 on_done: Callable[[str, Any, str | None], None] | None = None,
                 progress: Callable[[str], None] | None = None, time_scale: float = 1.0,
-                cache_max_size: str | None = None) -> dict[str, str]:
-    """Grade ``submissions`` into ``out``; returns ``{submission id: why it has no result}``.
+                due_override: dict | None = None, cache_max_size: str | None = None) -> dict[str, str]:
+    """Grade ``submissions`` (paths, or grader.intake Arrivals with their ids and records) into
+    ``out``; returns ``{submission id: why it has no result}``.
 
     ``on_done(id, graded or None, error or None)`` is called as each one finishes; ``progress``
     gets status lines when there is a single submission; ``time_scale`` as for
-    ``grade_submission``. ``grades.csv``/``index.html`` are
-    rewritten after each submission, so they are current even if the batch is interrupted.
-    ``cache_max_size``: the cache's cap (``5G``; default ``$GRADER_CACHE_MAX_SIZE`` or 5 GB).
+    ``grade_submission``; ``due_override``: ``--due`` (replaces the late policy's due date).
+    ``grades.csv``/``index.html`` are rewritten after each submission, so they are current even
+    if the batch is interrupted. ``cache_max_size``: the cache's cap (``5G``; default
+    ``$GRADER_CACHE_MAX_SIZE`` or 5 GB).
     """
     from grader.cache import default_cache_dir
     from grader.cache.store import end_batch
@@ -40,14 +42,18 @@ def grade_batch(submissions: list[Path], rubric: Any, out: Path, *, slots: Slots
     out.mkdir(parents=True, exist_ok=True)
     failures: dict[str, str] = {}
     uses: list[dict[str, int]] = []
+    # (id, what to grade, arrival record or None)
+    todo = [(s.id, s.path, s.record()) if hasattr(s, "record") else (submission_id(s), s, None)
+            for s in submissions]
     # more submissions in flight than slots: one builds or analyzes while others' scenarios run
     with ThreadPoolExecutor(max_workers=slots.n + 1) as pool:
-        futures = {pool.submit(grade_submission, s, rubric, out, cache_dir=cache_dir,
-                               progress=progress if len(submissions) == 1 else None, slots=slots,
-                               reuse=reuse, time_scale=time_scale): s for s in submissions}
+        futures = {pool.submit(grade_submission, path, rubric, out, cache_dir=cache_dir, sid=sid,
+                               progress=progress if len(todo) == 1 else None, slots=slots,
+                               reuse=reuse, time_scale=time_scale, intake=record,
+                               due_override=due_override): sid for sid, path, record in todo}
         try:
             for fut in as_completed(futures):
-                sid = submission_id(futures[fut])
+                sid = futures[fut]
                 try:
                     graded, error = fut.result(), None
                 except GraderError as exc:

@@ -15,9 +15,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Build each submission, run the rubric's scenarios against the reference "
                                    "turtlesim while recording bags, analyze, score; writes OUT/<id>/result.json, "
                                    "report.html, bags and logs, plus OUT/grades.csv and OUT/index.html.")
-    g.add_argument("submissions", type=Path, help="folder with one folder or archive per student (or one submission)")
+    g.add_argument("submissions", type=Path,
+                   help="a Canvas download (zip or folder), a Gradescope export, a folder of GitHub Classroom "
+                        "clones (with --classroom-prefix), a folder with one folder or archive per student, "
+                        "or one submission")
     g.add_argument("--rubric", type=Path, required=True, help="rubric YAML (e.g. rubrics/enee467_lab3.yaml)")
     g.add_argument("-o", "--out", type=Path, required=True, help="output folder")
+    _intake_options(g)
     g.add_argument("--jobs", type=_positive, default=None,
                    help="scenarios (and builds) run at once across the batch (default: twice the cores)")
     g.add_argument("--only", nargs="+", metavar="ID", help="grade only these submission ids")
@@ -69,6 +73,40 @@ def _size(text: str) -> str:
     except GraderError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
+
+
+def _intake_options(g: argparse.ArgumentParser) -> None:
+    from grader.intake.batch import KINDS
+
+    g.add_argument("--roster", type=Path, help="roster CSV (Canvas gradebook export, Gradescope roster, any "
+                                               "CSV): each submission is matched to a student")
+    g.add_argument("--map", action="append", default=[], metavar="FIELD=COLUMN[,...]",
+                   help="which roster column holds what (as for `grader scores export`)")
+    g.add_argument("--classroom-prefix", metavar="PREFIX",
+                   help="GitHub Classroom clones: the assignment prefix (lab3- for lab3-alice -> alice)")
+    g.add_argument("--intake", choices=KINDS, default="auto",
+                   help="what SUBMISSIONS is (default: recognised by its shape)")
+    g.add_argument("--due", metavar="DATE",
+                   help="replaces the due date of the rubric's late policy, e.g. '2025-02-14 23:59'")
+    g.add_argument("--timezone", metavar="ZONE", help="time zone of --due (default: the rubric's), e.g. America/New_York")
+
+
+def _due_override(args: argparse.Namespace, rubric) -> dict | None:
+    """``--due``/``--timezone`` checked against the rubric's late policy."""
+    from pydantic import ValidationError
+
+    if args.due is None:
+        if args.timezone:
+            raise GraderError("--timezone goes with --due (the rubric's late policy has its own time zone)")
+        return None
+    if rubric.late is None:
+        raise GraderError(f"--due replaces the due date of the rubric's late policy, and {args.rubric} has "
+                          "none: add a late: section to the rubric (rubrics/README.md, \"Late policy\")")
+    try:
+        rubric.late.with_due(args.due, args.timezone)
+    except ValidationError as exc:
+        raise GraderError("--due: " + "; ".join(e["msg"].removeprefix("Value error, ") for e in exc.errors())) from None
+    return {"due": args.due, "timezone": args.timezone}
 
 
 def _time_scale_option(parser: argparse.ArgumentParser) -> None:
@@ -148,23 +186,34 @@ class Progress:
 def run_grade(args: argparse.Namespace) -> int:
     from grader.grading.batch import grade_batch
     from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import discover_submissions, submission_id
     from grader.grading.schedule import Slots, default_jobs
     from grader.grading.shards import in_shard, write_shard_note
+    from grader.intake.batch import WORK_DIR, read_intake
+    from grader.report.result import atomic_write
     from grader.rubric.load import load_rubric
+    from grader.scores.roster import parse_mapping, read_roster
 
     rubric = load_rubric(args.rubric)
-    subs = discover_submissions(args.submissions)
+    due = _due_override(args, rubric)
+    if args.map and not args.roster:
+        raise GraderError("--map describes the roster's columns: give the roster with --roster")
+    roster = read_roster(args.roster, parse_mapping(args.map), require_submission=False) if args.roster else None
+    args.out.mkdir(parents=True, exist_ok=True)
+    intake = read_intake(args.submissions, rubric, work=args.out / WORK_DIR, roster=roster,
+                         classroom_prefix=args.classroom_prefix, kind=args.intake)
+    print(intake.table(), flush=True)
+    atomic_write(args.out / "intake.csv", intake.csv_text())
+    subs = intake.gradable
+    refused = {a.original[0]: a.refused or "" for a in intake.refused}
     if args.only:
-        subs = [s for s in subs if submission_id(s) in set(args.only)]
+        subs = [s for s in subs if s.id in set(args.only)]
         if not subs:
             raise GraderError(f"none of {', '.join(args.only)} is among the submissions in {args.submissions}.")
+        refused = {}
     if args.shard:
-        subs = [s for s in subs if in_shard(submission_id(s), *args.shard)]
-    args.out.mkdir(parents=True, exist_ok=True)
-    if args.shard:
+        subs = [s for s in subs if in_shard(s.id, *args.shard)]
         write_shard_note(args.out, rubric, *args.shard)
-    todo = [s for s in subs if not (args.resume and (args.out / submission_id(s) / "result.json").exists())]
+    todo = [s for s in subs if not (args.resume and (args.out / s.id / "result.json").exists())]
     progress = Progress(len(subs))
     progress.done = len(subs) - len(todo)
 
@@ -178,7 +227,7 @@ def run_grade(args: argparse.Namespace) -> int:
     try:
         failures = grade_batch(todo, rubric, args.out, slots=Slots(args.jobs or default_jobs()),
                                cache_dir=args.cache_dir, reuse=not args.no_reuse, on_done=done,
-                               progress=progress.status, time_scale=args.time_scale,
+                               progress=progress.status, time_scale=args.time_scale, due_override=due,
                                cache_max_size=args.cache_max_size)
     except KeyboardInterrupt:
         interrupted = True
@@ -187,12 +236,14 @@ def run_grade(args: argparse.Namespace) -> int:
         write_batch_outputs(args.out, rubric)
     for sid, msg in failures.items():
         print(f"grader: {sid}: {msg}", file=sys.stderr)
+    for name, why in refused.items():
+        print(f"grader: {name}: not graded: {why}", file=sys.stderr)
     print(f"wrote {args.out / 'grades.csv'} and {args.out / 'index.html'}")
     if interrupted or any("interrupted" in m for m in failures.values()):
         print("grader: interrupted; finished submissions are saved; rerun with --resume to continue",
               file=sys.stderr)
         return 130
-    return 1 if failures else 0
+    return 1 if failures or refused else 0
 
 
 def run_check(args: argparse.Namespace) -> int:
@@ -204,6 +255,9 @@ def run_check(args: argparse.Namespace) -> int:
     if args.rubric is None and args.lab is None:
         raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
     rubric = load_rubric(args.rubric or rubric_for_lab(args.lab))
+    from grader.grading.outputs import print_contract
+
+    print_contract(rubric)
     ws = args.workspace.resolve()
     out = (args.out or ws / ".grader-check").resolve()
     from grader.grading.schedule import Slots, default_jobs

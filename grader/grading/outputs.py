@@ -17,7 +17,11 @@ def versions() -> dict[str, str]:
 
 
 def _canvases(sub_out: Path) -> dict[str, str]:
-    return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
+    """Each scenario's canvas (of its first run when it ran more than once)."""
+    from grader.grading.repeat import scenario_of
+
+    return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))
+            if scenario_of(p.parent.name) == p.parent.name}
 
 
 def effective_params(rubric) -> dict[str, dict]:
@@ -68,6 +72,8 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
     extra["recordings"] = recordings
     if other:
         extra["recordings_by_other_grader"] = other
+    if getattr(graded, "intake", None):
+        extra["intake"] = graded.intake           # who and when, as the LMS said (grader.intake)
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
     if time_scales:                 # --time-scale: how each scenario ran, and why not faster
         extra["time_scale"] = time_scales
@@ -75,7 +81,8 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
     write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
                problems=problems, params=effective_params(rubric),
-               notes=time_scale_notes(time_scales) + ([] if public_only else notes(other, recordings)))
+               notes=time_scale_notes(time_scales) + ([] if public_only else notes(other, recordings)),
+               intake=getattr(graded, "intake", None))
 
 
 def write_batch_outputs(out: Path, rubric) -> None:
@@ -93,6 +100,12 @@ def print_check_table(graded, rubric) -> bool:
     rows = [i for i in result.items if i.kind != "manual"]
     width = max((len(i.id) for i in rows), default=10)
     print(f"\n{rubric.title}: self-check ({result.auto_score:g}/{result.auto_max:g} points on public items)\n")
+    for m in result.contract:
+        blocks = f" Blocks: {', '.join(m.blocks)}." if m.blocks else ""
+        for k, line in enumerate(_wrap(m.feedback + blocks, 92)):
+            print(f"  {'NAME' if k == 0 else '    '}  {line}")
+    if result.contract:
+        print()
     ok = True
     marks = {"pass": "PASS", "partial": "PART", "fail": "FAIL", "error": "ERR "}
     from grader.report.readable import item_params, measured_sentence
@@ -122,6 +135,19 @@ def print_check_table(graded, rubric) -> bool:
         print(f"\n  problem: {err.splitlines()[0]}")
     print("\nAll public checks pass." if ok else "\nSome checks do not pass yet (see above).")
     return ok
+
+
+def print_contract(rubric) -> None:
+    """What the lab fixes, before a self-check runs: the names to use exactly."""
+    lines = rubric.contract.lines()
+    if not lines:
+        return
+    print(f"{rubric.title}\nNames this lab fixes (use them exactly; everything else is found by what it does):")
+    width = max(len(what) for what, _, _, _ in lines)
+    names = max(len(name) for _, name, _, _ in lines)
+    for what, name, use, _why in lines:
+        print(f"  {what:<{width}}  {name:<{names}}  {use}".rstrip())
+    print()
 
 
 def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:

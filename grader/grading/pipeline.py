@@ -17,6 +17,7 @@ from typing import Any, Callable, Iterable
 
 from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
+from grader.grading.repeat import median_finding, run_folders, run_until_settled, settles_check
 from grader.scenario.events import Event
 
 SCENARIOS_DIR = "scenarios"
@@ -62,6 +63,7 @@ class GradedSubmission:
     cache: dict[str, int] = field(default_factory=dict)        # cache hits and misses (grader.cache.store)
     time_scales: dict[str, dict] = field(default_factory=dict)  # scenario -> requested/used/fallback (--time-scale)
     previous: dict | None = None      # a regrade's summary of the result it replaced (class view diff)
+    intake: dict | None = None        # how it arrived: LMS ids, student, time (grader.intake)
 
 
 def selected_items(rubric, public_only: bool) -> list:
@@ -116,7 +118,8 @@ def _unavailable_nodes(frames: dict) -> list[str]:
 
 
 def _crashed_nodes(frames: dict) -> list[str]:
-    """Student processes that exited on their own, with the last line of what they printed."""
+    """Student processes that exited on their own, with the last line of what they printed: a
+    non-zero exit is a crash; exit code 0 means its main returned (it stopped spinning)."""
     lines = stdout_lines(frames)
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
@@ -126,7 +129,10 @@ def _crashed_nodes(frames: dict) -> list[str]:
         if not e.get("stopped_by_grader"):
             name = e.get("process", "?")
             tail = last_line.get(name, "")
-            out.append(f"{name} exited with code {e.get('returncode')}" + (f" ({tail[:160]})" if tail else ""))
+            code = e.get("returncode")
+            what = (f"{name} returned on its own (exit code 0) while the scenario ran: does it keep spinning?"
+                    if code == 0 else f"{name} crashed (exit code {code})")
+            out.append(what + (f" ({tail[:160]})" if tail else ""))
     if out and limits:
         out.append("limit reached: " + "; ".join(dict.fromkeys(m for m in limits if m)))
     return out
@@ -148,8 +154,8 @@ def analyze_item(item, frames: dict):
     missing = _unavailable_nodes(frames)
     crashed = _crashed_nodes(frames)
     if missing or crashed:
-        why = (["Could not run " + "; ".join(missing)] if missing else []) + \
-              (["Node crashed: " + "; ".join(crashed)] if crashed else [])
+        why = (["Could not run " + "; ".join(missing).rstrip(".") + "."] if missing else []) + \
+              (["Node stopped: " + "; ".join(crashed).rstrip(".") + "."] if crashed else [])
         finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
         finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
         if finding.status == "error" and item.kind != "integrity":
@@ -173,18 +179,28 @@ def combine_findings(item, per_scenario: list):
     return worst_finding(per_scenario) if per_scenario else None
 
 
+class Findings(dict):
+    """Item id -> finding, plus ``contract``: the contract names each scenario's recording shows
+    under another name (``grader.rubric.contract.Mismatch``; scoring blocks the items that
+    depend on them). A dict, so callers that only want the findings need not change."""
+
+    contract: tuple = ()
+
+
 def analyze_bags(rubric, items: list, sub_out: Path,
-                 unusable: dict[str, str] | None = None) -> tuple[dict[str, Any], list[str]]:
+                 unusable: dict[str, str] | None = None) -> tuple[Findings, list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems.
     ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
     finalised): its items become errors saying so."""
     from grader.analyze import Finding
+    from grader.analyze.contract import check_contract
+    from grader.rubric.contract import merge_mismatches
 
     frames_cache: dict[str, dict | Exception] = {}
     problems: list[str] = []
     unusable = unusable or {}
 
-    def frames_for(sc: str):
+    def frames_for(sc: str):          # sc: a run's folder name (the scenario id for its first run)
         if sc not in frames_cache:
             if sc in unusable:
                 frames_cache[sc] = GraderError(unusable[sc])
@@ -197,34 +213,47 @@ def analyze_bags(rubric, items: list, sub_out: Path,
                 problems.append(f"scenario {sc}: {exc}")
         return frames_cache[sc]
 
-    findings: dict[str, Any] = {}
+    findings = Findings()
     for item in items:
         per_scenario = []
         for sc in item.scenario:
-            frames = frames_for(sc)
-            if isinstance(frames, Exception):
-                per_scenario.append(Finding(value=None, fraction=0.0, status="error",
-                                            feedback=f"The recording of scenario {sc} could not be read: {frames}",
-                                            evidence={}))
-                continue
-            per_scenario.append(analyze_item(item, frames))
+            per_run = []
+            for folder in run_folders(sub_out / SCENARIOS_DIR, sc):      # one, or a repeated scenario's runs
+                frames = frames_for(folder.name)
+                if isinstance(frames, Exception):
+                    per_run.append(Finding(value=None, fraction=0.0, status="error",
+                                           feedback=f"The recording of scenario {sc} could not be read: {frames}",
+                                           evidence={}))
+                else:
+                    per_run.append(analyze_item(item, frames))
+            planned = rubric.scenarios[sc].repeat if sc in rubric.scenarios else 1
+            per_scenario.append(median_finding(per_run, planned))
         findings[item.id] = combine_findings(item, per_scenario)
+    mismatches = {}
+    for sc, frames in frames_cache.items():
+        if not isinstance(frames, Exception):
+            mismatches[sc] = check_contract(rubric.contract, rubric.scenario_roles(sc), frames)
+    findings.contract = merge_mismatches(mismatches)
     return findings, problems
 
 
 def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | None = None,
                      public_only: bool = False, sid: str | None = None,
                      progress: Callable[[str], None] | None = None, slots=None,
-                     reuse: bool = True, time_scale: float = 1.0) -> GradedSubmission:
+                     reuse: bool = True, time_scale: float = 1.0, intake: dict | None = None,
+                     due_override: dict | None = None) -> GradedSubmission:
     """Build, run the needed scenarios (side by side, within ``slots``), analyze and score one
     submission; writes its folder. ``reuse``: copy a scenario's recording when everything it
     runs is identical to an earlier run (see grader.grading.reuse). ``time_scale`` > 1: run
-    scenarios that may on simulated time, that much faster (see grader.grading.timescale)."""
+    scenarios that may on simulated time, that much faster (see grader.grading.timescale).
+    ``intake``: how it arrived (grader.intake: ids, student, time), kept in ``intake.json``; with
+    the rubric's late policy (its due date replaced by ``due_override``) it sets the penalty."""
     from grader.cache.locks import Holds
     from grader.cache.store import submission_cache_use
     from grader.grading.provenance import scenario_recordings
-    from grader.grading.reuse import record_or_reuse
     from grader.grading.timescale import expected_rates
+    from grader.intake.apply import apply_intake
+    from grader.intake.model import public_record, write_record
 
     from grader.grading.schedule import Slots
     from grader.rubric.score import score
@@ -239,6 +268,8 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
         if out.exists():
             shutil.rmtree(out)
         out.mkdir(parents=True)
+    if intake is not None:
+        write_record(out, intake, due_override)
     timings: dict[str, float] = {}
     errors: list[str] = []
     say = progress or (lambda _msg: None)
@@ -271,9 +302,9 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     # one that sets the submission's wall time
     longest_first = sorted(scenario_ids, key=lambda sc: -rubric.scenarios[sc].budget_s)
     with holds, ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
-        runs = {sc_id: pool.submit(record_or_reuse, sid, sc_id, rubric.scenarios[sc_id], build,
-                                   out / SCENARIOS_DIR / sc_id, slots, recordings, time_scale,
-                                   expected_rates(rubric, sc_id) if time_scale > 1 else ())
+        runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings,
+                                   time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else (),
+                                   settles_check([i for i in items if sc_id in i.scenario], rubric.scenarios[sc_id].repeat))
                 for sc_id in longest_first}
         for sc_id in scenario_ids:
             record = runs[sc_id].result()
@@ -292,20 +323,37 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     errors += problems
     result, kept = apply_saved_manual_scores(out, score(rubric, findings))
     errors += kept
+    result, late_notes = apply_intake(out, rubric, result)
+    errors += late_notes
     if public_only:
         result = result.for_student()
     graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
                               build_failed=list(build.failed) if build else ["(no build)"],
                               errors=errors, timings=timings, reused=reused, time_scales=time_scales,
                               recordings=recordings_made,
-                              cache=submission_cache_use(build, recordings_made, reuse))
+                              cache=submission_cache_use(build, recordings_made, reuse),
+                              intake=public_record(out))
     write_outputs(graded, rubric, public_only=public_only)
     return graded
+
+
+def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None,
+             time_scale: float = 1.0, rates: tuple = (), settles: Callable[[list[Path]], bool] | None = None) -> dict:
+    """One scenario; a repeated one (``repeat: N``) run by run until its median is settled, each
+    run recorded or reused by ``grader.grading.reuse.record_or_reuse``."""
+    from grader.grading.reuse import record_or_reuse
+
+    return run_until_settled(
+        lambda k, folder: record_or_reuse(sid, sc_id, scenario, build, folder, slots, recordings, time_scale, rates,
+                                          run=k),
+        out / SCENARIOS_DIR, sc_id, scenario.repeat, settles)
 
 
 def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:
     """Recompute a submission's grade from its recorded bags only (no build, no ROS)."""
     from grader.rubric.score import score
+    from grader.intake.apply import apply_intake
+    from grader.intake.model import public_record
     from grader.scores.store import apply_saved_manual_scores
 
     sub_out = Path(sub_out)
@@ -323,7 +371,8 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
     unusable, notes = recordings_to_refuse(sub_out, old)
     findings, problems = analyze_bags(rubric, items, sub_out, unusable)
     result, kept = apply_saved_manual_scores(sub_out, score(rubric, findings))   # merged manual scores
-    problems = notes + problems + kept
+    result, late_notes = apply_intake(sub_out, rubric, result)                   # late policy, again
+    problems = notes + problems + kept + late_notes
     # the seal keeps the digests of what was graded; a result without one is sealed as it is now
     recorded = (old.get("seal") or {}).get("inputs")
     inputs = recorded if recorded is not None and mac_ok(old) else input_digests(sub_out)
@@ -335,7 +384,7 @@ def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> G
                               errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
                               timings=old.get("timings", {}), previous=previous_summary(old),
                               time_scales=old.get("time_scale", {}), recordings=scenario_recordings(sub_out),
-                              reused=old.get("scenarios_reused") or {})
+                              reused=old.get("scenarios_reused") or {}, intake=public_record(sub_out))
     write_outputs(graded, rubric, public_only=public_only, inputs=inputs)
     return graded
 

@@ -110,6 +110,11 @@ def scenario_key(scenario_id: str, scenario: Scenario, build: Any, settings: str
     for step in scenario.steps:
         if step.replay is not None:
             h.update(_tree_digest(step.replay.bag).encode())
+    if any(proc.package and proc.package not in packages for proc in scenario.processes):
+        # a package it runs is missing: the recording's `packages` event (the contract's names,
+        # grader.analyze.contract) then speaks of the others, which differ from student to student
+        for name, pkg in sorted(build.packages.items()):
+            h.update(f"{name}:{pkg.status}:{','.join(sorted(pkg.executables))}".encode())
     return h.hexdigest()[:24]
 
 
@@ -163,15 +168,17 @@ def reusable(record: dict[str, Any]) -> bool:
     return not record.get("errors") and not record.get("interrupted") and bool(record.get("steps"))
 
 
-def recording_settings(time_scale: float = 1.0, rates: tuple = ()) -> str:
+def recording_settings(time_scale: float = 1.0, rates: tuple = (), run: int = 1) -> str:
     """What, besides the inputs, changes a recording: the sandbox's active protections (a
     recording made with fewer of them is not reused where more are active), the time scale and
-    the rates the watchdog of a faster run expects (the rubric's ``publish_rate`` items)."""
+    the rates the watchdog of a faster run expects (the rubric's ``publish_rate`` items), and
+    which run of a repeated scenario it is (run ``run`` > 1 is a recording of its own)."""
     from grader.sandbox import summary
 
     info = summary()
     scaled = f";time_scale={time_scale:g};rates={sorted(map(repr, rates))}" if time_scale > 1 else ""
-    return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}{scaled}"
+    again = f";run={run}" if run > 1 else ""
+    return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}{scaled}{again}"
 
 
 def _note_recording(folder: Path, record: dict[str, Any], key: str | None) -> dict[str, Any]:
@@ -187,17 +194,24 @@ def _note_recording(folder: Path, record: dict[str, Any], key: str | None) -> di
 
 
 def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder: Path, slots: Any,
-                    recordings: Path | None, time_scale: float = 1.0, rates: tuple = ()) -> dict[str, Any]:
-    """One scenario into ``folder``: copied from an identical earlier recording under
-    ``recordings`` (None: ``--no-reuse``), or run within one of ``slots``; returns its record."""
+                    recordings: Path | None, time_scale: float = 1.0, rates: tuple = (),
+                    run: int = 1) -> dict[str, Any]:
+    """One recording of a scenario into ``folder``: copied from an identical earlier recording
+    under ``recordings`` (None: ``--no-reuse``), or run within one of ``slots`` (and made again
+    while the machine starves it, ``grader.grading.starvation``); returns its record. Run ``run``
+    > 1 of a repeated scenario is a recording of its own (its own key)."""
+    from grader.grading.starvation import record_unstarved
     from grader.grading.timescale import run_at_scale
     from grader.scenario import resolve
 
-    key = scenario_key(sc_id, scenario, build, settings=recording_settings(time_scale, rates))
-    if key is None or recordings is None:
+    def make() -> dict[str, Any]:
         with slots.taken():
-            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
-        return _note_recording(folder, record, key)
+            return record_unstarved(lambda: run_at_scale(resolve(sc_id, scenario, build), folder, time_scale,
+                                                         build, rates), folder)
+
+    key = scenario_key(sc_id, scenario, build, settings=recording_settings(time_scale, rates, run))
+    if key is None or recordings is None:
+        return _note_recording(folder, make(), key)
     cache = RecordingCache(recordings)
     with cache.locked(key):
         t0 = time.monotonic()
@@ -209,9 +223,7 @@ def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder
                           parent_wall_s=round(time.monotonic() - t0, 3))
             (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
             return record
-        with slots.taken():
-            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
-        record = _note_recording(folder, record, key)
+        record = _note_recording(folder, make(), key)
         if reusable(record):
             cache.put(key, folder, sid)
         return record

@@ -36,5 +36,11 @@ def load_results(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) 
 def write_batch(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> tuple[Path, Path]:
     """(Re)write ``out_dir/grades.csv`` and ``out_dir/index.html`` (the class view); returns both."""
     results = load_results(out_dir, rubric)
-    return (write_grades_csv(out_dir, results, rubric=rubric),
-            write_index(out_dir, results, docs=read_docs(out_dir, list(results))))
+    docs = read_docs(out_dir, list(results))
+    return (write_grades_csv(out_dir, results, rubric=rubric, intake=intake_docs(docs)),
+            write_index(out_dir, results, docs=docs))
+
+
+def intake_docs(docs: dict[str, dict]) -> dict[str, dict]:
+    """Each submission's result.json ``intake`` (who it is, from which LMS download), if any."""
+    return {sid: doc["intake"] for sid, doc in docs.items() if isinstance(doc.get("intake"), dict)}

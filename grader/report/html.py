@@ -107,7 +107,8 @@ class _Page:
         if item.kind == "manual":
             return ""
         text = readable.measured_sentence(item, self._visible_params(item), student_view=self.student)
-        return f'<p class="measured">{escape(text)}</p>'
+        runs = readable.spread_text(item.decided)       # a repeated scenario: how its runs came out
+        return f'<p class="measured">{escape(text)}</p>' + (f'<p class="runs">{escape(runs)}</p>' if runs else "")
 
     def card(self, item: ItemResult) -> str:
         """A failing item in full: measured vs expected, feedback, hint, figure, details."""
@@ -155,6 +156,22 @@ def _notices(title: str, css: str, notices: tuple[Notice, ...]) -> str:
     items = "".join(f'<li>{_badge(n.status)} <b>{escape(n.title)}</b> <span class="id">{escape(n.item_id)}</span>'
                     f': {escape(n.feedback)} <a href="#item-{escape(n.item_id)}">details</a></li>' for n in notices)
     return f'<section class="box {css}" aria-label="{escape(title)}"><h2>{escape(title)}</h2><ul>{items}</ul></section>'
+
+
+def _contract_html(result: Result) -> str:
+    """Names the lab fixes that the submission spells differently: one line each, before the
+    items, with the items each one blocks (their own cards say the same in one sentence)."""
+    if not result.contract:
+        return ""
+    titles = {i.id: i.title for i in result.items}
+    rows = []
+    for m in result.contract:
+        blocked = ", ".join(f'<a href="#item-{escape(b)}">{escape(titles.get(b, b))}</a>' for b in m.blocks)
+        rows.append(f'<li data-role="{escape(m.role)}"><b>{escape(m.feedback)}</b>'
+                    + (f" It blocks: {blocked}." if blocked else "") + "</li>")
+    return (f'<section class="box flags" id="contract" aria-label="Names this lab fixes"><h2>Names this lab '
+            f'fixes</h2><p class="sub">Use these names exactly: the items that depend on a name are checked '
+            f'once it is right.</p><ul>{"".join(rows)}</ul></section>')
 
 
 def _canvas_html(canvas_png: Any) -> str:
@@ -207,20 +224,50 @@ def _scores(result: Result) -> str:
     scores = [("Automatic", f"{_num(result.auto_score)} / {_num(result.auto_max)}", "graded from the recordings")]
     if result.manual_max:
         scores.append(("Manual", f"{manual} / {_num(result.manual_max)}", "report and questions, by the instructor"))
+    if result.late is not None:
+        scores.append(("Late", f"−{_num(result.late_penalty)}",
+                       "set by the instructor" if result.late.override_points is not None else "late policy"))
     scores.append(("Total", f"{_num(result.total)} / {_num(result.max_score)}",
                    "final" if result.complete else f"{_num(result.pending_max)} points still to grade"))
     return "".join(f'<div class="score" data-score="{escape(k.lower())}">{escape(k)}'
                    f'<b>{escape(v)}</b><span>{escape(note)}</span></div>' for k, v, note in scores)
 
 
+def _late_html(result: Result) -> str:
+    """The late policy's verdict in words: when it came in, who says so, what it cost."""
+    late = result.late
+    if late is None:
+        return ""
+    text = late.note
+    if late.override_points is not None:
+        text += (f" The instructor set the late penalty to {_num(late.override_points)} point(s)"
+                 + (f" ({late.override_source})." if late.override_source else "."))
+    return f'<p class="sub" id="late">{escape(text)}</p>'
+
+
+def _who_html(intake: Mapping[str, Any] | None) -> str:
+    """Whose submission, as the roster and the LMS say (result.json ``intake``)."""
+    if not intake or intake.get("source") not in ("canvas", "gradescope", "classroom") and not intake.get("student"):
+        return ""
+    student = intake.get("student") or {}
+    lms = {"canvas": "Canvas user id", "gradescope": "Gradescope submission", "classroom": "repository"}
+    parts = [str(student.get("name") or student.get("email") or "not on the roster")]
+    if intake.get("source") in lms and intake.get("lms_id"):
+        parts.append(f"{lms[intake['source']]} {intake['lms_id']}")
+    parts.append(", ".join(str(n) for n in intake.get("original") or [])[:300])
+    return f'<p class="sub" id="who">{escape(" · ".join(p for p in parts if p))}</p>'
+
+
 def render_html(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
                 canvas_png: Any = None, problems: Sequence[str] = (),
-                params: Mapping[str, Mapping[str, Any]] | None = None, notes: Sequence[str] = ()) -> str:
+                params: Mapping[str, Mapping[str, Any]] | None = None, notes: Sequence[str] = (),
+                intake: Mapping[str, Any] | None = None) -> str:
     """The report page of one submission. Pass ``result.for_student()`` for the self-check
     view; ``canvas_png`` is a PNG path (or {label: path}) embedded as a data URI; ``problems``
     are build/scenario errors shown at the top; ``params`` (item id -> effective analyzer
     parameters) is used for items whose result does not carry its own ``params``; ``notes``:
-    lines on how the scenarios ran (``--time-scale``)."""
+    lines on how the scenarios ran (``--time-scale``); ``intake``: result.json's ``intake``
+    (the student and the LMS's ids, under the title)."""
     page = _Page(result, params or {})
     fix = _to_fix(result)
     carded = {i.id for i in fix}
@@ -275,8 +322,10 @@ def render_html(result: Result, submission: str, *, versions: Mapping[str, str] 
 <body><main>
 <header><p class="sub">{escape(result.title)}</p>
 <h1>{"Self-check" if result.student_view else "Grade report"}: <span id="submission">{escape(submission)}</span></h1>
-<div class="scores" id="scores">{_scores(result)}</div>{hidden}</header>
+{_who_html(intake)}
+<div class="scores" id="scores">{_scores(result)}</div>{_late_html(result)}{hidden}</header>
 {_problems_html(problems)}
+{_contract_html(result)}
 {_notes_html(notes)}
 {flags}
 {summary}

@@ -1,5 +1,6 @@
 """The class view ``OUT/index.html``: score distribution, what the class got wrong (per item,
-most failed first, with links to the students who failed), a sortable and filterable table of
+most failed first, with links to the students who failed), items whose repeated runs disagreed
+(``repeat:`` scenarios, graded by the median run), a sortable and filterable table of
 submissions (build failures, crashes, flags, time taken) and, after ``grader regrade``, who
 changed and by how much.
 
@@ -20,7 +21,7 @@ from grader.report.result import atomic_write, check_submission_id
 from grader.report.style import CSS, INDEX_JS
 from grader.rubric.score import ItemResult, Result
 
-NUMERIC = {"auto", "total", "time", "delta"}      # right-aligned columns of the submissions table
+NUMERIC = {"auto", "total", "time", "delta", "late"}      # right-aligned columns of the submissions table
 CATEGORIES = (("pass", "passed"), ("partial", "partly"), ("fail", "failed"), ("error", "not checked"))
 
 
@@ -83,6 +84,15 @@ def _cell(points: Any, status: Any) -> str:
 
 def _num(v: float | None) -> str:
     return "—" if v is None else f"{v:g}"
+
+
+def _late_cell(result: Result) -> str:
+    """−5 (2 days), 0 (on time), — (no late policy)."""
+    from grader.intake.late import late_by_text
+
+    if result.late is None:
+        return "—"
+    return f"−{result.late_penalty:g} ({escape(late_by_text(result.late))})"
 
 
 def _failed_items(result: Result) -> list[ItemResult]:
@@ -151,6 +161,30 @@ def _item_table(subs: Sequence[Submission]) -> str:
             f'</table></div></section>')
 
 
+def _unstable(subs: Sequence[Submission]) -> str:
+    """Items graded by the median of repeated runs (``repeat:`` in the rubric) whose runs
+    disagreed: the grades a student may question first, with how each run came out."""
+    from grader.report.readable import spread_text
+
+    repeated = [(s, i) for s in subs for i in s.result.items if int((i.decided or {}).get("runs") or 1) > 1]
+    if not repeated:
+        return ""
+    unstable = [(s, i) for s, i in repeated if (i.decided or {}).get("stable") is False]
+    lead = (f"{len(repeated)} item result(s) were graded by the median of repeated runs; "
+            f"{len(unstable)} of them came out differently from run to run.")
+    if not unstable:
+        return (f'<section aria-labelledby="unstable-h"><h2 id="unstable-h">Unstable items</h2>'
+                f'<p class="sub" id="unstable-none">{escape(lead)}</p></section>')
+    rows = "".join(f'<tr data-submission="{escape(s.id)}" data-item="{escape(i.id)}"><th scope="row">{_link(s.id)}</th>'
+                   f'<td>{_link(s.id, i.id, i.id)}</td><td class="num">{_num(i.points)} / {_num(i.max_points)}</td>'
+                   f'<td>{escape(spread_text(i.decided))}</td></tr>' for s, i in sorted(unstable, key=lambda si: (si[1].id, si[0].id)))
+    return (f'<section aria-labelledby="unstable-h"><h2 id="unstable-h">Unstable items</h2>'
+            f'<p class="sub">{escape(lead)} Each is graded by its median run; read the report before a '
+            f'student asks.</p><div class="scroll"><table class="unstable"><thead><tr>'
+            f'<th scope="col">Submission</th><th scope="col">Item</th><th scope="col" class="num">Points</th>'
+            f'<th scope="col">Runs</th></tr></thead><tbody>{rows}</tbody></table></div></section>')
+
+
 def _regrade(subs: Sequence[Submission]) -> str:
     regraded = [s for s in subs if s.previous is not None]
     if not regraded:
@@ -183,6 +217,7 @@ def _sub_table(subs: Sequence[Submission]) -> str:
     options = "".join(f'<option value="{escape(i.id)}">{escape(i.id)}</option>'
                       for i in first.items if i.kind in ("auto", "advisory"))
     regraded = any(s.previous is not None for s in subs)
+    late = any(s.result.late is not None for s in subs)
     rows = []
     for s in sorted(subs, key=lambda s: s.id):
         r = s.result
@@ -199,17 +234,22 @@ def _sub_table(subs: Sequence[Submission]) -> str:
             f'<td>{"<br>".join(escape(c) for c in s.crashes) or "—"}</td>',
             f'<td class="num">{_num(s.time_s)}</td>',
         ]
+        if late:
+            cells.insert(3, f'<td class="num" title="{escape(r.late.note if r.late else "")}">{_late_cell(r)}</td>')
         if regraded:
             cells.append(f'<td class="num">{"—" if delta is None else ("+" if delta > 0 else "") + f"{delta:g}"}</td>')
         data = {"submission": s.id, "auto": f"{r.auto_score:g}", "total": "" if r.total is None else f"{r.total:g}",
                 "failed": " ".join(i.id for i in failed), "nfailed": str(len(failed)), "flags": " ".join(flags),
                 "build": "failed" if s.build_failed else "ok", "crashes": str(len(s.crashes)),
-                "time": "" if s.time_s is None else f"{s.time_s:g}", "delta": "" if delta is None else f"{delta:g}"}
+                "time": "" if s.time_s is None else f"{s.time_s:g}", "delta": "" if delta is None else f"{delta:g}",
+                "late": f"{r.late_penalty:g}" if r.late is not None else ""}
         attrs = " ".join(f'data-{k}="{escape(v)}"' for k, v in data.items())
         rows.append(f"<tr {attrs}>{''.join(cells)}</tr>")
     cols = [("submission", "Submission", "text"), ("auto", "Automatic", "num"), ("total", "Total", "num"),
             ("nfailed", "Items not passed", "num"), ("flags", "Integrity flags", "text"),
             ("build", "Build", "text"), ("crashes", "Crashes", "num"), ("time", "Time (s)", "num")]
+    if late:
+        cols.insert(3, ("late", "Late penalty", "num"))
     if regraded:
         cols.append(("delta", "Change at regrade", "num"))
     head = "".join(f'<th scope="col" data-key="{k}" data-type="{t}"{" class=num" if k in NUMERIC else ""}>'
@@ -244,7 +284,7 @@ def render_index(results: Mapping[str, Result], *, title: str | None = None,
         lead = (f"{len(subs)} submission(s). Automatic score out of {first.auto_max:g}: median "
                 f"{statistics.median(scores):g}, mean {statistics.mean(scores):.1f}, lowest {min(scores):g}, "
                 f"highest {max(scores):g}. Totals stay empty (—) until manual items are graded.")
-        body = _distribution(subs) + _item_table(subs) + _regrade(subs) + _sub_table(subs)
+        body = _distribution(subs) + _item_table(subs) + _unstable(subs) + _regrade(subs) + _sub_table(subs)
         script = f"<script>{INDEX_JS}</script>"
     else:
         lead, body, script = "No graded submissions yet.", "", ""

@@ -76,6 +76,7 @@ def item_to_dict(item: ItemResult) -> dict[str, Any]:
         "hidden_params": list(item.hidden_params),
         "requires": list(item.requires),
         "analyzer": item.analyzer,
+        "decided": jsonable(item.decided),
     }
 
 
@@ -109,6 +110,8 @@ def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, st
              "pending_max": s.pending_max, "items": list(s.item_ids)}
             for s in result.sections],
         "items": [item_to_dict(i) for i in result.items],
+        **late_fields(result),
+        "contract": [m.to_dict() for m in result.contract],
         "integrity_flags": [_notice_to_dict(n) for n in result.integrity_flags],
         "warnings": [_notice_to_dict(n) for n in result.warnings],
         "versions": dict(versions or {}),
@@ -118,6 +121,14 @@ def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, st
             raise ValueError(f"extra key {key!r} would replace a result.json field")
         doc[key] = jsonable(value)
     return doc
+
+
+def late_fields(result: Result) -> dict[str, Any]:
+    """result.json's ``late_penalty`` (points) and ``late`` (the policy's verdict), when the
+    rubric has a late policy; ``score`` stays the points earned, ``total`` has the penalty off."""
+    if result.late is None:
+        return {}
+    return {"late_penalty": result.late_penalty, "late": result.late.to_dict()}
 
 
 def result_from_dict(doc: Mapping[str, Any]) -> Result:
@@ -137,12 +148,20 @@ def result_from_dict(doc: Mapping[str, Any]) -> Result:
         feedback=i["feedback"], hint=i.get("hint"), value=i.get("value"),
         fraction=i.get("fraction"), evidence=i.get("evidence") or {}, params=i.get("params") or {},
         hidden_params=tuple(i.get("hidden_params") or ()), requires=tuple(i.get("requires") or ()),
-        analyzer=i.get("analyzer")) for i in doc["items"])
+        analyzer=i.get("analyzer"), decided=i.get("decided") or {}) for i in doc["items"])
     specs = tuple(SectionSpec(section=section(s["section"]), title=s.get("name")) for s in doc.get("sections", []))
     hidden = doc.get("hidden") or {}
+    late = None
+    if isinstance(doc.get("late"), Mapping):
+        from grader.intake.late import LatePenalty
+        late = LatePenalty.from_dict(doc["late"])
+    from grader.rubric.contract import Mismatch
+
     return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
+                  contract=tuple(Mismatch.from_dict(m) for m in doc.get("contract") or () if isinstance(m, Mapping)),
                   student_view=doc.get("view") == "student",
-                  hidden_items=int(hidden.get("items", 0)), hidden_points=float(hidden.get("points", 0)))
+                  hidden_items=int(hidden.get("items", 0)), hidden_points=float(hidden.get("points", 0)),
+                  late=late)
 
 
 def previous_summary(doc: Mapping[str, Any]) -> dict[str, Any] | None:
@@ -235,9 +254,20 @@ def _cell(item: ItemResult) -> str:
     return "" if item.points is None else f"{item.points:g}"
 
 
-def grades_csv_text(results: Mapping[str, Result], rubric: Rubric | None = None) -> str:
-    """CSV text: ``submission, <item ids...>, auto_total, manual_total, total, max,
-    integrity_flags``; empty cells for ungraded manual items and for totals not final yet."""
+#: grades.csv columns after the items (late_penalty only with a late policy)
+LATE_COLUMNS = ("submitted_at", "late_by", "time_source")
+INTAKE_COLUMNS = ("intake", "lms_id", "student")
+
+
+def grades_csv_text(results: Mapping[str, Result], rubric: Rubric | None = None,
+                    intake: Mapping[str, Mapping[str, Any]] | None = None) -> str:
+    """CSV text: ``submission, <item ids...>, auto_total, manual_total, [late_penalty,] total,
+    max, integrity_flags`` (+ ``submitted_at, late_by, time_source`` with a late policy, +
+    ``intake, lms_id, student`` for submissions taken from an LMS download, ``intake``: each
+    submission's result.json ``intake``); empty cells for ungraded manual items and for totals
+    not final yet."""
+    from grader.intake.late import late_by_text
+
     first = next(iter(results.values()), None)
     if rubric is not None:
         item_ids = rubric.item_ids
@@ -245,10 +275,16 @@ def grades_csv_text(results: Mapping[str, Result], rubric: Rubric | None = None)
     else:
         item_ids = [i.id for i in first.items] if first else []
         lab = first.lab if first else ""
+    late = (rubric is not None and getattr(rubric, "late", None) is not None) or \
+        any(r.late is not None for r in results.values())
+    # who handed it in: for submissions from an LMS download or matched to a roster
+    intake = {k: v for k, v in (intake or {}).items() if isinstance(v, Mapping)
+              and (v.get("source") in ("canvas", "gradescope", "classroom") or v.get("student"))}
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(["submission", *item_ids, "auto_total", "manual_total", "total", "max",
-                     "integrity_flags"])
+    writer.writerow(["submission", *item_ids, "auto_total", "manual_total", *(["late_penalty"] if late else []),
+                     "total", "max", "integrity_flags", *(LATE_COLUMNS if late else ()),
+                     *(INTAKE_COLUMNS if intake else ())])
     for submission in sorted(results):
         check_submission_id(submission)
         result = results[submission]
@@ -259,17 +295,25 @@ def grades_csv_text(results: Mapping[str, Result], rubric: Rubric | None = None)
         by_id = {i.id: i for i in result.items}
         cells = [_cell(by_id[i]) if i in by_id else "" for i in item_ids]
         manual = result.manual_score
-        writer.writerow([submission, *cells, f"{result.auto_score:g}",
-                         "" if manual is None else f"{manual:g}",
-                         "" if result.total is None else f"{result.total:g}",
-                         f"{result.max_score:g}",
-                         ";".join(n.item_id for n in result.integrity_flags)])
+        row = [submission, *cells, f"{result.auto_score:g}", "" if manual is None else f"{manual:g}"]
+        if late:
+            row.append("" if result.late is None else f"{result.late_penalty:g}")
+        row += ["" if result.total is None else f"{result.total:g}", f"{result.max_score:g}",
+                ";".join(n.item_id for n in result.integrity_flags)]
+        if late:
+            p = result.late
+            row += ["", "", ""] if p is None else [p.submitted_at or "", late_by_text(p), p.time_source]
+        if intake:
+            doc = intake.get(submission) or {}
+            row += [str(doc.get("source") or ""), str(doc.get("lms_id") or ""),
+                    str((doc.get("student") or {}).get("name") or "")]
+        writer.writerow(row)
     return buf.getvalue()
 
 
 def write_grades_csv(out_dir: str | os.PathLike[str], results: Mapping[str, Result], *,
-                     rubric: Rubric | None = None) -> Path:
+                     rubric: Rubric | None = None, intake: Mapping[str, Mapping[str, Any]] | None = None) -> Path:
     """Write ``out_dir/grades.csv`` for a batch (columns in rubric order when given)."""
     path = Path(out_dir) / "grades.csv"
-    atomic_write(path, grades_csv_text(results, rubric))
+    atomic_write(path, grades_csv_text(results, rubric, intake))
     return path

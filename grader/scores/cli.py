@@ -45,6 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                         "(default: the lab's title)")
     e.add_argument("--partial", action="store_true",
                    help="also export submissions whose manual items are not all graded (points so far)")
+    e.add_argument("--allow-pending", action="store_true",
+                   help="export even while manual items are pending: the complete grades only, the others "
+                        "listed (without it, canvas and gradescope-csv refuse)")
     e.add_argument("-o", "--output", type=Path, help="output file (default: OUT/gradebook-FORMAT.csv)")
     e.set_defaults(func=run_export)
 
@@ -71,16 +74,27 @@ def run_merge(args: argparse.Namespace) -> int:
     return 0
 
 
+def _has_intake(out: Path) -> bool:
+    """The batch came from an LMS download (grader grade --roster): submissions find their roster
+    rows by the ids they kept, so the roster needs no submission column."""
+    from grader.intake.model import INTAKE_FILE
+
+    return any(out.glob(f"*/{INTAKE_FILE}"))
+
+
 def run_export(args: argparse.Namespace) -> int:
     from grader.scores.export import export_gradebook
     from grader.scores.roster import parse_mapping, read_roster
 
     if args.map and not args.roster:
         raise GraderError("--map describes the roster's columns: give the roster with --roster")
-    roster = read_roster(args.roster, parse_mapping(args.map)) if args.roster else None
+    roster = read_roster(args.roster, parse_mapping(args.map), require_submission=not _has_intake(args.out)) \
+        if args.roster else None
     report = export_gradebook(args.out, args.fmt, roster=roster, path=args.output,
-                              assignment=args.assignment, partial=args.partial)
+                              assignment=args.assignment, partial=args.partial, allow_pending=args.allow_pending)
     for line in report.warnings():
         print(f"grader: warning: {line}", file=sys.stderr)
+    for line in report.late:
+        print(line)
     print(report.summary())
     return 0

@@ -25,9 +25,9 @@ from grader.report.index import read_docs, write_index
 from grader.report.result import read_result, result_to_dict, write_grades_csv, write_result
 from grader.rubric.score import Result
 from grader.scores import transaction
-from grader.scores.sheet import SheetRow, read_sheet
-from grader.scores.store import (MANUAL_SCORES, ManualScore, apply_manual_scores, load_manual_scores,
-                                 manual_scores_text)
+from grader.scores.sheet import LATE, SheetRow, read_sheet
+from grader.scores.store import (MANUAL_SCORES, ManualScore, apply_manual_scores, load_late_override,
+                                 load_manual_scores, manual_scores_text)
 
 #: order of the moves: the record of the TA's scores first, the batch overview last
 _ORDER = {MANUAL_SCORES: 0, "result.json": 1, "report.html": 2, "grades.csv": 3, "index.html": 4}
@@ -41,8 +41,10 @@ class Change:
     after: ManualScore | None
 
     def describe(self) -> str:
+        unset = "policy" if self.item == LATE else "pending"
+
         def text(s: ManualScore | None) -> str:
-            return "pending" if s is None else f"{s.points:g}" + (f' "{s.comment}"' if s.comment else "")
+            return unset if s is None else f"{s.points:g}" + (f' "{s.comment}"' if s.comment else "")
         return f"{self.submission}: {self.item} {text(self.before)} -> {text(self.after)}"
 
 
@@ -114,10 +116,24 @@ def _apply_row(row: SheetRow, before: dict[str, ManualScore], source: str,
     return after, changes
 
 
+def _apply_late(row: SheetRow, before: ManualScore | None, source: str,
+                stamp: str) -> tuple[ManualScore | None, list[Change]]:
+    """The TA's late_penalty override after this row (None: the late policy's own penalty)."""
+    if row.late is None:
+        return before, []
+    after = None if row.late.action == "clear" else ManualScore(float(row.late.points or 0.0), "",
+                                                                 f"{source} line {row.line}", stamp)
+    if before is not None and after is not None and before.points == after.points:
+        return before, []
+    return after, ([Change(row.submission, LATE, before, after)] if before != after else [])
+
+
 def merge_manual_scores(out: str | os.PathLike[str], sheet: str | os.PathLike[str], *,
                         dry_run: bool = False) -> MergeReport:
     """Merge the TA's CSV ``sheet`` into the batch ``out`` (see the module docstring).
     Raises ScoresError (every problem of the sheet, nothing written) or GraderError."""
+    from grader.intake.apply import with_late_override
+
     out, sheet = Path(out), Path(sheet)
     if not out.is_dir():
         raise GraderError(f"{out} is not a folder written by `grader grade`")
@@ -128,18 +144,21 @@ def merge_manual_scores(out: str | os.PathLike[str], sheet: str | os.PathLike[st
         stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
         results = {sid: g.result for sid, g in graded.items()}
         new_scores: dict[str, dict[str, ManualScore]] = {}
+        new_late: dict[str, ManualScore | None] = {}
         for row in rows:
             g = graded[row.submission]
             scores, changes = _apply_row(row, _baseline(out / g.sid, g.result), sheet.name, stamp)
-            report.changes += changes
-            new_scores[g.sid] = scores
-            results[g.sid] = apply_manual_scores(g.result, scores)
+            late, late_changes = _apply_late(row, load_late_override(out / g.sid), sheet.name, stamp)
+            report.changes += changes + late_changes
+            new_scores[g.sid], new_late[g.sid] = scores, late
+            results[g.sid] = with_late_override(apply_manual_scores(g.result, scores), late)
         report.pending = {sid: [i.id for i in r.items if i.kind == "manual" and i.points is None]
                           for sid, r in sorted(results.items()) if not r.complete}
         with transaction.staging(out) as stage:
             for sid, scores in new_scores.items():
-                _stage_submission(stage, out, graded[sid], results[sid], scores)
-            write_grades_csv(stage, results)
+                _stage_submission(stage, out, graded[sid], results[sid], scores, new_late[sid])
+            write_grades_csv(stage, results, intake={sid: g.doc["intake"] for sid, g in graded.items()
+                                                     if isinstance(g.doc.get("intake"), dict)})
             write_index(stage, results, docs=read_docs(out, list(results)))
             files = sorted(transaction.changed_files(stage, out),
                            key=lambda rel: (_ORDER.get(rel.name, 9), str(rel)))
@@ -149,12 +168,12 @@ def merge_manual_scores(out: str | os.PathLike[str], sheet: str | os.PathLike[st
 
 
 def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
-                      scores: dict[str, ManualScore]) -> None:
+                      scores: dict[str, ManualScore], late: ManualScore | None = None) -> None:
     """manual_scores.json and result.json; report.html only when the result changed."""
     sub_out = out / g.sid
-    if scores or (sub_out / MANUAL_SCORES).exists():
+    if scores or late is not None or (sub_out / MANUAL_SCORES).exists():
         (stage / g.sid).mkdir(parents=True, exist_ok=True)
-        (stage / g.sid / MANUAL_SCORES).write_text(manual_scores_text(result.lab, g.sid, scores),
+        (stage / g.sid / MANUAL_SCORES).write_text(manual_scores_text(result.lab, g.sid, scores, late),
                                                     encoding="utf-8")
     standard = result_to_dict(result, g.sid)
     extra = {k: v for k, v in g.doc.items() if k not in standard and k != "seal"}
@@ -166,4 +185,4 @@ def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
         return
     canvases = {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
     write_html(stage, g.sid, result, versions=versions, canvas_png=canvases or None,
-               problems=list(g.doc.get("errors") or []))
+               problems=list(g.doc.get("errors") or []), intake=g.doc.get("intake"))

@@ -28,11 +28,13 @@ FIELDS = {
     "section": "the section (Canvas: Section)",
     "email": "the e-mail (Gradescope matches on it)",
     "sid": "the student id number (Gradescope: SID)",
+    "late_days": "late days the student has left (a late policy's late_days budget)",
 }
 DEFAULT_COLUMNS = {
-    "submission": ("submission",), "name": ("Student", "Name"), "id": ("ID",),
+    "submission": ("submission", "github_username"), "name": ("Student", "Name", "Full Name"), "id": ("ID",),
     "sis_user_id": ("SIS User ID",), "sis_login_id": ("SIS Login ID",),
     "section": ("Section", "Sections"), "email": ("Email", "E-mail"), "sid": ("SID",),
+    "late_days": ("late_days", "Late days left"),
 }
 _NOT_A_STUDENT = re.compile(r"^\s*(Muted|Manual Posting.*)?\s*$", re.IGNORECASE)
 
@@ -94,12 +96,18 @@ def _find(header: list[str], column: str) -> int | None:
     return (exact or loose or [None])[0]
 
 
-def read_roster(path: str | os.PathLike[str], mapping: Mapping[str, str] | None = None) -> Roster:
+def read_roster(path: str | os.PathLike[str], mapping: Mapping[str, str] | None = None, *,
+                require_submission: bool = True) -> Roster:
     """Read the roster with ``mapping`` (field -> column; defaults as in the module docstring).
-    Raises ScoresError for a missing column or a submission id on two rows."""
+    Raises ScoresError for a missing column or a submission id on two rows. Without
+    ``require_submission`` (``grader grade --roster``: submissions are matched by the LMS's ids,
+    names or e-mails), a roster needs no submission column."""
     mapping = dict(mapping or {})
     key = mapping.get("submission", "submission")
-    table = read_table(path, has_key=lambda header: _find(header, key) is not None)
+    keys = [key] if "submission" in mapping else list(DEFAULT_COLUMNS["submission"])
+    identity = [c for f in ("name", "id", "email", "sid", "sis_login_id") for c in DEFAULT_COLUMNS[f]]
+    table = read_table(path, has_key=lambda header: any(_find(header, k) is not None for k in keys)
+                       or (not require_submission and any(_find(header, c) is not None for c in identity)))
     shown = ", ".join(f'"{h}"' for h in table.header if h)
     problems: list[str] = []
     index: dict[str, int] = {}
@@ -115,7 +123,7 @@ def read_roster(path: str | os.PathLike[str], mapping: Mapping[str, str] | None 
             j = next((j for c in DEFAULT_COLUMNS[field] if (j := _find(table.header, c)) is not None), None)
             if j is not None:
                 index[field] = j
-    if "submission" not in index and "submission" not in mapping:
+    if "submission" not in index and "submission" not in mapping and require_submission:
         problems.append(f"no column with the submission ids: name it with --map submission=COLUMN "
                         f"(the roster's columns: {shown})")
     if problems:

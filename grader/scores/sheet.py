@@ -11,7 +11,12 @@ Columns (the order does not matter; a filled-in copy of ``grades.csv`` is a vali
   comment). A comment needs a score for its item;
 * automatic items (``ex1.boxmuller``..., as in grades.csv) may stay as exported or be empty:
   a different value is an error, since automatic points come from the recordings;
-* ``auto_total``, ``manual_total``, ``total``, ``max``, ``integrity_flags``: ignored (recomputed).
+* ``auto_total``, ``manual_total``, ``total``, ``max``, ``integrity_flags``: ignored (recomputed),
+  as are grades.csv's ``submitted_at``, ``late_by``, ``time_source``, ``intake``, ``lms_id``,
+  ``student``;
+* ``late_penalty``: points the late policy deducts, as grades.csv shows them. A different number
+  replaces the policy's penalty for that submission (``0`` waives it), an empty cell or the
+  value as exported keeps what is in force, ``policy`` goes back to the policy's own penalty.
 
 Every problem (unknown submission or column, duplicate row, a score that is not a number,
 negative or over the maximum, an edited automatic score, a shifted row) is reported at once
@@ -34,7 +39,10 @@ from grader.scores.errors import ScoresError
 KEY = "submission"
 CLEAR = "pending"
 COMMENT_SUFFIX = " comment"
-DERIVED = ("auto_total", "manual_total", "total", "max", "integrity_flags")
+DERIVED = ("auto_total", "manual_total", "total", "max", "integrity_flags",
+           "submitted_at", "late_by", "time_source", "intake", "lms_id", "student")
+LATE = "late_penalty"
+LATE_CLEAR = "policy"
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")
 
 
@@ -52,11 +60,12 @@ class SheetRow:
     line: int
     submission: str
     updates: dict[str, Update] = field(default_factory=dict)
+    late: Update | None = None     # the late_penalty cell: "set" (override) or "clear" (the policy's)
 
 
 @dataclass(frozen=True)
 class Column:
-    role: str                      # "key" | "score" | "comment" | "auto" | "ignored"
+    role: str                      # "key" | "score" | "comment" | "auto" | "late" | "ignored"
     item: str = ""
 
 
@@ -132,6 +141,8 @@ def _columns(table: Table, items: Mapping[str, ItemResult], problems: list[str])
             columns.append(Column("key"))
         elif not name or name in DERIVED:
             columns.append(Column("ignored"))        # checked per row when unnamed
+        elif name == LATE:
+            columns.append(Column("late"))
         elif name in items:
             columns.append(Column("score" if items[name].kind == "manual" else "auto", name))
         elif name.casefold().endswith(COMMENT_SUFFIX):
@@ -187,11 +198,15 @@ def _row(table: Table, columns: list[Column], key: int, line: int, cells: list[s
     by_id = {i.id: i for i in result.items}
     updates: dict[str, Update] = {}
     comments: dict[str, tuple[int, str]] = {}
+    late: Update | None = None
     for j, (column, value) in enumerate(zip(columns, cells)):
         at = f"line {line}, {column.item or col_name(j)}"
         if column.role == "ignored" and value and not table.header[j]:
             problems.append(f"line {line}, column {col_name(j)}: a value in a column without a header")
         if not value or column.role in ("key", "ignored"):
+            continue
+        if column.role == "late":
+            late = _late_cell(f"line {line}, {LATE}", value, result, table.delimiter, problems)
             continue
         item = by_id.get(column.item)
         if item is None:
@@ -222,7 +237,28 @@ def _row(table: Table, columns: list[Column], key: int, line: int, cells: list[s
         else:
             problems.append(f'line {line}, {item_id} comment: a comment for {item_id}, which has no '
                             f"score (give its points in column {_column_of(columns, item_id)})")
-    return SheetRow(line, sid, updates)
+    return SheetRow(line, sid, updates, late)
+
+
+def _late_cell(at: str, value: str, result: Result, delimiter: str, problems: list[str]) -> Update | None:
+    """The late_penalty cell: None when it keeps what is in force (empty, or as exported)."""
+    if value.casefold() == LATE_CLEAR:
+        return Update("clear") if result.late is not None and result.late.override_points is not None else None
+    points = _number(value, delimiter)
+    if points is None:
+        problems.append(f'{at}: "{value}" is not a number (the points to deduct, 0 to waive the penalty, '
+                        f'or "{LATE_CLEAR}" for the late policy\'s own)')
+        return None
+    if points < 0:
+        problems.append(f"{at}: {value} is negative (the points deducted for lateness: 0 or more)")
+        return None
+    if points > result.max_score:
+        problems.append(f"{at}: {value} is over the lab's {result.max_score:g} points")
+        return None
+    current = result.late_penalty if result.late is not None else 0.0
+    if abs(points - current) < 1e-9:
+        return None                   # as exported: the penalty in force stays (and stays the policy's)
+    return Update("set", points=points)
 
 
 def _column_of(columns: list[Column], item_id: str) -> str:

@@ -9,7 +9,9 @@ folder. Shape::
      "items": {"q1": {"points": 7.0, "comment": "Rate is right, units missing.",
                       "source": "manual.csv line 3", "merged_at": "2025-01-31T17:02:11Z"}}}
 
-Only graded items are listed; an item set back to ``pending`` is removed.
+Only graded items are listed; an item set back to ``pending`` is removed. A TA's override of the
+late policy's penalty (the ``late_penalty`` column of a merged sheet) is kept beside them as
+``"late_penalty": {"points": 0.0, "source": ..., "merged_at": ...}``.
 """
 
 from __future__ import annotations
@@ -74,21 +76,32 @@ def check_score(item: ItemResult | None, item_id: str, points: float) -> str | N
 
 # -- the file ---------------------------------------------------------------------------------
 
-def _load(sub_out: str | os.PathLike[str]) -> tuple[str | None, dict[str, ManualScore]]:
+def _score(v: Mapping[str, Any]) -> ManualScore:
+    return ManualScore(points=float(v["points"]), comment=str(v.get("comment", "")),
+                       source=str(v.get("source", "")), merged_at=str(v.get("merged_at", "")))
+
+
+def _read(sub_out: str | os.PathLike[str]) -> dict[str, Any] | None:
     path = Path(sub_out) / MANUAL_SCORES
     if not path.exists():
-        return None, {}
+        return None
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
         if doc.get("schema") != STORE_SCHEMA:
             raise ValueError(f"schema {doc.get('schema')!r} is not {STORE_SCHEMA}")
-        return str(doc["lab"]), {
-            str(k): ManualScore(points=float(v["points"]), comment=str(v.get("comment", "")),
-                                source=str(v.get("source", "")), merged_at=str(v.get("merged_at", "")))
-            for k, v in doc["items"].items()}
+        doc["items"] = {str(k): _score(v) for k, v in doc["items"].items()}
+        late = doc.get("late_penalty")
+        doc["late_penalty"] = _score(late) if late is not None else None
+        doc["lab"] = str(doc["lab"])
+        return doc
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise GraderError(f"{path} is not a readable manual-scores file ({exc}); fix or delete it "
                           f"and merge the TA's CSV again") from None
+
+
+def _load(sub_out: str | os.PathLike[str]) -> tuple[str | None, dict[str, ManualScore]]:
+    doc = _read(sub_out)
+    return (None, {}) if doc is None else (str(doc["lab"]), doc["items"])
 
 
 def load_manual_scores(sub_out: str | os.PathLike[str]) -> dict[str, ManualScore]:
@@ -96,11 +109,21 @@ def load_manual_scores(sub_out: str | os.PathLike[str]) -> dict[str, ManualScore
     return _load(sub_out)[1]
 
 
-def manual_scores_text(lab: str, submission: str, scores: Mapping[str, ManualScore]) -> str:
-    doc: dict[str, Any] = {
-        "schema": STORE_SCHEMA, "lab": lab, "submission": submission,
-        "items": {k: {"points": s.points, "comment": s.comment, "source": s.source,
-                      "merged_at": s.merged_at} for k, s in scores.items()}}
+def load_late_override(sub_out: str | os.PathLike[str]) -> ManualScore | None:
+    """The late penalty (points) a TA set for one submission, replacing the policy's; or None."""
+    doc = _read(sub_out)
+    return None if doc is None else doc["late_penalty"]
+
+
+def manual_scores_text(lab: str, submission: str, scores: Mapping[str, ManualScore],
+                       late: ManualScore | None = None) -> str:
+    def entry(s: ManualScore) -> dict[str, Any]:
+        return {"points": s.points, "comment": s.comment, "source": s.source, "merged_at": s.merged_at}
+
+    doc: dict[str, Any] = {"schema": STORE_SCHEMA, "lab": lab, "submission": submission,
+                           "items": {k: entry(s) for k, s in scores.items()}}
+    if late is not None:
+        doc["late_penalty"] = entry(late)
     return json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
 
 

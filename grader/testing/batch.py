@@ -5,6 +5,9 @@ does, for tests and benchmarks of the reports.
 as ``grader grade`` would (linking each recorded scenario folder: ``bag/`` and
 ``scenario.json``), regrades every submission from its bags and writes the batch files
 (grades.csv, index.html). The committed Lab 3 bags are in ``fixtures/bags/lab3/<submission>/``.
+``recorded_intake`` does the same for the submissions of an intake (grader.intake: a Canvas
+download, a Gradescope export...), under their ids and with their arrival records, so the late
+policy and the LMS ids go through the reports and exports as in a real grading.
 """
 
 from __future__ import annotations
@@ -45,5 +48,30 @@ def recorded_batch(bags_root: Path, out: Path, rubric: Any, only: list[str] | No
     from grader.grading.pipeline import regrade_submission
 
     graded = [regrade_submission(out / sid, rubric) for sid in layout(bags_root, out, only)]
+    write_batch_outputs(out, rubric)
+    return graded
+
+
+def recorded_intake(arrivals: list[Any], bags: dict[str, Path], out: Path, rubric: Any,
+                    due_override: dict | None = None) -> list[Any]:
+    """What ``grader grade`` does with an intake (grader.intake), with recorded bags standing in
+    for the build and the scenarios: each gradable arrival's recordings (``bags[arrival.id]``, a
+    folder of ``<scenario>/bag``) are laid out under its id with its arrival record, then
+    regraded. The GradedSubmissions."""
+    from grader.grading.outputs import write_batch_outputs
+    from grader.grading.pipeline import regrade_submission
+    from grader.intake.model import write_record
+
+    graded = []
+    for arrival in (a for a in arrivals if a.gradable):
+        source = Path(bags[arrival.id])
+        for sc in sorted(p for p in source.iterdir() if (p / "bag").is_dir()):
+            target = out / arrival.id / "scenarios" / sc.name
+            target.mkdir(parents=True, exist_ok=True)
+            for entry in sc.iterdir():
+                if not (target / entry.name).exists():
+                    os.symlink(entry.resolve(), target / entry.name)
+        write_record(out / arrival.id, arrival.record(), due_override)
+        graded.append(regrade_submission(out / arrival.id, rubric))
     write_batch_outputs(out, rubric)
     return graded

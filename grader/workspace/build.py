@@ -297,6 +297,21 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
     return {p.name: out[p.name] for p in staged}
 
 
+def build_support(support: dict[str, Path], cache_dir: Path | None = None,
+                  holds: Holds | None = None) -> BuildResult | None:
+    """Build a rubric's ``support`` packages on their own, as a trusted build whose packages
+    every later submission identical in them takes instead of compiling them again (a cache hit
+    when already built). ``grader gradescope-setup`` calls it when the image is made, so no
+    submission pays for it; ``build_workspace`` calls it first thing (``holds``: the submission's
+    holds, so its support build stays while it runs). None: nothing to build."""
+    cache_dir = Path(cache_dir or default_cache_dir())
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    with stage_support(support, cache_dir) as support_ws:
+        if support_ws is None:
+            return None
+        return build_workspace(support_ws, cache_dir=cache_dir, trusted=True, holds=holds)
+
+
 def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                     support: dict[str, Path] | None = None, force: bool = False,
                     trusted: bool = False, holds: Holds | None = None) -> BuildResult:
@@ -324,9 +339,7 @@ def _build(submission: Path, cache_dir: Path, support: dict[str, Path] | None, f
            trusted: bool, holds: Holds) -> BuildResult:
     if support and not force:
         try:
-            with stage_support(support, cache_dir) as support_ws:
-                if support_ws is not None:
-                    build_workspace(support_ws, cache_dir=cache_dir, trusted=True, holds=holds)
+            build_support(support, cache_dir, holds=holds)
         except GraderError:
             pass                  # a support package that cannot be staged is built (and reported) below
     staging = cache_dir / f".staging-{os.getpid()}-{time.monotonic_ns()}"

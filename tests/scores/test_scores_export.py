@@ -61,7 +61,7 @@ def canvas_import(text: str) -> dict:
 
 def test_canvas_round_trip(merged: Path, roster, tmp_path: Path) -> None:
     report = export_gradebook(merged, "canvas", roster=roster, assignment="Lab 3 (12345)",
-                              path=tmp_path / "canvas.csv")
+                              path=tmp_path / "canvas.csv", allow_pending=True)
     text = (tmp_path / "canvas.csv").read_text(encoding="utf-8")
     assert text == ("Student,ID,SIS User ID,SIS Login ID,Section,Lab 3 (12345)\n"
                     "    Points Possible,,,,,100\n"
@@ -84,7 +84,7 @@ def test_canvas_partial_exports_points_so_far(merged: Path, roster, tmp_path: Pa
 
 
 def test_canvas_without_assignment_id_says_how_canvas_will_match(merged: Path, roster) -> None:
-    report = export_gradebook(merged, "canvas", roster=roster)
+    report = export_gradebook(merged, "canvas", roster=roster, allow_pending=True)
     header = (merged / "gradebook-canvas.csv").read_text().splitlines()[0]
     assert header.endswith(",ENEE 467 Lab 3: Introduction to Programming with ROS 2")
     assert report.notes == [
@@ -94,7 +94,7 @@ def test_canvas_without_assignment_id_says_how_canvas_will_match(merged: Path, r
 
 
 def test_gradescope_csv(merged: Path, roster, tmp_path: Path) -> None:
-    export_gradebook(merged, "gradescope-csv", roster=roster, path=tmp_path / "gs.csv")
+    export_gradebook(merged, "gradescope-csv", roster=roster, path=tmp_path / "gs.csv", allow_pending=True)
     rows = list(csv.DictReader((tmp_path / "gs.csv").open(encoding="utf-8")))
     assert len(rows) == 1
     row = rows[0]
@@ -134,7 +134,7 @@ def test_cli_export_lists_what_it_left_out(merged: Path, tmp_path: Path,
     out_file = tmp_path / "canvas.csv"
     assert grader_main(["scores", "export", str(merged), "--roster", str(roster_path), "--map",
                         "submission=github", "--format", "canvas", "--assignment", "Lab 3 (12345)",
-                        "-o", str(out_file)]) == 0
+                        "-o", str(out_file), "--allow-pending"]) == 0
     captured = capsys.readouterr()
     assert captured.err.splitlines() == [
         "grader: warning: submission wrong_topic has no roster row: not exported",
@@ -165,7 +165,7 @@ def test_a_canvas_gradebook_export_works_as_roster_without_map(merged: Path, tmp
 ROSTER_ERRORS = {
     "unknown field": (["github=submission"], None,
                       ["unknown field \"github\"; the fields are submission, name, id, sis_user_id, "
-                       "sis_login_id, section, email, sid"]),
+                       "sis_login_id, section, email, sid, late_days"]),
     "not FIELD=COLUMN": (["submission"], None,
                          ['"submission" is not FIELD=COLUMN (e.g. submission=github_username)']),
     "missing column": (["submission=GitHub user"], ROSTER,
@@ -202,3 +202,24 @@ def test_rows_an_lms_could_not_match_are_errors(merged: Path, tmp_path: Path) ->
     assert exc.value.problems == ["line 2: no Email or SID value, Gradescope could not match the row "
                                   "(reference)"]
     assert not (tmp_path / "x.csv").exists()
+
+
+@pytest.mark.parametrize("fmt", ["canvas", "gradescope-csv"])
+def test_export_refuses_while_manual_scores_are_pending(fmt: str, merged: Path, tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """bm_log10's questions are still pending: no gradebook file, a non-zero exit and one
+    sentence (it used to write a file without them and exit 0). --allow-pending writes the
+    complete grades and lists the rest; --partial the points so far."""
+    roster_path = write_csv(tmp_path / "roster.csv", ROSTER)
+    out_file = tmp_path / "book.csv"
+    args = ["scores", "export", str(merged), "--roster", str(roster_path), "--map", "submission=github",
+            "--format", fmt, "--assignment", "Lab 3 (12345)", "-o", str(out_file)]
+    assert grader_main(args) != 0
+    err = capsys.readouterr().err
+    assert err == ("grader: error: 1 submission(s) still have manual items pending (bm_log10 (q1, q2, q3, q4, "
+                   "q5)): merge their scores first (grader scores merge), or export the complete grades only "
+                   "with --allow-pending (--partial: the points so far); nothing was written\n")
+    assert not out_file.exists()
+    assert grader_main(args + ["--allow-pending"]) == 0
+    assert out_file.exists() and "bm_log10: manual items still pending" in capsys.readouterr().err
+    assert grader_main(args + ["--partial"]) == 0

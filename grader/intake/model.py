@@ -1,0 +1,91 @@
+"""One submission as it arrived from an LMS download, a Classroom folder or a plain folder: what
+is graded, who handed it in (as the LMS says and as the roster says), when, and why it is not
+graded when it is not. The record (:meth:`Arrival.record`) goes into ``OUT/<id>/intake.json``
+and result.json's ``intake``, so the LMS's ids travel with the grade unchanged.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping
+
+from grader.intake.late import SubmissionTime
+
+if TYPE_CHECKING:
+    from grader.scores.roster import Student
+
+INTAKE_FILE = "intake.json"
+INTAKE_SCHEMA = 1
+#: the kinds of input ``grader grade`` reads, in the words the table uses
+SOURCES = {"canvas": "Canvas download", "gradescope": "Gradescope export",
+           "classroom": "GitHub Classroom clones", "folder": "folder of submissions",
+           "single": "one submission"}
+
+
+@dataclass
+class Arrival:
+    """One submission. ``key``: the LMS's readable name for it (Canvas's ``doejane``, a GitHub
+    login, an e-mail's user part), the id it gets unless the roster gives one. ``lms_id``: the
+    LMS's own id (Canvas user id, Gradescope submission id, repository name, file name)."""
+
+    source: str
+    key: str
+    lms_id: str
+    original: list[str]                       # names as they arrived
+    path: Path | None = None                  # what is graded: a folder or an archive
+    lms: dict[str, Any] = field(default_factory=dict)     # what the LMS says: name, email, sid, ...
+    time: SubmissionTime | None = None
+    student: "Student | None" = None          # the roster row, once matched
+    matched_by: str = ""                      # how, in words; or why not
+    id: str = ""                              # the submission id (folder under OUT)
+    refused: str | None = None                # why it is not graded: one sentence
+    notes: list[str] = field(default_factory=list)        # e.g. loose files wrapped, a file missing
+
+    @property
+    def gradable(self) -> bool:
+        return self.refused is None and self.path is not None
+
+    def record(self) -> dict[str, Any]:
+        """What result.json's ``intake`` and ``intake.json`` keep (no paths of this machine)."""
+        student = None
+        if self.student is not None:
+            student = {"line": self.student.line, **{k: v for k, v in self.student.fields.items() if v}}
+        return {"schema": INTAKE_SCHEMA, "source": self.source, "lms_id": self.lms_id, "key": self.key,
+                "original": list(self.original), "lms": dict(self.lms),
+                "time": self.time.to_dict() if self.time else None,
+                "student": student, "matched_by": self.matched_by, "notes": list(self.notes)}
+
+
+def write_record(sub_out: Path, record: Mapping[str, Any], due_override: Mapping[str, Any] | None = None) -> None:
+    """``OUT/<id>/intake.json``: the arrival record (and a ``--due`` that replaced the rubric's)."""
+    from grader.report.result import atomic_write
+
+    doc = dict(record)
+    if due_override:
+        doc["due_override"] = dict(due_override)
+    atomic_write(Path(sub_out) / INTAKE_FILE, json.dumps(doc, indent=1, default=str) + "\n")
+
+
+def read_record(sub_out: Path) -> dict[str, Any] | None:
+    """The arrival record of a graded submission, or None (graded without intake)."""
+    from grader.errors import GraderError
+
+    path = Path(sub_out) / INTAKE_FILE
+    if not path.exists():
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(doc, dict) or doc.get("schema") != INTAKE_SCHEMA:
+            raise ValueError(f"schema {doc.get('schema') if isinstance(doc, dict) else None!r}")
+        return doc
+    except (OSError, ValueError) as exc:
+        raise GraderError(f"{path} is not a readable intake record ({exc}); grade the submission "
+                          "again to rewrite it") from None
+
+
+def public_record(sub_out: Path) -> dict[str, Any] | None:
+    """result.json's ``intake``: the arrival record as kept in intake.json."""
+    record = read_record(sub_out)
+    return None if record is None else {k: v for k, v in record.items() if k != "schema"}
