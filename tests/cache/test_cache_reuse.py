@@ -1,4 +1,5 @@
-"""A recording is reused by the same grader and never by a changed one.
+"""A recording is reused by the same grader and never by a changed one; the cache that grading
+fills is listed, pruned and kept under its cap.
 
 One submission, one short scenario (the simulator, the recorder, the driver and a student node:
 every grader process of a recording runs), graded three times into one cache by copies of the
@@ -7,6 +8,11 @@ driver constant changed (it records again). The first run also shows, with
 ``PYTHONPROFILEIMPORTTIME``, that every grader module the scenario child and its grader processes
 import is in the recording code set; a regrade by the changed grader names the recording another
 grader made, in its output, result.json and the instructor's report.
+
+The cache those runs filled (one build area, two recordings) is then listed (``grader cache
+info``), pruned to a size (the least recently used recording goes, the rest stay), and a batch of
+two submissions with a tiny cap (``--cache-max-size 1k``) grades both correctly and leaves the
+cache under the cap.
 """
 
 from __future__ import annotations
@@ -17,11 +23,13 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from grader.cache.code import PACKAGE, RECORDING_ROOTS, closure
+from grader.cache.store import entries
 
 REPO = Path(__file__).resolve().parents[2]
 SUBMISSION = REPO / "fixtures" / "submissions" / "first_nodes" / "reference"
@@ -81,13 +89,42 @@ def runs(tmp_path_factory) -> dict:
     same, edited = _grader_copy(root / "same"), _grader_copy(root / "edited", DRIVER_CONSTANT)
     shutil.copytree(SUBMISSION, root / "subs" / "alice", ignore=shutil.ignore_patterns("expected.yaml"))
     (root / "hello.yaml").write_text(RUBRIC)
-    out: dict = {"root": root, "same": same, "edited": edited}
+    cache = root / "cache"
+    out: dict = {"root": root, "same": same, "edited": edited, "cache": cache}
     for name, site, env in (("first", same, {"PYTHONPROFILEIMPORTTIME": "1"}), ("again", same, {}),
                             ("changed", edited, {})):
+        t0 = time.monotonic()
         _grader(site, "grade", str(root / "subs"), "--rubric", str(root / "hello.yaml"), "-o", str(root / name),
-                "--cache-dir", str(root / "cache"), "--jobs", "2", **env)
+                "--cache-dir", str(cache), "--jobs", "2", **env)
+        out[f"{name}_s"] = round(time.monotonic() - t0, 1)
         out[name] = json.loads((root / name / "alice" / "result.json").read_text())
-        out[f"{name}_batch"] = json.loads((root / "cache" / "last_batch.json").read_text())
+        out[f"{name}_batch"] = json.loads((cache / "last_batch.json").read_text())
+    # the cache those runs filled: listed, then pruned to a size (least recently used first)
+    cache_args = ("--cache-dir", str(cache))
+    out["info"] = json.loads(_grader(same, "cache", "info", "--json", *cache_args).stdout)
+    out["info_text"] = _grader(same, "cache", "info", *cache_args).stdout
+    out["entries"] = {e.path.name: (e.kind, e.size, e.last_used) for e in entries(cache)}
+    oldest = min((v for v in out["entries"].items() if v[1][0] == "recording"), key=lambda kv: kv[1][2])[0]
+    out["lru_recording"] = oldest
+    fits = sum(size for _kind, size, _used in out["entries"].values()) - out["entries"][oldest][1]
+    out["dry_run"] = _grader(same, "cache", "prune", "--max-size", str(fits), "--dry-run", *cache_args).stdout
+    out["entries_after_dry_run"] = sorted(e.path.name for e in entries(cache))
+    out["pruned"] = _grader(same, "cache", "prune", "--max-size", str(fits), *cache_args).stdout
+    out["entries_after_prune"] = {e.path.name: e.kind for e in entries(cache)}
+    # a batch of two (alice, and bob, whose package differs by a comment) with a tiny cap
+    shutil.copytree(SUBMISSION, root / "subs2" / "alice", ignore=shutil.ignore_patterns("expected.yaml"))
+    shutil.copytree(SUBMISSION, root / "subs2" / "bob", ignore=shutil.ignore_patterns("expected.yaml"))
+    node = root / "subs2" / "bob" / "src" / "my_first_package" / "my_first_package" / "my_first_node.py"
+    node.write_text(node.read_text() + "\n# bob's copy\n")
+    t0 = time.monotonic()
+    capped = _grader(same, "grade", str(root / "subs2"), "--rubric", str(root / "hello.yaml"), "-o",
+                     str(root / "capped"), *cache_args, "--jobs", "2", "--cache-max-size", "1k")
+    out["capped_s"] = round(time.monotonic() - t0, 1)
+    out["capped_stderr"] = capped.stderr
+    out["capped"] = {s: json.loads((root / "capped" / s / "result.json").read_text()) for s in ("alice", "bob")}
+    out["capped_batch"] = json.loads((cache / "last_batch.json").read_text())
+    out["capped_info"] = json.loads(_grader(same, "cache", "info", "--json", *cache_args).stdout)
+    print({k: v for k, v in out.items() if k.endswith("_s")})       # durations, for the commit message
     return out
 
 
@@ -136,3 +173,41 @@ def test_a_regrade_names_recordings_another_grader_made(runs: dict) -> None:
     out = _grader(runs["same"], "regrade", str(root / "first"), "--rubric", str(root / "hello.yaml")).stdout
     assert "another grader" not in out
     assert "recordings_by_other_grader" not in json.loads((root / "first" / "alice" / "result.json").read_text())
+
+
+def test_cache_info_lists_what_grading_filled(runs: dict) -> None:
+    info = runs["info"]
+    kinds = {k: v["entries"] for k, v in info["kinds"].items()}
+    # one build area for all three runs (the driver makes no build), two recordings (two graders)
+    assert kinds == {"build": 1, "support build": 0, "recording": 2, "temporary": 0}, kinds
+    assert info["kinds"]["build"]["bytes"] > 0 and info["kinds"]["recording"]["bytes"] > 0
+    assert info["total_bytes"] == sum(v["bytes"] for v in info["kinds"].values())
+    last = info["last_batch"]                 # the changed grader's batch
+    assert last["submissions"] == 1 and last["builds_hit"] == 1 and last["recordings_missed"] == 1
+    text = runs["info_text"]
+    assert "recording            2" in text and "recordings 0/1 (0%) reused" in text, text
+    assert "builds 1/1 (100%) from the cache" in text
+
+
+def test_cache_prune_removes_the_least_recently_used_first(runs: dict) -> None:
+    lru = runs["lru_recording"]
+    # the unchanged grader's recording, last used by its second run, before the changed grader's
+    assert lru == runs["again"]["recordings"]["hello"]["key"]
+    assert "would remove 1 recording" in runs["dry_run"], runs["dry_run"]
+    assert lru in runs["entries_after_dry_run"]
+    assert "removed 1 recording" in runs["pruned"], runs["pruned"]
+    after = runs["entries_after_prune"]
+    assert lru not in after and runs["changed"]["recordings"]["hello"]["key"] in after
+    assert sorted(after.values()) == ["build", "recording"]
+
+
+def test_a_batch_with_a_tiny_cap_grades_correctly_and_ends_under_it(runs: dict) -> None:
+    for sid, result in runs["capped"].items():
+        assert [i["status"] for i in result["items"]] == ["pass"], (sid, result["items"])
+        assert result["auto_score"] == result["auto_max"] == 1, result
+    batch = runs["capped_batch"]
+    assert batch["submissions"] == 2 and batch["recordings_missed"] == 2      # alice's was pruned above
+    assert batch["builds_hit"] == 1 and batch["builds_missed"] == 1            # bob's comment: a build of its own
+    assert batch["pruned_entries"] >= 4 and batch["size_after"] <= 1000, batch
+    assert runs["capped_info"]["total_bytes"] <= 1000 and runs["capped_info"]["entries"] == 0
+    assert "over its 1.0 kB cap: removed" in runs["capped_stderr"], runs["capped_stderr"][-2000:]
