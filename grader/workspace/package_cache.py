@@ -16,7 +16,8 @@ A package's key is the content of its own sources, its build type, the keys of t
 packages it depends on (``package.xml``), and what the workspace key has besides its sources (the
 grader's build code, the ROS, Python and build tools' versions: ``build.py``), so a student's
 copy of a support package gets the support build's key only when it and everything it depends on
-in the workspace are byte-identical, and no package built by another grader or toolchain is taken. Such a package is copied into the new build area's
+in the workspace are byte-identical, and no package built by another grader or toolchain is
+taken. Such a package is copied into the new build area's
 ``install/<pkg>`` (:func:`copy_installs`: real copies, ~2.4 MB and ~20 ms for the Lab 3 interface
 package, so nothing a student's build does to its own ``install/`` reaches the shared one), and
 colcon is told ``--packages-skip`` it (the documented way to build on top of packages already
