@@ -133,3 +133,24 @@ def test_the_environment_part_changes_with_the_toolchain(tmp_path: Path, monkeyp
     monkeypatch.setenv("AMENT_PREFIX_PATH", f"{prefix}{os.pathsep}{os.environ.get('AMENT_PREFIX_PATH', '')}")
     upgraded = environment.runtime.__wrapped__()
     assert upgraded["rclpy"] == "99.0.0" and upgraded["digest"] != before_run["digest"]
+
+
+def test_a_recordings_key_follows_how_it_is_run(tmp_path: Path) -> None:
+    """Run k of a repeated scenario, the time scale and the rates its watchdog expects are each
+    a recording of their own; the same settings give the same key."""
+    from types import SimpleNamespace
+
+    from grader.grading.reuse import recording_settings, scenario_key
+    from grader.scenario.model import Scenario
+
+    scenario = Scenario.model_validate({"sim": False, "processes": [{"name": "n", "package": "pkg", "executable": "x"}],
+                                        "steps": [{"id": "w", "wait": 1}]})
+    src = tmp_path / "src" / "pkg"
+    src.mkdir(parents=True)
+    (src / "package.xml").write_text("<package><name>pkg</name></package>")
+    build = SimpleNamespace(root=tmp_path, packages={"pkg": SimpleNamespace(status="built", executables={"x": None})})
+    keys = [scenario_key("s", scenario, build, settings=recording_settings(*how))
+            for how in ((), (1.0, (), 2), (1.0, (), 3), (4.0, ()), (4.0, (("/a", 10.0),)))]
+    assert len(set(keys)) == len(keys), keys
+    assert scenario_key("s", scenario, build, settings=recording_settings()) == keys[0]
+    assert recording_settings(1.0, (), 1) == recording_settings()        # run 1 is the scenario's own
