@@ -53,7 +53,9 @@ def _selected(session: pytest.Session) -> set[tuple[str, str]]:
         if params is not None and {"lab", "submission"} <= set(params.params):
             chosen.add((params.params["lab"], params.params["submission"]))
         elif "batches" in getattr(item, "fixturenames", ()):
-            chosen |= {(lab, s) for lab, s in CASES if s in CORE}
+            reads = item.get_closest_marker("reads")
+            chosen |= ({(reads.args[0], s) for s in reads.args[1:]} if reads is not None
+                       else {(lab, s) for lab, s in CASES if s in CORE})
     return chosen
 
 
@@ -187,6 +189,8 @@ def test_regrade_from_bags_reproduces_the_batch(batches: dict[str, Path], tmp_pa
                    [(i["id"], i["points"], i["status"]) for i in old["items"]]
 
 
+@pytest.mark.heavy
+@pytest.mark.reads("enee467_lab3", "no_wrap", "wrong_sign")
 def test_chaotic_controllers_get_the_same_items_at_another_jobs_budget(batches: dict[str, Path],
                                                                         tmp_path: Path) -> None:
     """The same code, the same grade (issue 22): the two chaotic Lab 3 controllers (no_wrap
