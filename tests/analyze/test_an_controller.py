@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pandas as pd
 import numpy as np
 import pytest
@@ -193,3 +195,50 @@ def test_a_turtle_placed_on_its_goal_by_the_scenario_has_not_reached_it(runs) ->
     assert not f.evidence["goals"][0]["reached"], f.evidence["goals"][0]
     # the grader's own teleport is no integrity problem and costs no goal its credit
     assert "teleported" not in f.evidence["goals"][1]
+
+
+def _until_settled(controller, goal: tuple[float, float], until, timeout: float, start) -> dict:
+    """The run of one Lab 3 goal step as the scenario ends it: from the goal until the turtle has
+    stayed within ``until.tolerance`` for ``until.settle`` s (or the step's timeout)."""
+    full = simulate([(0.0, *goal)], controller, timeout, start=start)
+    pose = full["/turtle1/pose"]
+    t = pose.index.to_numpy(float)
+    inside = np.hypot(pose["x"].to_numpy() - goal[0], pose["y"].to_numpy() - goal[1]) <= until.tolerance
+    since = None
+    for ti, ok in zip(t, inside):
+        since = (since if since is not None else ti) if ok else None
+        if since is not None and ti - since >= until.settle:
+            return simulate([(0.0, *goal)], controller, ti - T0, start=start)
+    return full
+
+
+def test_lab3_a_higher_positive_gain_still_stops_at_the_goal() -> None:
+    """``grader rubric audit`` of Lab 3 killed scale_constant-1e55946b, the reference with
+    K_1 = 1.0 (K_2 = 1.0): correct by the lab text (K_1, K_2 positive gains; Question 4 asks to
+    change them), yet it lost half of ex2.goals_reached (4 of 8 points) on every goal, "did not
+    stay stopped" (recorded: moved 0.066 m at up to 0.098 m/s in the last second). A goal step
+    ended 1 s after the turtle came within 0.1 m, so the analyzer's last second was the arrival
+    itself, where v = K_1 d_e falls from 0.1 K_1: every K_1 above ~0.7 moved more than 0.05 m
+    in it. With the rubric's steps, any positive gain is stopped in its last second, and a
+    controller that keeps circling the goal at 0.1 m/s still is not."""
+    from grader.rubric.load import load_rubric
+
+    rubric = load_rubric(Path(__file__).resolve().parents[2] / "rubrics" / "enee467_lab3.yaml", check_files=False)
+    params = dict(rubric.item("ex2.goals_reached").params)
+    steps = [s for s in rubric.scenarios["ex2_controller"].steps if s.goal is not None]
+    goal_lab = steps[0]
+    start = (goal_lab.place.x, goal_lab.place.y, goal_lab.place.theta)
+
+    def run(controller):
+        frames = _until_settled(controller, goal_lab.goal.xy, goal_lab.until, goal_lab.timeout, start)
+        return check(get("goals_reached")(frames, params))
+
+    for k1, k2 in ((1.0, 1.0), (2.0, 4.0), (0.5, 1.0), (0.5, 0.5)):
+        f = run(law("correct", k1=k1, k2=k2))
+        assert f.status == "pass", (k1, k2, f.evidence["goals"][0])
+
+    def circles(x, y, th, gx, gy):
+        v, w = law("correct")(x, y, th, gx, gy)
+        return max(v, 0.1), w          # never slower than 0.1 m/s: circles the goal inside 0.1 m
+    f = run(circles)
+    assert f.status == "partial" and not f.evidence["goals"][0]["stopped"], f.evidence["goals"][0]
