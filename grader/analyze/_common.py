@@ -53,7 +53,8 @@ def meta_row(frames: Frames, topic: str) -> dict | None:
     rows = m[m["topic"] == topic]
     if rows.empty:
         return None
-    return rows.iloc[0].to_dict()
+    row: dict = rows.iloc[0].to_dict()
+    return row
 
 
 def publishers_of(frames: Frames, topic: str) -> list[str]:
@@ -348,7 +349,7 @@ def sentence(s: str) -> str:
 
 
 # --------------------------------------------------------------------------- service calls
-def _request(df, i: int) -> dict:
+def _request(df: pd.DataFrame, i: int) -> dict:
     out = {}
     for c in df.columns:
         if str(c).startswith("request[0]."):

@@ -99,6 +99,7 @@ def action_goals(frames: Frames) -> list[dict]:
     goals_: list[dict] = []
     wait_resp: list[dict] = []
     wait_res: list[dict] = []
+    g: dict | None
     for e in ev:
         kind = e["event"]
         gid = next((str(e[k]) for k in _ID_KEYS if e.get(k) is not None), None)
@@ -275,7 +276,7 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
         return _no_action_events(frames)
     rows, ok_n = [], 0
     moved = provenance.moves(frames, p["pose_topic"])
-    for k, g in enumerate(gs, 1):
+    for g in gs:
         tol = g["goal_tol"] if g["goal_tol"] else p["default_goal_tol"]
         row = {"goal": [g["x"], g["y"]], "goal_tol": tol, "accepted": g["accepted"], "success": g["success"],
                "status": g["status"],

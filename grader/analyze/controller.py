@@ -19,6 +19,8 @@ The gains and form of Lab 3's law are checked by ``control_law`` (its own module
 
 from __future__ import annotations
 
+from typing import Any
+
 import math
 
 import numpy as np
@@ -184,7 +186,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     score = 0.0
     for k, g in enumerate(gl, 1):
         m = (t >= g.t) & (t <= g.t_end)
-        row = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
+        row: dict[str, Any] = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
         during = provenance.within(moved, g.t, g.t_end)
         if during:
             # student code put the turtle somewhere while this goal was active: no arrival counts
@@ -365,10 +367,10 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             ct = np.where(np.isfinite(ct), ct, times(cmd))
             w = cmd["angular.z"].to_numpy(float)
             turning = np.abs(w) > 1e-3
-            during = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
+            during_hold: Any = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
             after = np.nonzero(turning & (ct > t_from) & (ct <= g.t_end))[0]
-            if len(during):
-                w_judged, row["command_sent_s"] = float(w[during[-1]]), float(ct[during[-1]] - g.t)
+            if len(during_hold):
+                w_judged, row["command_sent_s"] = float(w[during_hold[-1]]), float(ct[during_hold[-1]] - g.t)
             elif len(after):
                 w_judged, row["command_sent_s"] = float(w[after[0]]), float(ct[after[0]] - g.t)
             row["first_cmd_angular_z"] = w_judged

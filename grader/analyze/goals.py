@@ -92,7 +92,7 @@ def wrap(a: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
-def heading_error(x, y, theta, xd, yd):
+def heading_error(x: Any, y: Any, theta: Any, xd: Any, yd: Any) -> Any:
     """theta_e of the lab's eq. (3): signed angle from the heading to the goal, in (-pi, pi]."""
     dx, dy = np.asarray(xd) - np.asarray(x), np.asarray(yd) - np.asarray(y)
     c, s = np.cos(theta), np.sin(theta)

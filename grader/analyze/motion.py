@@ -24,6 +24,8 @@ earns nothing in any of them: its path was not driven.
 
 from __future__ import annotations
 
+from typing import cast
+
 import math
 
 import numpy as np
@@ -111,8 +113,8 @@ def circle_radius(frames: Frames, p: dict) -> Finding:
         if p[key] not in (None, *allowed):
             raise GraderError(f"circle_radius: {key} must be {' or '.join(allowed)} (or absent), got {p[key]!r}")
     df, problem = _moving_pose(frames, p)
-    if problem:
-        return problem
+    if problem or df is None:           # (no problem: there are poses)
+        return cast(Finding, problem)
     x, y = df["x"].to_numpy(float), df["y"].to_numpy(float)
     cx, cy, r, rms = fit_circle(x, y)
     keep = thin(len(x))
@@ -174,8 +176,8 @@ def _wrong_way(df: pd.DataFrame, p: dict, ev: dict) -> str:
 })
 def circle_period(frames: Frames, p: dict) -> Finding:
     df, problem = _moving_pose(frames, p)
-    if problem:
-        return problem
+    if problem or df is None:           # (no problem: there are poses)
+        return cast(Finding, problem)
     t = times(df)
     theta = np.unwrap(df["theta"].to_numpy(float))
     slope, _ = np.polyfit(t - t[0], theta, 1)

@@ -159,8 +159,7 @@ def load_file(path: str | Path) -> tuple[str, ...]:
     try:
         spec.loader.exec_module(module)
     except Exception as exc:  # noqa: BLE001 - an instructor's file: any error becomes a rubric problem
-        defined = set(analyze._REGISTRY) - before
-        analyze.forget(defined)
+        analyze.forget(set(analyze._REGISTRY) - before)
         _forget_figures(module_name)
         sys.modules.pop(module_name, None)
         if isinstance(exc, analyze.DuplicateAnalyzer):

@@ -13,6 +13,8 @@ No rclpy: this runs in the recorder and in repair, analysis and tests alike.
 
 from __future__ import annotations
 
+from typing import Mapping
+
 import json
 import os
 import re
@@ -59,9 +61,9 @@ def normalize_type(type_name: str, package: str = "") -> str:
 
 def prefixes(env: dict[str, str] | None = None) -> list[Path]:
     """Install prefixes to search: AMENT_PREFIX_PATH, then this interpreter's prefix (wheels)."""
-    env = os.environ if env is None else env
+    found: Mapping[str, str] = os.environ if env is None else env
     out: list[Path] = []
-    for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) + [sys.prefix]:
+    for p in found.get("AMENT_PREFIX_PATH", "").split(os.pathsep) + [sys.prefix]:
         if p and Path(p) not in out:
             out.append(Path(p))
     return out
@@ -243,7 +245,8 @@ _TIME = "int32 sec\nuint32 nanosec\n"
 def split_sections(text: str) -> list[tuple[str, str, str]]:
     """``[(kind, type, body)]`` of a rosbag2 definition; the root (no header) has kind ``""``."""
     out: list[tuple[str, str, str]] = []
-    kind, name, body = "", "", []
+    kind, name = "", ""
+    body: list[str] = []
     lines = text.split("\n")
     i = 0
     while i < len(lines):

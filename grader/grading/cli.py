@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from grader.errors import GraderError
 
@@ -152,7 +153,7 @@ def run_grade(args: argparse.Namespace) -> int:
 
     progress: Progress | None = None
 
-    def found(intake) -> None:
+    def found(intake: Any) -> None:
         nonlocal progress
         print(intake.table(), flush=True)
         subs = intake.gradable
@@ -165,7 +166,7 @@ def run_grade(args: argparse.Namespace) -> int:
         progress = Progress(len(subs))
         progress.done = sum(1 for s in subs if args.resume and (args.out / s.id / "result.json").exists())
 
-    def done(sid: str, graded, error: str | None) -> None:
+    def done(sid: str, graded: Any, error: str | None) -> None:
         assert progress is not None
         progress.advance(f"{sid}: ERROR {error}" if error and graded is None and "interrupted" not in error
                          else f"{sid}: {graded.result.auto_score:g}/{graded.result.auto_max:g}" if graded

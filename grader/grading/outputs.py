@@ -4,8 +4,13 @@ and the self-check table printed by `grader check`."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from grader import __version__
+
+if TYPE_CHECKING:
+    from grader.grading.pipeline import GradedSubmission
+    from grader.rubric.schema import Rubric
 
 
 def versions() -> dict[str, str]:
@@ -24,7 +29,7 @@ def _canvases(sub_out: Path) -> dict[str, str]:
             if scenario_of(p.parent.name) == p.parent.name}
 
 
-def effective_params(rubric) -> dict[str, dict]:
+def effective_params(rubric: Rubric) -> dict[str, dict]:
     """item id -> the analyzer's parameters as run (defaults merged with the rubric's), for the
     report's thresholds when a result does not record its own."""
     from grader import analyze
@@ -39,7 +44,7 @@ def effective_params(rubric) -> dict[str, dict]:
     return out
 
 
-def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[str, str] | None = None) -> None:
+def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public_only: bool, inputs: dict[str, str] | None = None) -> None:
     """result.json (+ build, errors, timings, previous grading) and report.html for one submission."""
     from grader.report.html import write_html
     from grader.report.result import write_result
@@ -56,7 +61,7 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
             problems.append(f"sandbox: {sandbox['warning']}")
         problems += [f"limit reached: {hit}" for hit in sandbox.get("limits_hit", [])]
     problems = list(dict.fromkeys(problems))         # a regrade that keeps stored errors adds none twice
-    extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
+    extra: dict[str, Any] = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
              "errors": problems, "timings": graded.timings,
              "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir()),
              "scenarios_reused": dict(getattr(graded, "reused", {}) or {})}
@@ -76,7 +81,7 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
                intake=getattr(graded, "intake", None))
 
 
-def write_batch_outputs(out: Path, rubric) -> None:
+def write_batch_outputs(out: Path, rubric: Rubric) -> None:
     """grades.csv and index.html rebuilt from every OUT/*/result.json on disk (so parallel,
     resumed and regraded submissions all count)."""
     from grader.report.batch import load_results, write_batch
@@ -85,7 +90,7 @@ def write_batch_outputs(out: Path, rubric) -> None:
         write_batch(out, rubric)
 
 
-def print_check_table(graded, rubric) -> bool:
+def print_check_table(graded: GradedSubmission, rubric: Rubric) -> bool:
     """The self-check table; True when every public auto item passed."""
     result = graded.result
     rows = [i for i in result.items if i.kind != "manual"]
@@ -128,7 +133,7 @@ def print_check_table(graded, rubric) -> bool:
     return ok
 
 
-def print_contract(rubric) -> None:
+def print_contract(rubric: Rubric) -> None:
     """What the lab fixes, before a self-check runs: the names to use exactly."""
     lines = rubric.contract.lines()
     if not lines:

@@ -13,12 +13,18 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable, cast
 
 from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
 from grader.grading.repeat import median_finding, run_folders, run_until_settled, settles_check
 from grader.scenario.events import Event
+
+if TYPE_CHECKING:
+    from grader.analyze import Finding
+    from grader.grading.schedule import Slots
+    from grader.rubric.schema import Item, Rubric
+    from grader.scenario.model import Scenario
 
 SCENARIOS_DIR = "scenarios"
 
@@ -64,7 +70,7 @@ class GradedSubmission:
     intake: dict | None = None        # how it arrived: LMS ids, student, time (grader.intake)
 
 
-def selected_items(rubric, public_only: bool) -> list:
+def selected_items(rubric: Rubric, public_only: bool) -> list[Item]:
     return [i for i in rubric.items if i.automatic and (i.public or not public_only)]
 
 
@@ -136,7 +142,7 @@ def _crashed_nodes(frames: dict) -> list[str]:
     return out
 
 
-def analyze_item(item, frames: dict):
+def analyze_item(item: Item, frames: dict) -> Finding:
     """One item's analyzer on one scenario's frames (never raises).
 
     When the analysis could not happen because the student's node did not run (it could not be
@@ -146,7 +152,7 @@ def analyze_item(item, frames: dict):
     """
     from grader import analyze
 
-    finding = analyze.run(item.analyzer, frames, dict(item.params))
+    finding = analyze.run(cast(str, item.analyzer), frames, dict(item.params))
     if finding.status not in ("fail", "error"):
         return finding      # only a failed analysis needs the events and output parsed for a reason
     missing = _unavailable_nodes(frames)
@@ -161,7 +167,7 @@ def analyze_item(item, frames: dict):
     return finding
 
 
-def combine_findings(item, per_scenario: list):
+def combine_findings(item: Item, per_scenario: list) -> Finding | None:
     """One finding for an item run on several scenarios: the worst one counts.
 
     An integrity check is judged on the scenarios where it could run: a scenario in which the
@@ -174,7 +180,7 @@ def combine_findings(item, per_scenario: list):
     if item.kind == "integrity":
         checked = [f for f in per_scenario if f is not None and f.status != "error"]
         per_scenario = checked or per_scenario
-    return worst_finding(per_scenario) if per_scenario else None
+    return cast("Finding | None", worst_finding(per_scenario)) if per_scenario else None
 
 
 class Findings(dict):
@@ -185,7 +191,7 @@ class Findings(dict):
     contract: tuple = ()
 
 
-def analyze_bags(rubric, items: list, sub_out: Path,
+def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
                  unusable: dict[str, str] | None = None) -> tuple[Findings, list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems.
     ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
@@ -201,7 +207,7 @@ def analyze_bags(rubric, items: list, sub_out: Path,
     problems: list[str] = []
     unusable = unusable or {}
 
-    def frames_for(sc: str):          # sc: a run's folder name (the scenario id for its first run)
+    def frames_for(sc: str) -> dict | Exception:          # sc: a run's folder name (the scenario id for its first run)
         if sc not in frames_cache:
             if sc in unusable:
                 frames_cache[sc] = GraderError(unusable[sc])
@@ -238,9 +244,9 @@ def analyze_bags(rubric, items: list, sub_out: Path,
     return findings, problems
 
 
-def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | None = None,
+def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: Path | None = None,
                      public_only: bool = False, sid: str | None = None,
-                     progress: Callable[[str], None] | None = None, slots=None,
+                     progress: Callable[[str], None] | None = None, slots: Slots | None = None,
                      reuse: bool = True, time_scale: float = 1.0, intake: dict | None = None,
                      due_override: dict | None = None) -> GradedSubmission:
     """Build, run the needed scenarios (side by side, within ``slots``), analyze and score one
@@ -341,7 +347,7 @@ def recording_settings(time_scale: float = 1.0) -> str:
     return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}{scaled}"
 
 
-def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None,
+def _run_one(sid: str, sc_id: str, scenario: Scenario, build: Any, out: Path, slots: Slots, recordings: Path | None,
              time_scale: float = 1.0, rates: tuple = (), settles: Callable[[list[Path]], bool] | None = None) -> dict:
     """One scenario; a repeated one (``repeat: N``) run by run until its median is settled."""
     return run_until_settled(
@@ -349,7 +355,7 @@ def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings
         out / SCENARIOS_DIR, sc_id, scenario.repeat, settles)
 
 
-def _record_one(sid: str, sc_id: str, scenario, build, folder: Path, slots, recordings: Path | None,
+def _record_one(sid: str, sc_id: str, scenario: Scenario, build: Any, folder: Path, slots: Slots, recordings: Path | None,
                 time_scale: float = 1.0, rates: tuple = (), run: int = 1) -> dict:
     """One recording of a scenario: copied from an identical earlier recording, or run (within
     a slot). Run ``run`` > 1 of a repeated scenario is a recording of its own (its own key)."""
@@ -366,7 +372,7 @@ def _record_one(sid: str, sc_id: str, scenario, build, folder: Path, slots, reco
         return record_unstarved(lambda: run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build,
                                                      rates), folder)
 
-    if key is None:
+    if key is None or recordings is None:
         with slots.taken():
             return make()
     cache = RecordingCache(recordings)
@@ -374,7 +380,7 @@ def _record_one(sid: str, sc_id: str, scenario, build, folder: Path, slots, reco
         t0 = time.monotonic()
         source = cache.get(key, folder)
         if source is not None:
-            record = json.loads((folder / "scenario.json").read_text())
+            record: dict = json.loads((folder / "scenario.json").read_text())
             record.update(reused={"from": source.get("submission"), "key": key,
                                   "recorded": source.get("recorded")},
                           parent_wall_s=round(time.monotonic() - t0, 3))
@@ -387,7 +393,7 @@ def _record_one(sid: str, sc_id: str, scenario, build, folder: Path, slots, reco
         return made
 
 
-def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:
+def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = False) -> GradedSubmission:
     """Recompute a submission's grade from its recorded bags only (no build, no ROS)."""
     from grader.rubric.score import score
     from grader.intake.apply import apply_intake
@@ -458,7 +464,7 @@ def recordings_to_refuse(sub_out: Path, old: dict) -> tuple[dict[str, str], list
     return refuse, notes
 
 
-def write_outputs(graded: GradedSubmission, rubric, *, public_only: bool,
+def write_outputs(graded: GradedSubmission, rubric: Rubric, *, public_only: bool,
                   inputs: dict[str, str] | None = None) -> None:
     from grader.grading.outputs import write_submission_outputs
 

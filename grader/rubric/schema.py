@@ -22,21 +22,21 @@ from grader.rubric.contract import Contract, item_roles, resolve_references, sce
 from grader.scenario.fields import Model, PackageName, _named, with_rules
 from grader.scenario.model import Scenario
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION: Literal[1] = 1
 KINDS = ("auto", "manual", "advisory", "integrity")
 STATUSES = ("pass", "partial", "fail", "error")
 _EPS = 1e-9
 
-LabId = _named(r"^[a-z0-9][a-z0-9._-]*$", "a lab id like 'enee467-lab3' (lower case, digits, . _ -)")
-ItemId = _named(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", "an item id like 'ex1.pub_rate'")
-ScenarioId = _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "a scenario id (letters, digits, _ or -)")
-AnalyzerName = _named(r"^[a-z][a-z0-9_]*$", "an analyzer name (lower_case)")
+LabId = Annotated[str, _named(r"^[a-z0-9][a-z0-9._-]*$", "a lab id like 'enee467-lab3' (lower case, digits, . _ -)")]
+ItemId = Annotated[str, _named(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", "an item id like 'ex1.pub_rate'")]
+ScenarioId = Annotated[str, _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "a scenario id (letters, digits, _ or -)")]
+AnalyzerName = Annotated[str, _named(r"^[a-z][a-z0-9_]*$", "an analyzer name (lower_case)")]
 # (the same language as an analyzer name, written differently so each has its own error text)
-SectionKind = _named(r"^[a-z][a-z_0-9]*$", "a lower-case section kind like exercise")
+SectionKind = Annotated[str, _named(r"^[a-z][a-z_0-9]*$", "a lower-case section kind like exercise")]
 SectionNumber = Union[Annotated[int, Field(ge=0)],
-                      _named(r"^[A-Za-z0-9._-]+$", "a section number like 1 or '2b'")]
+                      Annotated[str, _named(r"^[A-Za-z0-9._-]+$", "a section number like 1 or '2b'")]]
 Text = Annotated[str, Field(min_length=1, pattern=r"\S")]
-MutantId = _named(r"^[a-z][a-z_]*-[0-9a-f]{8}$", "a mutant id like 'flip_sign-1a2b3c4d' (grader rubric audit)")
+MutantId = Annotated[str, _named(r"^[a-z][a-z_]*-[0-9a-f]{8}$", "a mutant id like 'flip_sign-1a2b3c4d' (grader rubric audit)")]
 Points = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 

@@ -19,7 +19,7 @@ The field types and base model live in ``grader.scenario.fields``, the ``until:`
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Union, cast
 
 from pydantic import (BeforeValidator, ConfigDict, Field, RootModel, ValidationInfo, field_validator,
                       model_validator)
@@ -281,10 +281,10 @@ class Step(Model):
                                       "use 'wait: N' for a plain pause)"))
         until = value.get("until")
         name = until if isinstance(until, str) else until.get("condition") if isinstance(until, dict) else None
-        needs = {"action_done": "action", "service_done": "service", "replay_done": "replay"}.get(name)
+        needs = {"action_done": "action", "service_done": "service", "replay_done": "replay"}.get(cast(str, name))
         if needs and needs not in actions:
             own.append((("until",), f"{name!r} waits for this step's {needs}, but the step has no {needs!r}"))
-        if name == "goal_reached" and "goal" not in until and value.get("goal") is None:
+        if name == "goal_reached" and "goal" not in cast(Any, until) and value.get("goal") is None:
             own.append((("until", "goal"), "goal_reached needs a goal: give one here, or use it "
                                            "on a 'goal:' step"))
         return with_rules(cls, handler, value, own)

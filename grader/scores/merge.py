@@ -110,7 +110,7 @@ def _apply_row(row: SheetRow, before: dict[str, ManualScore], source: str,
             comment = update.comment if update.comment is not None else (old.comment if old else "")
             if old is not None and old.points == points and old.comment == comment:
                 continue                              # unchanged: keep where it came from
-            after[item_id] = ManualScore(float(points), comment, f"{source} line {row.line}", stamp)
+            after[item_id] = ManualScore(float(points), comment, f"{source} line {row.line}", stamp)  # type: ignore[arg-type]
     changes = [Change(row.submission, i, before.get(i), after.get(i))
                for i in row.updates if before.get(i) != after.get(i)]
     return after, changes

@@ -15,6 +15,8 @@ from that package's own build instead of built again for every submission.
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import fcntl
 import json
 import os
@@ -179,7 +181,7 @@ def _colcon_env() -> dict[str, str]:
     return env
 
 
-def _run_colcon(root: Path, log_file: Path, skip: list[str] = ()) -> int:
+def _run_colcon(root: Path, log_file: Path, skip: Sequence[str] = ()) -> int:
     """colcon build in the build area; student code (setup.py, CMake) runs here, so in a jail
     that can write only build/, install/ and log/ and has no network (grader.sandbox)."""
     cmake_args = [f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",

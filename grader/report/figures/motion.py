@@ -3,7 +3,7 @@ colour changes where the path crosses its line, and the service calls on a timel
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, cast
 
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import BLUE, GREEN, OUTSIDE, VERMILION, floats, fmt, key, num
@@ -42,10 +42,10 @@ def fitted_circle(ctx: FigureContext) -> Plot | None:
     fig, ax = ctx.axes(title, size=(7.4, 4.8), legend_width=2.9)
     _world(ax)
     ax.plot(*pts, color=BLUE, lw=1.4, label="turtle path")
-    ax.add_patch(Circle(tuple(centre), radius, fill=False, ec=VERMILION, lw=1.2, ls="--",
+    ax.add_patch(Circle(cast(Any, tuple(centre)), radius, fill=False, ec=VERMILION, lw=1.2, ls="--",
                         label=f"fitted circle, r = {fmt(radius, 3)} m"))
     if expected:
-        ax.add_patch(Circle(tuple(centre), expected, fill=False, ec=GREEN, lw=1.0, ls=":",
+        ax.add_patch(Circle(cast(Any, tuple(centre)), expected, fill=False, ec=GREEN, lw=1.0, ls=":",
                             label=f"expected r = {expected:g} m"))
     ax.plot(*centre, "+", color=VERMILION, ms=10, mew=2, label=f"centre ({centre[0]:.2f}, {centre[1]:.2f})")
     ax.legend(**OUTSIDE)
@@ -117,7 +117,7 @@ def service_timeline(ctx: FigureContext) -> Plot | None:
     if msgs:
         ax.plot(msgs, [0] * len(msgs), "o", color=GREEN, ms=7, ls="none", label=f"message on {topic}")
     for r in rows:
-        req = r.get("request") if isinstance(r.get("request"), Mapping) else {}
+        req: Mapping = r["request"] if isinstance(r.get("request"), Mapping) else {}
         text = ", ".join(f"{k}={v:g}" if isinstance(v, (int, float)) else f"{k}={v}" for k, v in list(req.items())[:3])
         ax.annotate(text, (num(r["t"]), 1), textcoords="offset points", xytext=(0, 8), ha="center", fontsize=7)
     ax.set(yticks=[0, 1], yticklabels=[topic, "calls"], ylim=(-0.6, 1.8), xlabel="time since the scenario started (s)")

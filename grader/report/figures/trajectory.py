@@ -17,7 +17,7 @@ def _paths(evidence: Mapping[str, Any]) -> list[dict[str, Any]]:
     """Usable entries of ``evidence["trajectory"]`` (one path per goal); malformed ones dropped."""
     raw = evidence.get("trajectory")
     entries = raw if isinstance(raw, list) else [raw]
-    out = []
+    out: list[dict[str, Any]] = []
     for entry in entries:
         if not isinstance(entry, Mapping):
             continue
@@ -90,7 +90,7 @@ def trajectory(ctx: FigureContext) -> Plot | None:
     walls = ctx.evidence.get("wall_points")
     n_walls = int(num(ctx.evidence.get("wall_contacts")) or 0)
     if isinstance(walls, list) and walls:
-        pts = [floats(w) for w in walls]
+        pts: list[Any] = [floats(w) for w in walls]
         pts = [p for p in pts if p and len(p) == 3]
         if pts:
             ax.plot([p[1] for p in pts], [p[2] for p in pts], "s", ms=8, mfc="none", mec="black", mew=1.8,
