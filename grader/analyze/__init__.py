@@ -35,10 +35,11 @@ import traceback
 from dataclasses import asdict, dataclass, field
 from typing import Any, Callable, Collection, Mapping
 
-import numpy as np
 import pandas as pd
 
 from grader.errors import GraderError
+from grader.spec.jsonable import jsonable
+from grader.spec.status import STATUSES
 
 __all__ = ["Finding", "register", "get", "names", "defaults", "required", "run", "jsonable", "STATUSES",
            "evidence_labels", "expected_text", "REQUIRED", "DuplicateAnalyzer", "origin", "graded"]
@@ -56,7 +57,6 @@ class _Required:
 
 REQUIRED = _Required()
 
-STATUSES = ("pass", "partial", "fail", "error")
 
 Frames = Mapping[str, pd.DataFrame]
 AnalyzerFn = Callable[[Frames, dict], "Finding"]
@@ -72,36 +72,6 @@ _defining: list[str] = []
 
 class DuplicateAnalyzer(GraderError, ValueError):
     """An analyzer name defined twice (by two modules, plug-ins or rubric files)."""
-
-
-def jsonable(obj: Any) -> Any:
-    """Convert numpy/pandas values to plain JSON types; NaN and infinities become None.
-
-    Evidence goes straight into result.json and the HTML report, so it must serialise with the
-    standard ``json`` module and never contain NaN (which is not valid JSON).
-    """
-    if obj is None or isinstance(obj, (bool, str)):
-        return obj
-    if isinstance(obj, (np.bool_,)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, Mapping):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple, set)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return [jsonable(v) for v in obj.tolist()]
-    if isinstance(obj, pd.DataFrame):
-        return [jsonable(r) for r in obj.to_dict(orient="records")]
-    if isinstance(obj, pd.Series):
-        return jsonable(obj.to_dict())
-    if obj is pd.NA or obj is pd.NaT:
-        return None
-    return str(obj)
 
 
 @dataclass

@@ -23,8 +23,6 @@ EVENTS = EVENTS_TOPIC
 STDOUT = STDOUT_TOPIC
 ROSOUT = "/rosout"
 
-#: turtlesim's world is [0, W] x [0, H] with W = H = 11.088889 (float32 of 499/45).
-WORLD_MAX = 11.088889
 
 Frames = Mapping[str, pd.DataFrame]
 

@@ -27,8 +27,9 @@ import numpy as np
 import pandas as pd
 
 from grader.analyze import Finding, graded, provenance, register
-from grader.analyze._common import (WORLD_MAX, Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, thin, times, topic)
-from grader.analyze.goals import Goal, goals, heading_error
+from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, thin, times, topic)
+from grader.spec.world import WORLD_SIZE_M
+from grader.analyze.goals import SentGoal, goals, heading_error
 from grader.analyze.evidence import SHARE, TIME
 from grader.scenario.events import Event
 
@@ -124,7 +125,7 @@ def _pose(frames: Frames, p: dict) -> pd.DataFrame | None:
     return df
 
 
-def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[Goal]:
+def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[SentGoal]:
     gl = goals(frames, p["goal_source"], p["goal_topic"])
     if p["steps"]:
         gl = [g for g in gl if g.extra.get("step") in set(p["steps"])]
@@ -275,9 +276,9 @@ def _trajectory(t: np.ndarray, x: np.ndarray, y: np.ndarray, gl: list, theta: np
 
 
 def _wall_contacts(frames: Frames, t: np.ndarray, x: np.ndarray, y: np.ndarray, eps: float = 1e-3) -> dict:
-    """How often the turtle ran into a wall (turtlesim clamps the pose to [0, WORLD_MAX]): the
+    """How often the turtle ran into a wall (turtlesim clamps the pose to [0, WORLD_SIZE_M]): the
     number of contact episodes and where the first ones were (s since the scenario start, x, y)."""
-    at = (x <= eps) | (y <= eps) | (x >= WORLD_MAX - eps) | (y >= WORLD_MAX - eps)
+    at = (x <= eps) | (y <= eps) | (x >= WORLD_SIZE_M - eps) | (y >= WORLD_SIZE_M - eps)
     starts = np.nonzero(at & ~np.concatenate(([False], at[:-1])))[0]
     pts = [[float(s), round(float(x[i]), 3), round(float(y[i]), 3)]
            for s, i in zip(since_start(frames, t[starts[:20]]), starts[:20])]
@@ -429,7 +430,7 @@ def _first_turn(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, dete
 
 
 def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,
-                    g: Goal, max_points: int = 120) -> dict:
+                    g: SentGoal, max_points: int = 120) -> dict:
     """theta_e over time while goal ``k`` was active (the report's heading-error figure)."""
     keep = thin(len(t), max_points)
     err = np.degrees(heading_error(x[keep], y[keep], th[keep], g.x, g.y))

@@ -34,8 +34,9 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, provenance, register
 from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
+from grader.analyze._common import (sim_pose, Frames, fmt, missing_topic_feedback, rosout_lines,
                                     thin, times, topic)
+from grader.spec.world import WORLD_SIZE_M
 from grader.analyze.rate import rate_stats
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -265,7 +266,7 @@ def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
           expect='no wall contact', defaults={
     "pose_topic": "/turtle1/pose",
     "sim_logger": "turtlesim",        # the simulator's logger (its "hit the wall" warning)
-    "world_max": WORLD_MAX,           # m: the world is [0, world_max] in x and y
+    "world_max": WORLD_SIZE_M,           # m: the world is [0, world_max] in x and y
     "min_clearance": 0.0,             # m: closer than this to a wall also counts as contact
     "approach_m": None,               # m: the path must come at least this close to a wall (None: any)
 })

@@ -19,7 +19,6 @@ from grader.analyze._common import (
     META,
     ROSOUT,
     STDOUT,
-    WORLD_MAX,
     Frames,
     end_time,
     events,
@@ -39,9 +38,10 @@ from grader.analyze._common import (
     topic,
     topics_present,
 )
+from grader.spec.world import WORLD_SIZE_M
 
 __all__ = [
-    "EVENTS", "META", "ROSOUT", "STDOUT", "WORLD_MAX", "Frames",
+    "EVENTS", "META", "ROSOUT", "STDOUT", "WORLD_SIZE_M", "Frames",
     "end_time", "events", "fmt", "missing_topic_feedback", "publishers_of", "rosout_lines",
     "scenario_end_time", "scenario_start", "sentence", "service_calls", "sim_pose", "since_start",
     "stdout_lines", "thin", "times", "topic", "topics_present",

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from grader.analyze import Finding
     from grader.grading.schedule import Slots
     from grader.rubric.schema import Item, Rubric
+    from grader.rubric.score import Result
     from grader.scenario.model import Scenario
 
 SCENARIOS_DIR = "scenarios"
@@ -59,7 +60,7 @@ def discover_submissions(root: Path) -> list[Path]:
 class GradedSubmission:
     id: str
     out: Path
-    result: Any                       # grader.rubric.score.Result
+    result: Result
     build_ok: bool
     build_failed: list[str] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)

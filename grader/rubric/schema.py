@@ -24,7 +24,6 @@ from grader.scenario.model import Scenario
 
 SCHEMA_VERSION: Literal[1] = 1
 KINDS = ("auto", "manual", "advisory", "integrity")
-STATUSES = ("pass", "partial", "fail", "error")
 _EPS = 1e-9
 
 LabId = Annotated[str, _named(r"^[a-z0-9][a-z0-9._-]*$", "a lab id like 'enee467-lab3' (lower case, digits, . _ -)")]

@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, Protocol
 
 from grader.errors import GraderError
 from grader.rubric.contract import Mismatch
-from grader.rubric.schema import STATUSES, Item, Rubric, Section, SectionSpec
+from grader.rubric.schema import Item, Rubric, Section, SectionSpec
+from grader.spec.status import STATUSES
 
 if TYPE_CHECKING:
     from grader.intake.late import LatePenalty

@@ -25,6 +25,7 @@ from pydantic import (BeforeValidator, ConfigDict, Field, RootModel, ValidationI
                       model_validator)
 
 # re-exported: the whole scenario language is importable from here
+from grader.spec.world import WORLD_SIZE_M
 from grader.scenario.conditions import (  # noqa: F401
     ActionDone, Advertised, Condition, GoalReached, Messages, Output, ProcessExit, ReplayDone, ServiceDone,
     Subscribed)
@@ -33,16 +34,14 @@ from grader.scenario.fields import (  # noqa: F401
     LaunchFile, LaxPath, LocalId, Model, MsgType, NonNegativeFloat, PackageName, ParamValue,
     PositiveFloat, PositiveInt, RosName, SrvType, with_rules)
 
-#: turtlesim's world is [0, WORLD_M]^2 (float32 of 499/45: grader.sim.physics.W)
-WORLD_M = 11.088889
 
 
 class Placement(Model):
     """Where the grader puts a turtle before a step's action (turtlesim's ``teleport_absolute``),
     so the step starts from the same pose in every run, whatever the turtle did before."""
 
-    x: Annotated[float, Field(ge=0.0, le=WORLD_M, description="m")]
-    y: Annotated[float, Field(ge=0.0, le=WORLD_M, description="m")]
+    x: Annotated[float, Field(ge=0.0, le=WORLD_SIZE_M, description="m")]
+    y: Annotated[float, Field(ge=0.0, le=WORLD_SIZE_M, description="m")]
     theta: Annotated[float, Field(allow_inf_nan=False, description="rad, 0 = facing +x")]
     turtle: LocalId = Field("turtle1", description="the turtle's name")
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from typing import Any, Mapping, cast
 
+from grader.spec.world import WORLD_SIZE_M
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import BLUE, GREEN, OUTSIDE, VERMILION, floats, fmt, key, num
 
-WORLD_M = 11.088889
 
 
 def _path(evidence: Mapping[str, Any]) -> tuple[list[float], list[float]] | None:
@@ -24,8 +24,8 @@ def _path(evidence: Mapping[str, Any]) -> tuple[list[float], list[float]] | None
 def _world(ax: Any) -> None:
     from matplotlib.patches import Rectangle
 
-    ax.add_patch(Rectangle((0, 0), WORLD_M, WORLD_M, fill=False, ec="#555555", lw=1.2, label="walls"))
-    ax.set(xlim=(-0.3, WORLD_M + 0.3), ylim=(-0.3, WORLD_M + 0.3), xlabel="x (m)", ylabel="y (m)", aspect="equal")
+    ax.add_patch(Rectangle((0, 0), WORLD_SIZE_M, WORLD_SIZE_M, fill=False, ec="#555555", lw=1.2, label="walls"))
+    ax.set(xlim=(-0.3, WORLD_SIZE_M + 0.3), ylim=(-0.3, WORLD_SIZE_M + 0.3), xlabel="x (m)", ylabel="y (m)", aspect="equal")
 
 
 @figure("circle_radius")
@@ -72,7 +72,7 @@ def walls(ctx: FigureContext) -> Plot | None:
         ax.plot([c[0] for c in contacts], [c[1] for c in contacts], "x", color=VERMILION, ms=7,
                 label=f"wall contact ({len(contacts)})")
     ax.legend(**OUTSIDE)
-    return Plot(fig, title, alt=f"Turtle path inside the {WORLD_M:.2f} m square; closest approach "
+    return Plot(fig, title, alt=f"Turtle path inside the {WORLD_SIZE_M:.2f} m square; closest approach "
                 f"{fmt(num(ctx.evidence.get('min_clearance_m')), 2)} m; {len(contacts)} wall contacts.")
 
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
+from grader.spec.world import WORLD_SIZE_M     # the world is [0, WORLD_SIZE_M]^2 (a wall on every side)
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import OUTSIDE, LINESTYLES, MUTED, PALETTE, floats, fmt, key, num
 
-WORLD_M = 11.088889      # turtlesim's world is [0, WORLD_M]^2 (a wall on every side)
 TITLE = "Turtle path per goal: each path should end inside its goal's circle"
 
 
@@ -97,10 +97,10 @@ def trajectory(ctx: FigureContext) -> Plot | None:
                     label=f"wall contact ({n_walls}×)")
     if tol:
         ax.plot([], [], color=MUTED, ls=":", label=f"goal tolerance ({tol:g} m)")
-    ax.set(xlim=(-0.3, WORLD_M + 0.3), ylim=(-0.3, WORLD_M + 0.3), xlabel="x (m)", ylabel="y (m)",
+    ax.set(xlim=(-0.3, WORLD_SIZE_M + 0.3), ylim=(-0.3, WORLD_SIZE_M + 0.3), xlabel="x (m)", ylabel="y (m)",
            aspect="equal")
     ax.legend(**OUTSIDE)
-    alt = (f"Turtle path in the {WORLD_M:.1f} m square world for {len(paths)} goal(s). "
+    alt = (f"Turtle path in the {WORLD_SIZE_M:.1f} m square world for {len(paths)} goal(s). "
            + ". ".join(descs) + "."
            + (f" Goal tolerance {tol:g} m." if tol else "")
            + (f" The turtle hit a wall {n_walls} time(s)." if n_walls else " No wall contact."))
@@ -110,7 +110,7 @@ def trajectory(ctx: FigureContext) -> Plot | None:
 def _rect(ax: Any) -> Any:
     from matplotlib.patches import Rectangle
 
-    return Rectangle((0, 0), WORLD_M, WORLD_M, fill=False, edgecolor="#444444", lw=1.2, zorder=0)
+    return Rectangle((0, 0), WORLD_SIZE_M, WORLD_SIZE_M, fill=False, edgecolor="#444444", lw=1.2, zorder=0)
 
 
 def _circle(ax: Any, centre: tuple[float, float], radius: float, colour: str) -> Any:
