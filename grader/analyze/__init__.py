@@ -42,7 +42,8 @@ from grader.spec.jsonable import jsonable
 from grader.spec.status import STATUSES
 
 __all__ = ["Finding", "register", "get", "names", "defaults", "required", "run", "jsonable", "STATUSES",
-           "evidence_labels", "expected_text", "REQUIRED", "DuplicateAnalyzer", "origin", "graded"]
+           "evidence_labels", "expected_text", "REQUIRED", "DuplicateAnalyzer", "origin", "graded",
+           "builtin_names"]
 
 
 class _Required:
@@ -208,8 +209,15 @@ def get(name: str) -> AnalyzerFn:
 
 
 def names() -> list[str]:
+    """Every registered analyzer: built in, installed plug-ins, rubric files loaded so far."""
     _load_all()
     return sorted(_REGISTRY)
+
+
+def builtin_names() -> list[str]:
+    """The analyzers of this package's own modules (what the rubric guide documents)."""
+    _load_all()
+    return sorted(n for n in _REGISTRY if _ORIGIN.get(n, "").startswith(f"{__name__}."))
 
 
 def defaults(name: str) -> dict[str, Any]:

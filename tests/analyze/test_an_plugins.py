@@ -99,7 +99,7 @@ def problems(rubric: Path) -> str:
 def test_rubric_with_an_analyzer_file_loads_and_registers_it(tmp_path: Path) -> None:
     rubric = load_rubric(lab(tmp_path))
     assert rubric.analyzers == (tmp_path / "my_lab_checks.py",)
-    assert "message_count" in A.names()
+    assert "message_count" in A.names() and "message_count" not in A.builtin_names()
     assert A.origin("message_count") == str(tmp_path / "my_lab_checks.py")
     assert A.origin("publish_rate") == "grader.analyze.rate"
     load_rubric(tmp_path / "rubric.yaml")             # loading again is no duplicate
@@ -248,4 +248,4 @@ def test_builtin_modules_are_discovered_without_a_list() -> None:
     found = plugins.builtin_modules()
     assert "grader.analyze.rate" in found and "grader.analyze.pen" in found
     assert not any(m.rsplit(".", 1)[1].startswith("_") for m in found)
-    assert {A.origin(n).rsplit(".", 1)[0] for n in A.names()} == {"grader.analyze"}
+    assert {A.origin(n).rsplit(".", 1)[0] for n in A.builtin_names()} == {"grader.analyze"}
