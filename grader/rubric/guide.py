@@ -90,13 +90,12 @@ def _with_references(node: Any) -> Any:
 
 # ------------------------------------------------------------------------------ Markdown tables
 def analyzer_reference() -> str:
-    """Every built-in analyzer: what it checks, its parameters with defaults and meaning (a lab's
-    own analyzers are documented with its rubric)."""
+    """Every registered analyzer: what it checks, its parameters with defaults and meaning."""
     from grader import analyze
     from grader.analyze import REQUIRED
 
     out = []
-    for name in analyze.builtin_names():
+    for name in analyze.names():
         fn = analyze.get(name)
         doc = (fn.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
         module = fn.__module__.rsplit(".", 1)[-1]
