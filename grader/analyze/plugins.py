@@ -36,6 +36,7 @@ import importlib
 import importlib.util
 import pkgutil
 import sys
+import threading
 import traceback
 from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
@@ -49,7 +50,10 @@ ENTRY_POINT_GROUP = "grader.analyzers"
 #: modules of grader.analyze that register nothing (helpers, pure checks used by the pipeline)
 _HELPERS = frozenset({"plugins", "evidence"})
 
-_state = {"loaded": False}
+_state = {"loaded": ""}            # "" (not yet), "loading" (in this or another thread), "done"
+#: a batch analyzes in threads: one imports, the others wait for it (reentrant: the modules being
+#: imported call back into the registry)
+_LOCK = threading.RLock()
 
 
 class PluginError(GraderError):
@@ -84,17 +88,21 @@ def installed_entry_points() -> list[EntryPoint]:
 
 def load_builtin_and_installed() -> None:
     """Import the built-in analyzer modules, then every installed plug-in (once per process)."""
-    if _state["loaded"]:
+    if _state["loaded"] == "done":
         return
-    _state["loaded"] = True          # before importing: the modules call back into the registry
-    try:
-        for module in builtin_modules():
-            importlib.import_module(module)
-        for ep in installed_entry_points():
-            _load_entry_point(ep)
-    except BaseException:
-        _state["loaded"] = False
-        raise
+    with _LOCK:
+        if _state["loaded"]:          # done by another thread, or this thread is importing them
+            return
+        _state["loaded"] = "loading"
+        try:
+            for module in builtin_modules():
+                importlib.import_module(module)
+            for ep in installed_entry_points():
+                _load_entry_point(ep)
+        except BaseException:
+            _state["loaded"] = ""
+            raise
+        _state["loaded"] = "done"
 
 
 def _load_entry_point(ep: EntryPoint) -> None:
@@ -123,10 +131,17 @@ def load_file(path: str | Path) -> tuple[str, ...]:
     """Import a rubric's analyzer file; the names of the analyzers it defines.
 
     Idempotent: the same unchanged file is imported once per process, and a byte-identical copy
-    of it (a staged rubric's) is the same plug-in; a changed file replaces its previous definitions. Raises :class:`PluginError` (one sentence, with the file's line when the
-    error is in it) when the file is missing or cannot be imported, when it defines an analyzer
-    name that another module, plug-in or file already defines, or when it defines nothing.
+    of it (a staged rubric's) is the same plug-in; a changed file replaces its previous
+    definitions. Raises :class:`PluginError` (one sentence, with the file's line when the error is
+    in it) when the file is missing or cannot be imported, when it defines an analyzer name that
+    another module, plug-in or file already defines, or when it defines nothing.
     """
+    with _LOCK:
+        return _load_file(path)
+
+
+def _load_file(path: str | Path) -> tuple[str, ...]:
+    """:func:`load_file`, under the lock."""
     from grader import analyze
 
     path = Path(path).resolve()
@@ -190,6 +205,11 @@ def unload_file(path: str | Path) -> None:
     """Forget a file's analyzers and figures (it changed, or a test is done with it)."""
     from grader import analyze
 
+    with _LOCK:
+        _unload(analyze, path)
+
+
+def _unload(analyze: Any, path: str | Path) -> None:
     known = _FILES.pop(Path(path).resolve(), None)
     if known is None or any(f.module == known.module for f in _FILES.values()):
         return                  # unknown, or an identical copy elsewhere still uses the module

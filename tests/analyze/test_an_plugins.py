@@ -249,3 +249,23 @@ def test_builtin_modules_are_discovered_without_a_list() -> None:
     assert "grader.analyze.rate" in found and "grader.analyze.pen" in found
     assert not any(m.rsplit(".", 1)[1].startswith("_") for m in found)
     assert {A.origin(n).rsplit(".", 1)[0] for n in A.builtin_names()} == {"grader.analyze"}
+
+
+def test_threads_that_analyze_first_all_see_every_analyzer() -> None:
+    """A batch analyzes in threads; the first lookups race the imports of the analyzer modules."""
+    code = textwrap.dedent("""
+        import threading
+        import grader.analyze as A
+        start, seen = threading.Barrier(6), []
+        def first_use():
+            start.wait()
+            seen.append(len(A.names()))
+        threads = [threading.Thread(target=first_use) for _ in range(6)]
+        [t.start() for t in threads]
+        [t.join() for t in threads]
+        print(sorted(set(seen)), len(A.builtin_names()))
+    """)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    counts, total = run.stdout.split("] ")
+    assert counts == f"[{total.strip()}", run.stdout
