@@ -1,7 +1,7 @@
 # Two commands for a fresh machine:
 #   make demo   grade the bundled example submissions of every lab (fixtures/) into demo-out/<lab>/
 #   make test   run the test suite (what .ci/run calls, after make lint)
-#   make lint   ruff (grader/, tests/) and mypy (strict on analyze, rubric, grading, api); pyproject.toml
+#   make lint   ruff (grader/, tests/) and mypy (strict on spec, analyze, rubric, grading, api); pyproject.toml
 PYTHON ?= python3
 VENV   := .venv
 GRADER := $(VENV)/bin/grader
