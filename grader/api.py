@@ -106,6 +106,7 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
           roster_map: Sequence[str] = (), classroom_prefix: str | None = None,
           due: str | None = None, timezone: str | None = None,
           on_intake: Callable[[IntakeBatch], None] | None = None,
+          on_start: Callable[[int, int], None] | None = None,
           on_done: Callable[[str, GradedSubmission | None, str | None], None] | None = None,
           progress: Callable[[str], None] | None = None) -> BatchResult:
     """``grader grade``: build each submission, record the rubric's scenarios, analyze, score.
@@ -118,9 +119,10 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     ``resume``: skip ids that have a result.json; ``reuse``: copy identical earlier recordings;
     ``time_scale`` > 1: simulated time where the rubric allows; ``roster`` (+ ``roster_map``
     ``FIELD=COLUMN`` entries): match each submission to a student; ``due``/``timezone``: replace
-    the late policy's due date. ``on_intake`` gets what was found before grading starts,
-    ``on_done(id, graded or None, error or None)`` each finished submission, ``progress`` status
-    lines of a single submission.
+    the late policy's due date. ``on_intake`` gets what was found, ``on_start(selected, done)``
+    how many submissions are to be graded and how many of them already are (``resume``) before
+    grading starts, ``on_done(id, graded or None, error or None)`` each finished submission,
+    ``progress`` status lines of a single submission.
     """
     from grader.grading.batch import grade_batch
     from grader.grading.outputs import write_batch_outputs
@@ -153,6 +155,8 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
         subs = [s for s in subs if in_shard(s.id, *shard)]
         write_shard_note(out, loaded, *shard)
     todo = [s for s in subs if not (resume and (out / s.id / "result.json").exists())]
+    if on_start is not None:
+        on_start(len(subs), len(subs) - len(todo))
 
     def done(sid: str, graded: GradedSubmission | None, error: str | None) -> None:
         if graded is not None:

@@ -154,17 +154,12 @@ def run_grade(args: argparse.Namespace) -> int:
     progress: Progress | None = None
 
     def found(intake: Any) -> None:
-        nonlocal progress
         print(intake.table(), flush=True)
-        subs = intake.gradable
-        if args.only:
-            subs = [s for s in subs if s.id in set(args.only)]
-        if args.shard:
-            from grader.grading.shards import in_shard
 
-            subs = [s for s in subs if in_shard(s.id, *args.shard)]
-        progress = Progress(len(subs))
-        progress.done = sum(1 for s in subs if args.resume and (args.out / s.id / "result.json").exists())
+    def start(selected: int, done_before: int) -> None:
+        nonlocal progress
+        progress = Progress(selected)
+        progress.done = done_before
 
     def done(sid: str, graded: Any, error: str | None) -> None:
         assert progress is not None
@@ -181,7 +176,7 @@ def run_grade(args: argparse.Namespace) -> int:
                           resume=args.resume, reuse=not args.no_reuse, cache_dir=args.cache_dir,
                           time_scale=args.time_scale, intake=args.intake, roster=args.roster, roster_map=args.map,
                           classroom_prefix=args.classroom_prefix, due=args.due, timezone=args.timezone,
-                          on_intake=found, on_done=done, progress=status)
+                          on_intake=found, on_start=start, on_done=done, progress=status)
     finally:
         if progress is not None:
             progress.close()
