@@ -27,9 +27,10 @@ from typing import Annotated, Any, Iterable, Iterator, Mapping
 from pydantic import Field, field_validator, model_validator
 
 from grader.scenario.fields import (ActionType, ExecutableName, LaunchFile, Model, MsgType, PackageName,
-                                    RosName, SrvType, _named)
+                                    RosName, SrvType)
+from grader.spec.text import pattern_text, suggest
 
-Role = Annotated[str, _named(r"^[a-z][a-z0-9_]*$", "a role id like news or greeter (lower case, digits, _)")]
+Role = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "a role id like news or greeter (lower case, digits, _)")]
 Why = Annotated[str, Field(min_length=1, pattern=r"\S", description="where the lab text fixes it")]
 
 #: a whole value ``$role``, and ``${role}`` inside text
@@ -220,7 +221,6 @@ def resolve_references(data: Any) -> tuple[Any, list[tuple[tuple, str]]]:
 def _name_of(role: str, table: dict, path: tuple, problems: list, kinds: tuple[str, ...] | None) -> Any:
     found = table.get(role)
     if found is None:
-        from grader.rubric.located import suggest
 
         known = ", ".join(f"${r}" for r in table) or "none: the rubric has no contract"
         problems.append((path, f"${role} is not in the contract{suggest(role, list(table))} (roles: {known})"))

@@ -10,7 +10,6 @@ into :class:`Problem` lines an instructor can fix in one pass, in words ("expect
 
 from __future__ import annotations
 
-import difflib
 import re
 import typing
 from dataclasses import dataclass
@@ -21,7 +20,7 @@ from pydantic import BaseModel, RootModel
 from yaml.constructor import SafeConstructor
 from yaml.nodes import MappingNode, Node, SequenceNode
 
-from grader.scenario.fields import PATTERN_WHAT
+from grader.spec.text import PATTERN_WHAT, suggest
 
 MERGE_TAG = "tag:yaml.org,2002:merge"
 _IDENT_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
@@ -53,12 +52,6 @@ def dotted(path: Iterable[Any]) -> str:
         else:
             out += f"[{key!r}]"
     return out
-
-
-def suggest(word: str, candidates: Iterable[str]) -> str:
-    """`` (did you mean 'x'?)`` for a near miss, else an empty string."""
-    close = difflib.get_close_matches(str(word), [str(c) for c in candidates], n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 class Located:

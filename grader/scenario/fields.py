@@ -13,29 +13,20 @@ from typing import Annotated, Any, Union
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-#: ``pattern -> what it is``: validation errors say "expected a topic name" instead of a regex
-PATTERN_WHAT: dict[str, str] = {}
+from grader.spec.text import pattern_text
 
-
-def _named(pattern: str, what: str, **field: Any) -> Any:
-    """The constraint of a text field of this language (``Annotated[str, _named(...)]``), whose
-    pattern the loader's error message replaces by ``what``."""
-    PATTERN_WHAT[pattern] = what
-    return Field(pattern=pattern, description=what, **field)
-
-
-RosName = Annotated[str, _named(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", "a ROS name like /turtle1/pose")]
-PackageName = Annotated[str, _named(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digits, _)")]
-ExecutableName = Annotated[str, _named(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "an executable name")]
-EntryPoint = Annotated[str, _named(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$",
+RosName = Annotated[str, pattern_text(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", "a ROS name like /turtle1/pose")]
+PackageName = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digits, _)")]
+ExecutableName = Annotated[str, pattern_text(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "an executable name")]
+EntryPoint = Annotated[str, pattern_text(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$",
                     "a Python entry point 'package.module:function'")]
-LaunchFile = Annotated[str, _named(r"^[A-Za-z0-9_*?][A-Za-z0-9_.*?-]*$",
+LaunchFile = Annotated[str, pattern_text(r"^[A-Za-z0-9_*?][A-Za-z0-9_.*?-]*$",
                     "a launch file name like app.launch.py, or a pattern like *launch.py")]
-LocalId = Annotated[str, _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "an id (letters, digits, _ or -)")]
-EnvName = Annotated[str, _named(r"^[A-Za-z_][A-Za-z0-9_]*$", "an environment variable name")]
-MsgType = Annotated[str, _named(r"^[A-Za-z][A-Za-z0-9_]*/msg/[A-Z][A-Za-z0-9]*$", "a message type like std_msgs/msg/String")]
-SrvType = Annotated[str, _named(r"^[A-Za-z][A-Za-z0-9_]*/srv/[A-Z][A-Za-z0-9]*$", "a service type like turtlesim/srv/SetPen")]
-ActionType = Annotated[str, _named(r"^[A-Za-z][A-Za-z0-9_]*/action/[A-Z][A-Za-z0-9]*$",
+LocalId = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_-]*$", "an id (letters, digits, _ or -)")]
+EnvName = Annotated[str, pattern_text(r"^[A-Za-z_][A-Za-z0-9_]*$", "an environment variable name")]
+MsgType = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_]*/msg/[A-Z][A-Za-z0-9]*$", "a message type like std_msgs/msg/String")]
+SrvType = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_]*/srv/[A-Z][A-Za-z0-9]*$", "a service type like turtlesim/srv/SetPen")]
+ActionType = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_]*/action/[A-Z][A-Za-z0-9]*$",
                     "an action type like turtlesim/action/RotateAbsolute")]
 #: sequences and paths accept what YAML/JSON give (lists, text); their items stay strict
 LaxPath = Annotated[Path, Field(strict=False)]

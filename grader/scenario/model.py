@@ -25,6 +25,7 @@ from pydantic import (BeforeValidator, ConfigDict, Field, RootModel, ValidationI
                       model_validator)
 
 # re-exported: the whole scenario language is importable from here
+from grader.spec.text import suggest
 from grader.spec.world import WORLD_SIZE_M
 from grader.scenario.conditions import (  # noqa: F401
     ActionDone, Advertised, Condition, GoalReached, Messages, Output, ProcessExit, ReplayDone, ServiceDone,
@@ -377,7 +378,7 @@ class Scenario(Model):
                 for name in (value.root if value is not None else ()):
                     if name not in names:
                         out.append((f"steps[{i}].{key}", f"no process {name!r} in this scenario"
-                                    + _suggest(name, names)))
+                                    + suggest(name, names)))
                     elif key == "start":
                         started.add(name)
                         if self.process(name).autostart:
@@ -386,7 +387,7 @@ class Scenario(Model):
             proc_ref = getattr(step.until, "process", None)
             if proc_ref is not None and proc_ref not in names:
                 out.append((f"steps[{i}].until.process", f"no process {proc_ref!r} in this scenario"
-                            + _suggest(proc_ref, names)))
+                            + suggest(proc_ref, names)))
         for i, proc in enumerate(self.processes):
             if not proc.autostart and proc.name not in started:
                 out.append((f"processes[{i}]", f"process {proc.name!r} has autostart: false but no "
@@ -395,13 +396,6 @@ class Scenario(Model):
             out.append(("limits.wall_s", f"the steps may take up to {self.budget_s:g} s (start delays + "
                         f"step limits) but wall_s is {self.limits.wall_s:g}; raise it or shorten the steps"))
         return out
-
-
-def _suggest(word: str, candidates: list[str]) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(word, candidates, n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 # ------------------------------------------------------------------ what the scenario child reads
