@@ -201,6 +201,18 @@ def load_rubric_files(rubric: Any) -> None:
     load_files(getattr(rubric, "analyzers", ()) or ())
 
 
+def load_recorded_files(paths: Iterable[str]) -> None:
+    """Import the analyzer files a result.json names (``analyzer_files``) before its page is drawn
+    again without the rubric (``grader scores merge``), so the page keeps those analyzers'
+    figures and evidence labels; a file since moved or broken is skipped (the page then shows
+    the evidence without them, as for an analyzer this grader does not know)."""
+    for path in paths:
+        try:
+            load_file(path)
+        except GraderError:
+            continue
+
+
 def unload_file(path: str | Path) -> None:
     """Forget a file's analyzers and figures (it changed, or a test is done with it)."""
     from grader import analyze

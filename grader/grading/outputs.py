@@ -71,6 +71,8 @@ def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public
         extra["previous"] = graded.previous
     if getattr(graded, "intake", None):
         extra["intake"] = graded.intake           # who and when, as the LMS said (grader.intake)
+    if rubric.analyzers:        # the rubric's own analyzer files: a page redrawn later draws their figures
+        extra["analyzer_files"] = [str(p) for p in rubric.analyzers]
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
     if time_scales:                 # --time-scale: how each scenario ran, and why not faster
         extra["time_scale"] = time_scales

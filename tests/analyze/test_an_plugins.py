@@ -70,6 +70,7 @@ items:
     scenario: ex1_publisher
     analyzer: message_count
     params: {{{params}}}
+  - {{id: q1, title: Question 1, section: report, points: 1, kind: manual}}
 '''
 
 
@@ -123,6 +124,25 @@ def test_a_plugin_grades_offline_from_a_recorded_bag_with_its_figure(tmp_path: P
     page = (out / "reference" / "report.html").read_text()
     assert "Messages counted against the minimum" in page          # the plug-in's own figure
     assert "at least 5 messages" in page                           # its expect= text
+
+
+def test_a_page_redrawn_without_the_rubric_keeps_the_plugins_figure(tmp_path: Path) -> None:
+    """grader scores merge redraws report.html from result.json alone, in a process that never
+    loaded the rubric: result.json names the analyzer files, so their figures stay."""
+    rubric = load_rubric(lab(tmp_path / "lab"))
+    out = tmp_path / "out"
+    recorded_batch(FIXTURE_BAGS / "lab3", out, rubric, only=["reference"])
+    doc = json.loads((out / "reference" / "result.json").read_text())
+    assert doc["analyzer_files"] == [str(tmp_path / "lab" / "my_lab_checks.py")]
+    sheet = tmp_path / "manual.csv"
+    sheet.write_text("submission,q1\nreference,1\n")
+    code = ("import sys; from grader.scores.merge import merge_manual_scores; "
+            "merge_manual_scores(sys.argv[1], sys.argv[2])")
+    run = subprocess.run([sys.executable, "-c", code, str(out), str(sheet)], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert json.loads((out / "reference" / "result.json").read_text())["score"] == doc["score"] + 1
+    assert "Messages counted against the minimum" in (out / "reference" / "report.html").read_text()
 
 
 def test_a_plugins_parameters_get_the_same_located_checks(tmp_path: Path) -> None:
