@@ -6,7 +6,7 @@ PYTHON ?= python3
 VENV   := .venv
 GRADER := $(VENV)/bin/grader
 
-.PHONY: bootstrap demo test test-fast test-slurm bench clean lint
+.PHONY: bootstrap demo test test-fast test-heavy test-slurm bench clean lint
 
 bootstrap:
 	@$(PYTHON) -m grader.bootstrap
@@ -30,14 +30,20 @@ lint: bootstrap $(VENV)/.lint-tools
 	$(VENV)/bin/ruff check grader tests
 	$(VENV)/bin/mypy
 
+# everything but the heavy tests (~25 min on 2 cores); CI (.ci/run) runs test-heavy after it
 test: bootstrap
-	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest -m "not heavy" $(PYTEST_ARGS)
 
 test-fast: bootstrap
-	$(VENV)/bin/python -m pytest -m "not slow" $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest -m "not slow and not heavy" $(PYTEST_ARGS)
+
+# the longest end-to-end tests: every fixture of every lab, the fault corpus, a real Slurm
+# cluster, installs from git/pipx, the Gradescope image (see the `heavy` marker)
+test-heavy: bootstrap
+	$(VENV)/bin/python -m pytest -m heavy $(PYTEST_ARGS)
 
 # the Slurm example on a real single-node Slurm (slurmctld + slurmd started and stopped by the
-# test; part of `make test` too)
+# test; part of `make test-heavy` too)
 test-slurm: bootstrap
 	$(VENV)/bin/python -m pytest tests/scale/test_slurm.py $(PYTEST_ARGS)
 
