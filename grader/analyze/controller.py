@@ -19,9 +19,8 @@ The gains and form of Lab 3's law are checked by ``control_law`` (its own module
 
 from __future__ import annotations
 
-from typing import Any
-
 import math
+from typing import Any
 
 import numpy as np
 import pandas as pd

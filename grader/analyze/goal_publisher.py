@@ -8,10 +8,9 @@ scenario rather than hard-coding it.
 
 from __future__ import annotations
 
-from typing import cast
-
 import math
 import re
+from typing import cast
 
 import numpy as np
 

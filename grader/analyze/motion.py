@@ -24,9 +24,8 @@ earns nothing in any of them: its path was not driven.
 
 from __future__ import annotations
 
-from typing import cast
-
 import math
+from typing import cast
 
 import numpy as np
 import pandas as pd

@@ -13,14 +13,13 @@ No rclpy: this runs in the recorder and in repair, analysis and tests alike.
 
 from __future__ import annotations
 
-from typing import Mapping
-
 import json
 import os
 import re
 import sys
 from functools import lru_cache
 from pathlib import Path
+from typing import Mapping
 
 SEPARATOR = "=" * 80
 PRIMITIVES = frozenset({

@@ -15,8 +15,6 @@ from that package's own build instead of built again for every submission.
 
 from __future__ import annotations
 
-from typing import Sequence
-
 import fcntl
 import json
 import os
@@ -25,6 +23,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 from grader.errors import GraderError
 from grader.rosenv import PY_SITE, child_env, ros_mode
