@@ -1,11 +1,12 @@
 # Two commands for a fresh machine:
 #   make demo   grade the bundled example submissions of every lab (fixtures/) into demo-out/<lab>/
-#   make test   run the test suite (what .ci/run calls)
+#   make test   run the test suite (what .ci/run calls, after make lint)
+#   make lint   ruff (grader/, tests/) and mypy (strict on spec, analyze, rubric, grading, api); pyproject.toml
 PYTHON ?= python3
 VENV   := .venv
 GRADER := $(VENV)/bin/grader
 
-.PHONY: bootstrap demo test test-fast test-heavy test-slurm bench clean
+.PHONY: bootstrap demo test test-fast test-heavy test-slurm bench clean lint
 
 bootstrap:
 	@$(PYTHON) -m grader.bootstrap
@@ -19,6 +20,15 @@ demo: bootstrap
 	  $(GRADER) grade fixtures/submissions/$$lab --rubric rubrics/$$lab.yaml -o demo-out/$$lab || exit $$?; \
 	done
 	@echo "open demo-out/<lab>/index.html (the class view, one report per submission) and demo-out/<lab>/grades.csv"
+
+# the linter and type checker, pinned in requirements/lint.txt (installed into .venv once per change)
+$(VENV)/.lint-tools: requirements/lint.txt | bootstrap
+	$(VENV)/bin/python -m pip install --quiet -r requirements/lint.txt
+	@touch $@
+
+lint: bootstrap $(VENV)/.lint-tools
+	$(VENV)/bin/ruff check grader tests
+	$(VENV)/bin/mypy
 
 # everything but the heavy tests (~25 min on 2 cores); CI (.ci/run) runs test-heavy after it
 test: bootstrap

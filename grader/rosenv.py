@@ -70,8 +70,9 @@ def trusted_env(env: Mapping[str, str], prefixes: Iterable[Path]) -> dict[str, s
     imports (``yaml``, ``numpy``) would shadow it.
     """
     out = dict(env)
-    roots = [Path(p) for p in [*prefixes, *_STUDENT_PATHS]]
-    theirs, ours = [], []
+    roots = [Path(p) for p in prefixes] + [Path(p) for p in _STUDENT_PATHS]
+    theirs: list[str] = []
+    ours: list[str] = []
     for entry in filter(None, out.get("PYTHONPATH", "").split(os.pathsep)):
         path = Path(entry)
         (theirs if any(path == r or r in path.parents for r in roots) else ours).append(entry)

@@ -23,7 +23,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import Iterable, Mapping, Sequence, Any
 
 from grader.domain import DomainLease, lease_domain
 from grader.errors import GraderError
@@ -114,7 +114,8 @@ class ManagedProcess:
         self._out = open(self.stdout_path, "wb")
         self._err = open(self.stderr_path, "wb")
         self._capped: list[CappedLog] = []
-        stdout, stderr = self._out, self._err
+        stdout: Any = self._out
+        stderr: Any = self._err
         pipes: list[tuple[int, int, Path, str]] = []
         if output_cap:
             for path, stream in ((self.stdout_path, "stdout"), (self.stderr_path, "stderr")):

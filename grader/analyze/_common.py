@@ -23,8 +23,6 @@ EVENTS = EVENTS_TOPIC
 STDOUT = STDOUT_TOPIC
 ROSOUT = "/rosout"
 
-#: turtlesim's world is [0, W] x [0, H] with W = H = 11.088889 (float32 of 499/45).
-WORLD_MAX = 11.088889
 
 Frames = Mapping[str, pd.DataFrame]
 
@@ -53,7 +51,8 @@ def meta_row(frames: Frames, topic: str) -> dict | None:
     rows = m[m["topic"] == topic]
     if rows.empty:
         return None
-    return rows.iloc[0].to_dict()
+    row: dict = rows.iloc[0].to_dict()
+    return row
 
 
 def publishers_of(frames: Frames, topic: str) -> list[str]:
@@ -365,7 +364,7 @@ def sentence(s: str) -> str:
 
 
 # --------------------------------------------------------------------------- service calls
-def _request(df, i: int) -> dict:
+def _request(df: pd.DataFrame, i: int) -> dict:
     out = {}
     for c in df.columns:
         if str(c).startswith("request[0]."):

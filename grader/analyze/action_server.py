@@ -6,7 +6,7 @@ turtle's poses show whether a reported success is real. Events are paired by ``g
 when the driver provides one, else in order (responses answer goals in the order they were sent,
 results answer accepted goals in order), which does not depend on the driver waiting between goals.
 
-Bounds: the world is [0, 11.088889]^2. The lab's template rejects goals outside [0, 11], so goals
+Bounds: the world is [0, WORLD_SIZE_M]^2 (11.09 m). The lab's template rejects goals outside [0, 11], so goals
 inside [0, ``inner_bound``] must be accepted and reached, goals outside [0, ``outer_bound``] must be
 rejected, and the thin band in between is not judged.
 
@@ -23,7 +23,8 @@ import numpy as np
 
 from grader.analyze.evidence import SHARE
 from grader.analyze import Finding, graded, provenance, register
-from grader.analyze._common import (WORLD_MAX, Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
+from grader.analyze._common import (Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
+from grader.spec.world import WORLD_SIZE_M
 from grader.analyze.goal_publisher import parse_xy_line
 from grader.analyze.goals import goal_xy
 from grader.scenario.events import Event
@@ -68,7 +69,7 @@ _STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCC
 _ID_KEYS = ("step",)      # the driver tags each goal's events with its step
 
 INNER = 11.0          # goals inside [0, inner_bound]^2 must be accepted and reached
-OUTER = WORLD_MAX     # goals outside [0, outer_bound]^2 must be rejected
+OUTER = WORLD_SIZE_M     # goals outside [0, outer_bound]^2 must be rejected
 SHORT_TIMEOUT = 5.0   # a goal with 0 < time_out <= short_timeout_s is the "timeout" probe
 
 
@@ -99,6 +100,7 @@ def action_goals(frames: Frames) -> list[dict]:
     goals_: list[dict] = []
     wait_resp: list[dict] = []
     wait_res: list[dict] = []
+    g: dict | None
     for e in ev:
         kind = e["event"]
         gid = next((str(e[k]) for k in _ID_KEYS if e.get(k) is not None), None)
@@ -275,7 +277,7 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
         return _no_action_events(frames)
     rows, ok_n = [], 0
     moved = provenance.moves(frames, p["pose_topic"])
-    for k, g in enumerate(gs, 1):
+    for g in gs:
         tol = g["goal_tol"] if g["goal_tol"] else p["default_goal_tol"]
         row = {"goal": [g["x"], g["y"]], "goal_tol": tol, "accepted": g["accepted"], "success": g["success"],
                "status": g["status"],

@@ -31,6 +31,7 @@ from scipy import stats
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import ROSOUT, Frames, meta_row, stdout_lines, thin, topic
 from grader.analyze.evidence import SHARE
+from grader.analyze.boxmuller_pairing import (COMMON_DEFAULTS, FORMULAS, _examples, _inputs, _no_output_finding, _pair_series, _sources, select)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -80,8 +81,6 @@ EVIDENCE = {
     "histogram": None, "qq": None,
 }
 
-from grader.analyze.boxmuller_pairing import (COMMON_DEFAULTS, FORMULAS, _examples, _inputs, _no_output_finding, _pair_series, _sources, select)
-
 @register("boxmuller", evidence={**EVIDENCE, "value": ("printed values", "")},
           expect="z = sqrt(−2 ln u1)·cos(2π u2) printed for at least {pass_ratio:.0%} of the published pairs",
           defaults={
@@ -101,7 +100,7 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
         return early
     best, cp = sel.best, sel.correct
     assert best is not None and cp is not None and sel.inputs is not None
-    ev = {
+    ev: dict = {
         "n_inputs": len(sel.inputs),
         "source": {"kind": best.source.kind, "name": best.source.name},
         "number_position": best.pos,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -24,7 +24,8 @@ TWO_PI = 2.0 * math.pi
 
 
 def _sqrt_m2ln(u: np.ndarray) -> np.ndarray:
-    return np.sqrt(-2.0 * np.log(u))
+    out: np.ndarray = np.sqrt(-2.0 * np.log(u))
+    return out
 
 
 #: name -> (formula text, function, feedback when the student's values match it)
@@ -308,12 +309,12 @@ def _pair(inp: Inputs, src: Source, pos: int, z: np.ndarray, sens: np.ndarray, v
         if j in chain:
             pairs.append((j, chain[j], True))
         elif lo[j] < hi[j]:
-            k = np.arange(lo[j], hi[j])
-            pairs.append((j, int(k[np.argmin(np.abs(src.time[j] - inp.t[k]))]), False))
+            near = np.arange(lo[j], hi[j])
+            pairs.append((j, int(near[np.argmin(np.abs(src.time[j] - inp.t[near]))]), False))
     return pairs
 
 
-def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred, p: dict, t_cut: float) -> Pairing:
+def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred: Any, p: dict, t_cut: float) -> Pairing:
     """Pair lines with inputs (see _pair) and measure the share matched, corrected for chance.
 
     Two passes: the first uses the full window; when it finds real matches their time lags are
@@ -398,7 +399,7 @@ def select(frames: Frames, p: dict, sources: list[Source] | None = None) -> Sele
                 key = (c, -fi, -si, -pi)
                 if best_key is None or key > best_key:
                     best_key, best = key, (src, pos, f)
-    assert best is not None
+    assert best is not None and best_key is not None
     t_cut = end_time(frames) - p.get("tail_grace_s", 2.0)
     src, pos, f = best
     if best_key[0] == 0:

@@ -20,13 +20,15 @@ The gains and form of Lab 3's law are checked by ``control_law`` (its own module
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from grader.analyze import Finding, graded, provenance, register
-from grader.analyze._common import (WORLD_MAX, Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, thin, times, topic)
-from grader.analyze.goals import Goal, goals, heading_error
+from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, thin, times, topic)
+from grader.spec.world import WORLD_SIZE_M
+from grader.analyze.goals import SentGoal, goals, heading_error
 from grader.analyze.evidence import SHARE, TIME
 from grader.scenario.events import Event
 
@@ -122,7 +124,7 @@ def _pose(frames: Frames, p: dict) -> pd.DataFrame | None:
     return df
 
 
-def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[Goal]:
+def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[SentGoal]:
     gl = goals(frames, p["goal_source"], p["goal_topic"])
     if p["steps"]:
         gl = [g for g in gl if g.extra.get("step") in set(p["steps"])]
@@ -184,7 +186,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     score = 0.0
     for k, g in enumerate(gl, 1):
         m = (t >= g.t) & (t <= g.t_end)
-        row = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
+        row: dict[str, Any] = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
         during = provenance.within(moved, g.t, g.t_end)
         if during:
             # student code put the turtle somewhere while this goal was active: no arrival counts
@@ -273,9 +275,9 @@ def _trajectory(t: np.ndarray, x: np.ndarray, y: np.ndarray, gl: list, theta: np
 
 
 def _wall_contacts(frames: Frames, t: np.ndarray, x: np.ndarray, y: np.ndarray, eps: float = 1e-3) -> dict:
-    """How often the turtle ran into a wall (turtlesim clamps the pose to [0, WORLD_MAX]): the
+    """How often the turtle ran into a wall (turtlesim clamps the pose to [0, WORLD_SIZE_M]): the
     number of contact episodes and where the first ones were (s since the scenario start, x, y)."""
-    at = (x <= eps) | (y <= eps) | (x >= WORLD_MAX - eps) | (y >= WORLD_MAX - eps)
+    at = (x <= eps) | (y <= eps) | (x >= WORLD_SIZE_M - eps) | (y >= WORLD_SIZE_M - eps)
     starts = np.nonzero(at & ~np.concatenate(([False], at[:-1])))[0]
     pts = [[float(s), round(float(x[i]), 3), round(float(y[i]), 3)]
            for s, i in zip(since_start(frames, t[starts[:20]]), starts[:20])]
@@ -365,10 +367,10 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             ct = np.where(np.isfinite(ct), ct, times(cmd))
             w = cmd["angular.z"].to_numpy(float)
             turning = np.abs(w) > 1e-3
-            during = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
+            during_hold: Any = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
             after = np.nonzero(turning & (ct > t_from) & (ct <= g.t_end))[0]
-            if len(during):
-                w_judged, row["command_sent_s"] = float(w[during[-1]]), float(ct[during[-1]] - g.t)
+            if len(during_hold):
+                w_judged, row["command_sent_s"] = float(w[during_hold[-1]]), float(ct[during_hold[-1]] - g.t)
             elif len(after):
                 w_judged, row["command_sent_s"] = float(w[after[0]]), float(ct[after[0]] - g.t)
             row["first_cmd_angular_z"] = w_judged
@@ -427,7 +429,7 @@ def _first_turn(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, dete
 
 
 def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,
-                    g: Goal, max_points: int = 120) -> dict:
+                    g: SentGoal, max_points: int = 120) -> dict:
     """theta_e over time while goal ``k`` was active (the report's heading-error figure)."""
     keep = thin(len(t), max_points)
     err = np.degrees(heading_error(x[keep], y[keep], th[keep], g.x, g.y))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+from typing import cast
 
 import numpy as np
 
@@ -179,7 +180,7 @@ def goal_publisher_robust(frames: Frames, p: dict) -> Finding:
     msgs = _goal_msgs(frames, p["goal_topic"])
     if msgs is not None and good_later:
         t, x, y, _ = msgs
-        gx, gy = good_later[0]
+        gx, gy = cast(tuple, good_later[0])          # (Nones filtered out above)
         survived = bool(np.any((t > b["t"]) & (np.abs(x - gx) <= p["tol"]) & (np.abs(y - gy) <= p["tol"])))
     ev["later_goal_published"] = survived
     if crash_exit or undelivered or (tb and not survived):

@@ -37,7 +37,10 @@ def goal_xy(obj: Any) -> tuple[float, float] | None:
 
 
 @dataclass
-class Goal:
+class SentGoal:
+    """A goal as a recording shows it sent (``t``, where), until the next one (``t_end``); the
+    rubric's goal (what a scenario sends) is ``grader.scenario.fields.Goal``."""
+
     t: float
     x: float
     y: float
@@ -46,7 +49,7 @@ class Goal:
     extra: dict = field(default_factory=dict)
 
 
-def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal") -> list[Goal]:
+def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal") -> list[SentGoal]:
     """Goals in time order: ``goal_sent`` events (auto/events) or Float32MultiArray on goal_topic.
 
     Consecutive identical goals are merged (re-sending the same goal does not restart it).
@@ -54,7 +57,7 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
     (a rubric may place the turtle before the next goal: a turtle placed on the goal it failed
     to reach has not reached it), or NaN for the last goal.
     """
-    out: list[Goal] = []
+    out: list[SentGoal] = []
     if source in ("auto", "events"):
         for e in events(frames, Event.GOAL_SENT):
             if e.get("topic") not in (None, goal_topic):
@@ -63,15 +66,15 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
             if xy is None:
                 xy = goal_xy(e)
             if xy is not None:
-                out.append(Goal(e["t"], xy[0], xy[1], "events", extra={"step": e.get("step")}))
+                out.append(SentGoal(e["t"], xy[0], xy[1], "events", extra={"step": e.get("step")}))
     if not out and source in ("auto", "topic"):
         df = topic(frames, goal_topic)
         if df is not None and "data[0]" in df.columns and "data[1]" in df.columns:
             for t, x, y in zip(times(df), df["data[0]"], df["data[1]"]):
                 if np.isfinite(x) and np.isfinite(y):
-                    out.append(Goal(float(t), float(x), float(y), "topic"))
+                    out.append(SentGoal(float(t), float(x), float(y), "topic"))
     out.sort(key=lambda g: g.t)
-    merged: list[Goal] = []
+    merged: list[SentGoal] = []
     for g in out:
         if merged and abs(merged[-1].x - g.x) < 1e-3 and abs(merged[-1].y - g.y) < 1e-3:
             continue
@@ -92,7 +95,7 @@ def wrap(a: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
-def heading_error(x, y, theta, xd, yd):
+def heading_error(x: Any, y: Any, theta: Any, xd: Any, yd: Any) -> Any:
     """theta_e of the lab's eq. (3): signed angle from the heading to the goal, in (-pi, pi]."""
     dx, dy = np.asarray(xd) - np.asarray(x), np.asarray(yd) - np.asarray(y)
     c, s = np.cos(theta), np.sin(theta)

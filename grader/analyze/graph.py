@@ -7,6 +7,8 @@ every step (``graph`` events) and records what a launch file declared (``launch_
 
 from __future__ import annotations
 
+from typing import cast
+
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze._common import Frames, events
 from grader.scenario.events import Event
@@ -62,7 +64,7 @@ def nodes_running(frames: Frames, p: dict) -> Finding:
         rows.append({"node": name, "running": running, "declared": in_launch})
         if not in_launch:
             problems.append(f"{name} is not declared by {launch} (it declares "
-                            f"{', '.join(declared) or 'no named node'}; set name='{name.strip('/')}')")
+                            f"{', '.join(declared or ()) or 'no named node'}; set name='{name.strip('/')}')")
         elif not running:
             problems.append(f"{name} never appeared in the ROS graph ({_why_absent(frames, name, seen)})")
     ok = sum(1 for r in rows if r["running"] and r["declared"])
@@ -110,5 +112,5 @@ def launch_installed(frames: Frames, p: dict) -> Finding:
         return Finding("installed", 1.0, "pass", f"{e.get('launch')} is installed with the package.", ev)
     if not ev["notes"] and any(c in str(e.get("launch")) for c in "*?["):
         return Finding.fail(f"The package has no launch file ({e.get('launch')}).", ev, value="no launch file")
-    return Finding.fail(" ".join(ev["notes"]) or f"{e.get('launch')} is not installed with the package.", ev,
+    return Finding.fail(" ".join(cast(list, ev["notes"])) or f"{e.get('launch')} is not installed with the package.", ev,
                         value="not installed")

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -121,7 +122,7 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
         ticks = np.maximum(1, np.round(np.diff(t) / DT))
         allowed_step = np.maximum(v[1:], v[:-1]) * DT * ticks + p["jump_tol"]
         jumps = np.nonzero(step > allowed_step)[0]
-        all_jumps = [{"t": float(t[i + 1]), "from": [float(x[i]), float(y[i])],
+        all_jumps: list[dict[str, Any]] = [{"t": float(t[i + 1]), "from": [float(x[i]), float(y[i])],
                       "to": [float(x[i + 1]), float(y[i + 1])], "distance": float(step[i])} for i in jumps]
         ev["jumps"] = all_jumps[:10]
         ev["n_jumps"] = len(all_jumps)
@@ -167,7 +168,10 @@ def integrity_no_teleport(frames: Frames, p: dict) -> Finding:
     (:mod:`grader.analyze.provenance`: not by when a call was made.)"""
     if not math.isfinite(end_time(frames)):
         return Finding.error("The bag holds no messages; teleport calls could not be checked.")
-    flagged, listed, explained, unknown = [], [], [], []
+    flagged: list = []
+    listed: list = []
+    explained: list = []
+    unknown: list = []
     for svc in p["flag_services"]:
         for c in provenance.calls(frames, svc):
             {provenance.GRADER: explained, provenance.STUDENT: flagged}.get(c.by, unknown).append(c.plain(frames))

@@ -13,7 +13,7 @@
 from __future__ import annotations
 
 import re
-from typing import Any, Iterable
+from typing import Any, Iterable, cast
 
 import numpy as np
 import pandas as pd
@@ -99,7 +99,7 @@ def _subscribers(frames: Frames, name: str) -> set[str]:
     sim = _sim_node(frames)
     out = set()
     for e in events(frames, Event.GRAPH):
-        subs = e.get("subscribers") if isinstance(e.get("subscribers"), dict) else {}
+        subs: dict = e["subscribers"] if isinstance(e.get("subscribers"), dict) else {}
         for node in subs.get(name) or []:
             if not str(node).startswith("grader_") and str(node) != sim:
                 out.add(str(node))
@@ -161,7 +161,7 @@ def text_messages(frames: Frames, p: dict) -> Finding:
     texts = [str(v) for v in df["data"]]
     matches = [pattern.fullmatch(t) or pattern.search(t) for t in texts]
     ok = [m is not None for m in matches]
-    ev = {"messages": len(texts), "matching": int(sum(ok)), "first": texts[:5],
+    ev: dict[str, Any] = {"messages": len(texts), "matching": int(sum(ok)), "first": texts[:5],
           "not_matching": [t for t, k in zip(texts, ok) if not k][:5]}
     problems = []
     if len(texts) < p["min_count"]:
@@ -169,8 +169,8 @@ def text_messages(frames: Frames, p: dict) -> Finding:
     if not all(ok):
         problems.append(f"{len(texts) - sum(ok)} message(s) do not match {p['pattern']!r}, e.g. "
                         f"{ev['not_matching'][0]!r}")
-    if p["counting"] and all(ok) and matches and matches[0].groups():
-        numbers = [int(m.group(1)) for m in matches]
+    if p["counting"] and all(ok) and matches and cast(re.Match, matches[0]).groups():
+        numbers = [int(cast(re.Match, m).group(1)) for m in matches]      # (all matched)
         steps = np.diff(numbers)
         ev["counter"] = numbers[:20]
         if len(steps) and not np.all(steps == 1):

@@ -25,6 +25,7 @@ earns nothing in any of them: its path was not driven.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -32,8 +33,9 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, provenance, register
 from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, held_mask, missing_topic_feedback,
+from grader.analyze._common import (sim_pose, Frames, fmt, held_mask, missing_topic_feedback,
                                     rosout_lines, thin, times, topic)
+from grader.spec.world import WORLD_SIZE_M
 from grader.analyze.rate import rate_stats
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -111,8 +113,8 @@ def circle_radius(frames: Frames, p: dict) -> Finding:
         if p[key] not in (None, *allowed):
             raise GraderError(f"circle_radius: {key} must be {' or '.join(allowed)} (or absent), got {p[key]!r}")
     df, problem = _moving_pose(frames, p)
-    if problem:
-        return problem
+    if problem or df is None:           # (no problem: there are poses)
+        return cast(Finding, problem)
     x, y = df["x"].to_numpy(float), df["y"].to_numpy(float)
     cx, cy, r, rms = fit_circle(x, y)
     keep = thin(len(x))
@@ -174,8 +176,8 @@ def _wrong_way(df: pd.DataFrame, p: dict, ev: dict) -> str:
 })
 def circle_period(frames: Frames, p: dict) -> Finding:
     df, problem = _moving_pose(frames, p)
-    if problem:
-        return problem
+    if problem or df is None:           # (no problem: there are poses)
+        return cast(Finding, problem)
     t = times(df)
     theta = np.unwrap(df["theta"].to_numpy(float))
     slope, _ = np.polyfit(t - t[0], theta, 1)
@@ -266,7 +268,7 @@ def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
           expect='no wall contact', defaults={
     "pose_topic": "/turtle1/pose",
     "sim_logger": "turtlesim",        # the simulator's logger (its "hit the wall" warning)
-    "world_max": WORLD_MAX,           # m: the world is [0, world_max] in x and y
+    "world_max": WORLD_SIZE_M,           # m: the world is [0, world_max] in x and y
     "min_clearance": 0.0,             # m: closer than this to a wall also counts as contact
     "approach_m": None,               # m: the path must come at least this close to a wall (None: any)
 })

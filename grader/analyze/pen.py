@@ -84,7 +84,7 @@ def _start_calls(calls: list[dict], used: list[bool], t_pose: np.ndarray, x_pose
     if not cross or not len(t_pose):
         return []
     before = cross[0]["t"] - 0.05            # the first crossing's window opens here (see the matcher)
-    out = []
+    out: list[dict] = []
     for i, call in enumerate(calls):
         if len(out) >= int(p.get("start_calls") or 0) or call["t"] >= before:
             break

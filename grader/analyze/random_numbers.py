@@ -8,6 +8,7 @@ the recorder saw on the graph), the values from the recorded messages.
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 from scipy import stats
 
 from grader.analyze.evidence import SHARE
@@ -63,7 +64,7 @@ def topic_type(frames: Frames, p: dict) -> Finding:
         return Finding.fail(missing_topic_feedback(frames, name, f"type {want}"), {"topic": name})
     got = norm_type(row.get("type"))
     try:
-        count = int(row.get("count"))
+        count = int(row.get("count"))  # type: ignore[arg-type]  # None is caught below
     except (TypeError, ValueError):
         df = topic(frames, name)
         count = 0 if df is None else len(df)
@@ -106,7 +107,7 @@ def random_numbers_values(frames: Frames, p: dict) -> Finding:
     return finding
 
 
-def _values(df, name: str, p: dict) -> Finding:
+def _values(df: pd.DataFrame, name: str, p: dict) -> Finding:
     n = len(df)
     if "data[0]" not in df.columns:
         return Finding.fail(f"Messages on {name} carry no data array: fill msg.data = [u1, u2].",

@@ -8,9 +8,10 @@ and "each request is republished as a message" are checked from the bag.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
+import pandas as pd
 
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SINCE_START
@@ -107,7 +108,7 @@ def request_echoed(frames: Frames, p: dict) -> Finding:
                                "t": float(since_start(frames, [c["t"]])[0]),
                                "message_t": since_start(frames, t[idx]).tolist()}
         if len(idx):
-            msg = df.iloc[idx[0]]
+            msg = cast(pd.DataFrame, df).iloc[idx[0]]      # (messages found: df is there)
             got = {f: _value(msg.get(f)) for f in p["fields"]}
             want = {f: _value(c["request"].get(r)) for f, r in p["fields"].items()}
             match = all(_same(got[f], want[f], p["tol"]) for f in p["fields"])
@@ -144,4 +145,4 @@ def _value(v: Any) -> Any:
 def _same(a: Any, b: Any, tol: float) -> bool:
     if isinstance(a, float) and isinstance(b, float):
         return math.isfinite(a) and math.isfinite(b) and abs(a - b) <= tol
-    return a == b
+    return bool(a == b)

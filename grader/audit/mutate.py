@@ -70,7 +70,7 @@ import random
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Iterable
 
 from grader.audit.operators import MAKERS, Edit, Source, parents_of, scope_of, unmutable
 
@@ -211,5 +211,5 @@ def _file_mutants(root: Path, rel: str, source: str, tree: ast.Module, operators
     return out
 
 
-def _col(src: Source, node: ast.AST) -> int:
+def _col(src: Source, node: Any) -> int:
     return src.offset(node.lineno, node.col_offset) - src.starts[node.lineno - 1] + 1

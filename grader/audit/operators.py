@@ -12,7 +12,7 @@ from __future__ import annotations
 import ast
 import re
 from dataclasses import dataclass
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator, TypeGuard
 
 _NAMED_CALLS = {"create_publisher": 1, "create_subscription": 1, "create_service": 1, "create_client": 1,
                 "ActionServer": 2, "ActionClient": 2}
@@ -30,7 +30,7 @@ class Edit:
     """One change: replace ``node``'s span by ``text`` (a whole statement by ``pass``)."""
 
     operator: str
-    node: ast.AST
+    node: Any                 # an ast expr, stmt or _Pair: a node with a position
     text: str                 # replacement source for the node's span
     description: str
     statement: bool = False   # replace a whole statement (keeps indentation)
@@ -50,7 +50,7 @@ class Source:
         raw = self.lines[line - 1].encode("utf-8")[:col_bytes]
         return self.starts[line - 1] + len(raw.decode("utf-8", errors="replace"))
 
-    def span(self, node: ast.AST) -> tuple[int, int]:
+    def span(self, node: Any) -> tuple[int, int]:       # an expr, stmt or _Pair: they have positions
         return (self.offset(node.lineno, node.col_offset), self.offset(node.end_lineno, node.end_col_offset))
 
     def segment(self, node: ast.AST) -> str:
@@ -136,7 +136,7 @@ def _main_guard(node: ast.If) -> bool:
     return isinstance(test, ast.Compare) and isinstance(test.left, ast.Name) and test.left.id == "__name__"
 
 
-def _number(node: ast.AST) -> bool:
+def _number(node: Any) -> TypeGuard[Any]:      # an ast.Constant holding an int or float (used as a number)
     return isinstance(node, ast.Constant) and type(node.value) in (int, float)
 
 
@@ -279,7 +279,7 @@ def _swap_args(tree: ast.Module, parents: dict, skip: set, src: Source) -> Itera
 class _Pair(ast.AST):
     """Span covering two sibling nodes (from the first's start to the second's end)."""
 
-    def __init__(self, a: ast.AST, b: ast.AST) -> None:
+    def __init__(self, a: Any, b: Any) -> None:         # nodes with positions
         super().__init__()
         self.lineno, self.col_offset = a.lineno, a.col_offset
         self.end_lineno, self.end_col_offset = b.end_lineno, b.end_col_offset
@@ -310,7 +310,7 @@ def _rename_topic(tree: ast.Module, parents: dict, skip: set, src: Source) -> It
         if id(node) in seen or node in skip:
             continue
         seen.add(id(node))
-        new = node.value + "_renamed"
+        new = str(node.value) + "_renamed"
         yield Edit("rename_topic", node, repr(new), f"rename {node.value!r} to {new!r}")
 
 

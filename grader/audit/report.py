@@ -8,7 +8,7 @@ from pathlib import Path
 from grader.audit.mutate import OPERATORS
 from grader.audit.run import AuditReport, Outcome
 
-STATUSES = ("killed", "equivalent", "surviving", "error")
+MUTANT_STATUSES = ("killed", "equivalent", "surviving", "error")
 
 
 def headline(report: AuditReport) -> list[str]:
@@ -33,7 +33,7 @@ def by_operator(report: AuditReport) -> list[tuple[str, dict[str, int]]]:
     for op in OPERATORS:
         mine = [o for o in report.outcomes if o.mutant["operator"] == op]
         if mine:
-            rows.append((op, {s: sum(1 for o in mine if o.status == s) for s in STATUSES} | {"graded": len(mine)}))
+            rows.append((op, {s: sum(1 for o in mine if o.status == s) for s in MUTANT_STATUSES} | {"graded": len(mine)}))
     return rows
 
 
@@ -49,7 +49,7 @@ def text_summary(report: AuditReport, diffs: bool = True) -> str:
         lines.append(f"  not mutated (given unchanged by the handout): {', '.join(report.given_files)}")
     lines.append("  by operator:")
     for op, c in by_operator(report):
-        lines.append(f"    {op:20} {c['graded']:3} graded: " + ", ".join(f"{c[s]} {s}" for s in STATUSES if c[s]))
+        lines.append(f"    {op:20} {c['graded']:3} graded: " + ", ".join(f"{c[s]} {s}" for s in MUTANT_STATUSES if c[s]))
     surviving = [o for o in report.outcomes if o.status == "surviving"]
     if surviving:
         lines.append(f"  SURVIVING ({len(surviving)}): full marks, not recorded as equivalent: a blind spot of the "

@@ -31,10 +31,13 @@ import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from grader.audit.mutate import COPY_IGNORE, Mutant, mutants, sample, source_files
 from grader.errors import GraderError
+
+if TYPE_CHECKING:
+    from grader.grading.pipeline import GradedSubmission
 
 REFERENCE_ID = "reference"
 _EPS = 1e-6
@@ -201,10 +204,10 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
         todo.append(dest)
     done_count = [len(chosen) - len(todo)]
 
-    def on_done(sid: str, result: Any, error: str | None) -> None:
+    def on_done(sid: str, graded_mutant: GradedSubmission | None, error: str | None) -> None:
         done_count[0] += 1
-        verdict = (f"ERROR {error}" if error else
-                   f"{result.result.auto_score:g}/{result.result.auto_max:g}")
+        verdict = (f"ERROR {error}" if error or graded_mutant is None else
+                   f"{graded_mutant.result.auto_score:g}/{graded_mutant.result.auto_max:g}")
         say(f"[{done_count[0]}/{len(chosen)}] {sid}: {verdict}")
 
     failures: dict[str, str] = {}

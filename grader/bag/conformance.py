@@ -281,9 +281,9 @@ def _summary_problems(files: list[Path], meta: BagMetadata) -> list[str]:
     for topic in sorted(set(channels) - set(listed)):
         p.append(f"MCAP channel {topic} is missing from {METADATA_FILE}")
     for topic in sorted(set(listed) & set(channels)):
-        t, (schema, cmeta) = listed[topic], channels[topic]
-        if t.type != schema:
-            p.append(f"{topic}: {METADATA_FILE} type {t.type} but MCAP schema {schema}")
+        t, (schema_name, cmeta) = listed[topic], channels[topic]
+        if t.type != schema_name:
+            p.append(f"{topic}: {METADATA_FILE} type {t.type} but MCAP schema {schema_name}")
         if t.message_count != counts[topic]:
             p.append(f"{topic}: {METADATA_FILE} counts {t.message_count} messages, the MCAP "
                      f"statistics {counts[topic]}")

@@ -175,7 +175,7 @@ def topic_frame(bag: Bag, td: TopicData) -> pd.DataFrame:
 
 
 def _decode_rows(td: TopicData, text: str) -> list[dict]:
-    decoders = {}
+    decoders: dict = {}
     rows = []
     for i, payload in enumerate(td.payloads()):
         if len(payload) < 4:

@@ -42,7 +42,7 @@ def bag_info(bag_dir: Path | str) -> dict[str, Any]:
     for name in sorted(bag.topics):
         td = bag.topics[name]
         lt = td.log_times()
-        entry = {"name": name, "type": td.type, "count": td.count,
+        entry: dict[str, Any] = {"name": name, "type": td.type, "count": td.count,
                  "serialization_format": td.serialization_format,
                  "first": float(lt[0]) / 1e9 if len(lt) else None,
                  "last": float(lt[-1]) / 1e9 if len(lt) else None,
@@ -65,7 +65,7 @@ def bag_info(bag_dir: Path | str) -> dict[str, Any]:
     }
 
 
-def _size(n: int) -> str:
+def _size(n: float) -> str:
     for unit in ("B", "KiB", "MiB", "GiB"):
         if n < 1024 or unit == "GiB":
             return f"{n:.1f} {unit}" if unit != "B" else f"{n} B"

@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     rng = random.Random(args.seed)
     payloads = [serialize_message(fill(cls(), i, args.pattern, rng)) for i in range(args.count)]
 
-    service_state = {}
+    service_state: dict = {}
     if args.service_calls:
         _setup_service(node, service_state)
 

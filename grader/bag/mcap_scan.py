@@ -126,7 +126,7 @@ def _decompress(compression: str, data: bytes, size: int) -> bytes:
     raise McapFormatError(f"unsupported chunk compression {compression!r}")
 
 
-def _read_str(buf: bytes, pos: int) -> tuple[str, int]:
+def _read_str(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
     (n,) = _U32.unpack_from(buf, pos)
     pos += 4
     if pos + n > len(buf):
@@ -134,7 +134,7 @@ def _read_str(buf: bytes, pos: int) -> tuple[str, int]:
     return bytes(buf[pos:pos + n]).decode(), pos + n
 
 
-def _read_map(buf: bytes, pos: int) -> tuple[dict[str, str], int]:
+def _read_map(buf: bytes | memoryview, pos: int) -> tuple[dict[str, str], int]:
     (n,) = _U32.unpack_from(buf, pos)
     pos += 4
     end = pos + n
@@ -146,7 +146,7 @@ def _read_map(buf: bytes, pos: int) -> tuple[dict[str, str], int]:
     return out, end
 
 
-def _parse_schema(rec: bytes) -> Schema:
+def _parse_schema(rec: bytes | memoryview) -> Schema:
     (sid,) = _U16.unpack_from(rec, 0)
     name, pos = _read_str(rec, 2)
     enc, pos = _read_str(rec, pos)
@@ -154,7 +154,7 @@ def _parse_schema(rec: bytes) -> Schema:
     return Schema(sid, name, enc, bytes(rec[pos + 4:pos + 4 + n]))
 
 
-def _parse_channel(rec: bytes) -> Channel:
+def _parse_channel(rec: bytes | memoryview) -> Channel:
     cid, sid = struct.unpack_from("<HH", rec, 0)
     topic, pos = _read_str(rec, 4)
     enc, pos = _read_str(rec, pos)

@@ -19,6 +19,7 @@ import re
 import sys
 from functools import lru_cache
 from pathlib import Path
+from typing import Mapping
 
 SEPARATOR = "=" * 80
 PRIMITIVES = frozenset({
@@ -59,9 +60,9 @@ def normalize_type(type_name: str, package: str = "") -> str:
 
 def prefixes(env: dict[str, str] | None = None) -> list[Path]:
     """Install prefixes to search: AMENT_PREFIX_PATH, then this interpreter's prefix (wheels)."""
-    env = os.environ if env is None else env
+    found: Mapping[str, str] = os.environ if env is None else env
     out: list[Path] = []
-    for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) + [sys.prefix]:
+    for p in found.get("AMENT_PREFIX_PATH", "").split(os.pathsep) + [sys.prefix]:
         if p and Path(p) not in out:
             out.append(Path(p))
     return out
@@ -243,7 +244,8 @@ _TIME = "int32 sec\nuint32 nanosec\n"
 def split_sections(text: str) -> list[tuple[str, str, str]]:
     """``[(kind, type, body)]`` of a rosbag2 definition; the root (no header) has kind ``""``."""
     out: list[tuple[str, str, str]] = []
-    kind, name, body = "", "", []
+    kind, name = "", ""
+    body: list[str] = []
     lines = text.split("\n")
     i = 0
     while i < len(lines):

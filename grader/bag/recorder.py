@@ -157,7 +157,7 @@ class Recorder:
         self.regex = re.compile(args.regex) if args.regex else None
         self.exclude = re.compile(args.exclude) if args.exclude else None
         self.all = args.all or (not self.topics and not self.regex)
-        self._waitset = None
+        self._waitset: tuple[Any, list] | None = None
 
     # -- selection and discovery ---------------------------------------------------------
     def wanted(self, topic: str) -> bool:
@@ -284,7 +284,7 @@ class Recorder:
         if self._record_offers(sub):
             self.writer.update_qos(sub.topic, list(sub.offers.values()))
 
-    def _build_waitset(self):
+    def _build_waitset(self) -> tuple[Any, list]:
         from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
         subs = [s for s in self.subs.values() if s.handle is not None]
@@ -435,7 +435,7 @@ def run(args: argparse.Namespace) -> int:
     rec.stop = rec.stop or bool(stopping)
     try:
         return rec.run()
-    except BaseException:
+    except BaseException:  # noqa: BLE001 - re-raised once the bag is closed
         # whatever happened, leave a readable bag behind
         try:
             rec.writer.close()

@@ -19,7 +19,7 @@ frames under :data:`TIMEBASE`, so helpers that read wall-clock stamps out of mes
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -65,7 +65,7 @@ def time_map(clock: Any, scale: float) -> TimeMap | None:
     return TimeMap(wall[keep], sim[keep], float(scale))
 
 
-def to_scenario_time(frames: dict, t: Any) -> np.ndarray:
+def to_scenario_time(frames: Mapping[str, Any], t: Any) -> np.ndarray:
     """Wall-clock times read out of messages (log stamps) in the frames' time base: simulated
     seconds when the bag ran on simulated time, else unchanged."""
     tmap = frames.get(TIMEBASE)

@@ -22,7 +22,7 @@ import io
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, cast
 
 import yaml
 from mcap.writer import CompressionType, Writer
@@ -161,7 +161,7 @@ class BagWriter:
             self.start_time = self.end_time = log_time_ns
         elif log_time_ns < self.start_time:
             self.start_time = log_time_ns
-        elif log_time_ns > self.end_time:
+        elif log_time_ns > cast(int, self.end_time):     # (set with start_time)
             self.end_time = log_time_ns
         if self._unflushed_since is None:
             self._unflushed_since = time.monotonic()

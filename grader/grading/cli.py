@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from grader.errors import GraderError
 
@@ -91,24 +92,6 @@ def _intake_options(g: argparse.ArgumentParser) -> None:
     g.add_argument("--timezone", metavar="ZONE", help="time zone of --due (default: the rubric's), e.g. America/New_York")
 
 
-def _due_override(args: argparse.Namespace, rubric) -> dict | None:
-    """``--due``/``--timezone`` checked against the rubric's late policy."""
-    from pydantic import ValidationError
-
-    if args.due is None:
-        if args.timezone:
-            raise GraderError("--timezone goes with --due (the rubric's late policy has its own time zone)")
-        return None
-    if rubric.late is None:
-        raise GraderError(f"--due replaces the due date of the rubric's late policy, and {args.rubric} has "
-                          "none: add a late: section to the rubric (rubrics/README.md, \"Late policy\")")
-    try:
-        rubric.late.with_due(args.due, args.timezone)
-    except ValidationError as exc:
-        raise GraderError("--due: " + "; ".join(e["msg"].removeprefix("Value error, ") for e in exc.errors())) from None
-    return {"due": args.due, "timezone": args.timezone}
-
-
 def _time_scale_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-scale", type=_time_scale, default=1.0, metavar="K",
                         help="run scenarios K times faster than real time on simulated time (e.g. 4), "
@@ -184,125 +167,85 @@ class Progress:
 
 
 def run_grade(args: argparse.Namespace) -> int:
-    from grader.grading.batch import grade_batch
-    from grader.grading.outputs import write_batch_outputs
-    from grader.grading.schedule import Slots, default_jobs
-    from grader.grading.shards import in_shard, write_shard_note
-    from grader.intake.batch import WORK_DIR, read_intake
-    from grader.report.result import atomic_write
-    from grader.rubric.load import load_rubric
-    from grader.scores.roster import parse_mapping, read_roster
+    from grader import api
 
-    rubric = load_rubric(args.rubric)
-    due = _due_override(args, rubric)
-    if args.map and not args.roster:
-        raise GraderError("--map describes the roster's columns: give the roster with --roster")
-    roster = read_roster(args.roster, parse_mapping(args.map), require_submission=False) if args.roster else None
-    args.out.mkdir(parents=True, exist_ok=True)
-    intake = read_intake(args.submissions, rubric, work=args.out / WORK_DIR, roster=roster,
-                         classroom_prefix=args.classroom_prefix, kind=args.intake)
-    print(intake.table(), flush=True)
-    atomic_write(args.out / "intake.csv", intake.csv_text())
-    subs = intake.gradable
-    refused = {a.original[0]: a.refused or "" for a in intake.refused}
-    if args.only:
-        subs = [s for s in subs if s.id in set(args.only)]
-        if not subs:
-            raise GraderError(f"none of {', '.join(args.only)} is among the submissions in {args.submissions}.")
-        refused = {}
-    if args.shard:
-        subs = [s for s in subs if in_shard(s.id, *args.shard)]
-        write_shard_note(args.out, rubric, *args.shard)
-    todo = [s for s in subs if not (args.resume and (args.out / s.id / "result.json").exists())]
-    progress = Progress(len(subs))
-    progress.done = len(subs) - len(todo)
+    progress: Progress | None = None
 
-    def done(sid: str, graded, error: str | None) -> None:
+    def found(intake: Any) -> None:
+        print(intake.table(), flush=True)
+
+    def start(selected: int, done_before: int) -> None:
+        nonlocal progress
+        progress = Progress(selected)
+        progress.done = done_before
+
+    def done(sid: str, graded: Any, error: str | None) -> None:
+        assert progress is not None
         progress.advance(f"{sid}: ERROR {error}" if error and graded is None and "interrupted" not in error
                          else f"{sid}: {graded.result.auto_score:g}/{graded.result.auto_max:g}" if graded
                          else f"{sid}: {error}")
 
-    failures: dict[str, str] = {}
-    interrupted = False
+    def status(text: str) -> None:
+        if progress is not None:
+            progress.status(text)
+
     try:
-        failures = grade_batch(todo, rubric, args.out, slots=Slots(args.jobs or default_jobs()),
-                               cache_dir=args.cache_dir, reuse=not args.no_reuse, on_done=done,
-                               progress=progress.status, time_scale=args.time_scale, due_override=due,
-                               cache_max_size=args.cache_max_size)
-    except KeyboardInterrupt:
-        interrupted = True
+        batch = api.grade(args.submissions, args.rubric, args.out, jobs=args.jobs, only=args.only, shard=args.shard,
+                          resume=args.resume, reuse=not args.no_reuse, cache_dir=args.cache_dir,
+                          time_scale=args.time_scale, intake=args.intake, roster=args.roster, roster_map=args.map,
+                          classroom_prefix=args.classroom_prefix, due=args.due, timezone=args.timezone,
+                          cache_max_size=args.cache_max_size, on_intake=found, on_start=start, on_done=done,
+                          progress=status)
     finally:
-        progress.close()
-        write_batch_outputs(args.out, rubric)
-    for sid, msg in failures.items():
+        if progress is not None:
+            progress.close()
+    for sid, msg in batch.failures.items():
         print(f"grader: {sid}: {msg}", file=sys.stderr)
-    for name, why in refused.items():
+    for name, why in batch.refused.items():
         print(f"grader: {name}: not graded: {why}", file=sys.stderr)
     print(f"wrote {args.out / 'grades.csv'} and {args.out / 'index.html'}")
-    if interrupted or any("interrupted" in m for m in failures.values()):
+    if batch.interrupted:
         print("grader: interrupted; finished submissions are saved; rerun with --resume to continue",
               file=sys.stderr)
         return 130
-    return 1 if failures or refused else 0
+    return 1 if batch.failures or batch.refused else 0
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from grader.grading.outputs import print_check_table
-    from grader.grading.pipeline import grade_submission
+    from grader import api
+    from grader.grading.outputs import print_check_table, print_contract
     from grader.labs import rubric_for_lab
-    from grader.rubric.load import load_rubric
 
     if args.rubric is None and args.lab is None:
         raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
-    rubric = load_rubric(args.rubric or rubric_for_lab(args.lab))
-    from grader.grading.outputs import print_contract
-
+    rubric = api.load_rubric(args.rubric or rubric_for_lab(args.lab))
     print_contract(rubric)
-    ws = args.workspace.resolve()
-    out = (args.out or ws / ".grader-check").resolve()
-    from grader.grading.schedule import Slots, default_jobs
-
     progress = Progress(1)
-    graded = grade_submission(ws, rubric, out, cache_dir=args.cache_dir, public_only=True,
-                              sid="check", progress=progress.status, slots=Slots(args.jobs or default_jobs()),
-                              reuse=not args.no_reuse, time_scale=args.time_scale)
+    graded = api.check(args.workspace, rubric=rubric, out=args.out, jobs=args.jobs, cache_dir=args.cache_dir,
+                       reuse=not args.no_reuse, time_scale=args.time_scale, cache_max_size=args.cache_max_size,
+                       progress=progress.status)
     progress.close()
-    from grader.cache import default_cache_dir
-    from grader.cache.store import end_batch
-
-    ended = end_batch(Path(args.cache_dir or default_cache_dir()), [graded.cache], args.cache_max_size)
-    if ended.get("message"):
-        print(f"grader: {ended['message']}", file=sys.stderr)
     ok = print_check_table(graded, rubric)
     print(f"report: {graded.out / 'report.html'}")
     return 0 if ok else 1
 
 
 def run_regrade(args: argparse.Namespace) -> int:
-    from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import SCENARIOS_DIR, regrade_submission
+    from grader import api
     from grader.grading.provenance import by_other_grader
-    from grader.rubric.load import load_rubric
 
-    rubric = load_rubric(args.rubric)
-    path = args.path
-    single = (path / SCENARIOS_DIR).is_dir()
-    subs = [path] if single else sorted(p for p in path.iterdir() if (p / SCENARIOS_DIR).is_dir()) \
-        if path.is_dir() else []
-    if not subs:
-        raise GraderError(f"{path} holds no graded submissions (no */{SCENARIOS_DIR}/ folders).")
-    other_made = []
-    for sub in subs:
-        graded = regrade_submission(sub, rubric)
-        other = by_other_grader(graded.recordings)
+    other_made: list[str] = []
+
+    def done(g) -> None:
+        other = by_other_grader(g.recordings)
         note = f"  (rests on recordings another grader made: {', '.join(other)})" if other else ""
-        print(f"{graded.id}: {graded.result.auto_score:g}/{graded.result.auto_max:g}{note}")
-        other_made += [graded.id] if other else []
-    if not single:
-        write_batch_outputs(path, rubric)
+        print(f"{g.id}: {g.result.auto_score:g}/{g.result.auto_max:g}{note}")
+        other_made.extend([g.id] if other else [])
+
+    regraded = api.regrade(args.path, args.rubric, on_done=done)
     if other_made:
         # the grades are recomputed by this grader, from recordings an earlier (or other) one made
-        print(f"note: {len(other_made)} of {len(subs)} grades rest on recordings made by another grader "
+        print(f"note: {len(other_made)} of {len(regraded)} grades rest on recordings made by another grader "
               "version or ROS installation (each report says which, result.json: recordings_by_other_grader); "
               "`grader grade --no-reuse` records them again with this one")
     return 0

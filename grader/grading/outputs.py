@@ -4,8 +4,13 @@ and the self-check table printed by `grader check`."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from grader import __version__
+
+if TYPE_CHECKING:
+    from grader.grading.pipeline import GradedSubmission
+    from grader.rubric.schema import Rubric
 
 
 def versions() -> dict[str, str]:
@@ -24,7 +29,7 @@ def _canvases(sub_out: Path) -> dict[str, str]:
             if scenario_of(p.parent.name) == p.parent.name}
 
 
-def effective_params(rubric) -> dict[str, dict]:
+def effective_params(rubric: Rubric) -> dict[str, dict]:
     """item id -> the analyzer's parameters as run (defaults merged with the rubric's), for the
     report's thresholds when a result does not record its own."""
     from grader import analyze
@@ -39,7 +44,7 @@ def effective_params(rubric) -> dict[str, dict]:
     return out
 
 
-def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[str, str] | None = None) -> None:
+def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public_only: bool, inputs: dict[str, str] | None = None) -> None:
     """result.json (+ build, errors, timings, previous grading) and report.html for one submission."""
     from grader.grading.provenance import by_other_grader, notes, scenario_recordings
     from grader.report.html import write_html
@@ -57,7 +62,7 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
             problems.append(f"sandbox: {sandbox['warning']}")
         problems += [f"limit reached: {hit}" for hit in sandbox.get("limits_hit", [])]
     problems = list(dict.fromkeys(problems))         # a regrade that keeps stored errors adds none twice
-    extra = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
+    extra: dict[str, Any] = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
              "errors": problems, "timings": graded.timings,
              "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir()),
              "scenarios_reused": dict(getattr(graded, "reused", {}) or {})}
@@ -74,6 +79,8 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
         extra["recordings_by_other_grader"] = other
     if getattr(graded, "intake", None):
         extra["intake"] = graded.intake           # who and when, as the LMS said (grader.intake)
+    if rubric.analyzers:        # the rubric's own analyzer files: a page redrawn later draws their figures
+        extra["analyzer_files"] = [str(p) for p in rubric.analyzers]
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
     if time_scales:                 # --time-scale: how each scenario ran, and why not faster
         extra["time_scale"] = time_scales
@@ -85,7 +92,7 @@ def write_submission_outputs(graded, rubric, *, public_only: bool, inputs: dict[
                intake=getattr(graded, "intake", None))
 
 
-def write_batch_outputs(out: Path, rubric) -> None:
+def write_batch_outputs(out: Path, rubric: Rubric) -> None:
     """grades.csv and index.html rebuilt from every OUT/*/result.json on disk (so parallel,
     resumed and regraded submissions all count)."""
     from grader.report.batch import load_results, write_batch
@@ -94,7 +101,7 @@ def write_batch_outputs(out: Path, rubric) -> None:
         write_batch(out, rubric)
 
 
-def print_check_table(graded, rubric) -> bool:
+def print_check_table(graded: GradedSubmission, rubric: Rubric) -> bool:
     """The self-check table; True when every public auto item passed."""
     result = graded.result
     rows = [i for i in result.items if i.kind != "manual"]
@@ -137,7 +144,7 @@ def print_check_table(graded, rubric) -> bool:
     return ok
 
 
-def print_contract(rubric) -> None:
+def print_contract(rubric: Rubric) -> None:
     """What the lab fixes, before a self-check runs: the names to use exactly."""
     lines = rubric.contract.lines()
     if not lines:

@@ -13,12 +13,19 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable, cast
 
 from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
 from grader.grading.repeat import median_finding, run_folders, run_until_settled, settles_check
 from grader.scenario.events import Event
+
+if TYPE_CHECKING:
+    from grader.analyze import Finding
+    from grader.grading.schedule import Slots
+    from grader.rubric.schema import Item, Rubric
+    from grader.rubric.score import Result
+    from grader.scenario.model import Scenario
 
 SCENARIOS_DIR = "scenarios"
 
@@ -53,7 +60,7 @@ def discover_submissions(root: Path) -> list[Path]:
 class GradedSubmission:
     id: str
     out: Path
-    result: Any                       # grader.rubric.score.Result
+    result: Result
     build_ok: bool
     build_failed: list[str] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
@@ -66,7 +73,7 @@ class GradedSubmission:
     intake: dict | None = None        # how it arrived: LMS ids, student, time (grader.intake)
 
 
-def selected_items(rubric, public_only: bool) -> list:
+def selected_items(rubric: Rubric, public_only: bool) -> list[Item]:
     return [i for i in rubric.items if i.automatic and (i.public or not public_only)]
 
 
@@ -138,7 +145,7 @@ def _crashed_nodes(frames: dict) -> list[str]:
     return out
 
 
-def analyze_item(item, frames: dict):
+def analyze_item(item: Item, frames: dict) -> Finding:
     """One item's analyzer on one scenario's frames (never raises).
 
     When the analysis could not happen because the student's node did not run (it could not be
@@ -148,7 +155,7 @@ def analyze_item(item, frames: dict):
     """
     from grader import analyze
 
-    finding = analyze.run(item.analyzer, frames, dict(item.params))
+    finding = analyze.run(cast(str, item.analyzer), frames, dict(item.params))
     if finding.status not in ("fail", "error"):
         return finding      # only a failed analysis needs the events and output parsed for a reason
     missing = _unavailable_nodes(frames)
@@ -163,7 +170,7 @@ def analyze_item(item, frames: dict):
     return finding
 
 
-def combine_findings(item, per_scenario: list):
+def combine_findings(item: Item, per_scenario: list) -> Finding | None:
     """One finding for an item run on several scenarios: the worst one counts.
 
     An integrity check is judged on the scenarios where it could run: a scenario in which the
@@ -176,7 +183,7 @@ def combine_findings(item, per_scenario: list):
     if item.kind == "integrity":
         checked = [f for f in per_scenario if f is not None and f.status != "error"]
         per_scenario = checked or per_scenario
-    return worst_finding(per_scenario) if per_scenario else None
+    return cast("Finding | None", worst_finding(per_scenario)) if per_scenario else None
 
 
 class Findings(dict):
@@ -187,7 +194,7 @@ class Findings(dict):
     contract: tuple = ()
 
 
-def analyze_bags(rubric, items: list, sub_out: Path,
+def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
                  unusable: dict[str, str] | None = None) -> tuple[Findings, list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems.
     ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
@@ -195,12 +202,15 @@ def analyze_bags(rubric, items: list, sub_out: Path,
     from grader.analyze import Finding
     from grader.analyze.contract import check_contract
     from grader.rubric.contract import merge_mismatches
+    from grader.analyze.plugins import load_rubric_files
+
+    load_rubric_files(rubric)       # its own analyzer files (done by load_rubric already; idempotent)
 
     frames_cache: dict[str, dict | Exception] = {}
     problems: list[str] = []
     unusable = unusable or {}
 
-    def frames_for(sc: str):          # sc: a run's folder name (the scenario id for its first run)
+    def frames_for(sc: str) -> dict | Exception:          # sc: a run's folder name (the scenario id for its first run)
         if sc not in frames_cache:
             if sc in unusable:
                 frames_cache[sc] = GraderError(unusable[sc])
@@ -237,9 +247,9 @@ def analyze_bags(rubric, items: list, sub_out: Path,
     return findings, problems
 
 
-def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | None = None,
+def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: Path | None = None,
                      public_only: bool = False, sid: str | None = None,
-                     progress: Callable[[str], None] | None = None, slots=None,
+                     progress: Callable[[str], None] | None = None, slots: Slots | None = None,
                      reuse: bool = True, time_scale: float = 1.0, intake: dict | None = None,
                      due_override: dict | None = None) -> GradedSubmission:
     """Build, run the needed scenarios (side by side, within ``slots``), analyze and score one
@@ -337,7 +347,7 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     return graded
 
 
-def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None,
+def _run_one(sid: str, sc_id: str, scenario: Scenario, build: Any, out: Path, slots: Slots, recordings: Path | None,
              time_scale: float = 1.0, rates: tuple = (), settles: Callable[[list[Path]], bool] | None = None) -> dict:
     """One scenario; a repeated one (``repeat: N``) run by run until its median is settled, each
     run recorded or reused by ``grader.grading.reuse.record_or_reuse``."""
@@ -349,7 +359,7 @@ def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings
         out / SCENARIOS_DIR, sc_id, scenario.repeat, settles)
 
 
-def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:
+def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = False) -> GradedSubmission:
     """Recompute a submission's grade from its recorded bags only (no build, no ROS)."""
     from grader.rubric.score import score
     from grader.intake.apply import apply_intake
@@ -423,7 +433,7 @@ def recordings_to_refuse(sub_out: Path, old: dict) -> tuple[dict[str, str], list
     return refuse, notes
 
 
-def write_outputs(graded: GradedSubmission, rubric, *, public_only: bool,
+def write_outputs(graded: GradedSubmission, rubric: Rubric, *, public_only: bool,
                   inputs: dict[str, str] | None = None) -> None:
     from grader.grading.outputs import write_submission_outputs
 

@@ -142,7 +142,8 @@ class RecordingCache:
         if dest.exists():
             shutil.rmtree(dest)
         shutil.copytree(entry, dest, ignore=shutil.ignore_patterns("source.json"))
-        return json.loads(source.read_text())
+        found: dict[str, Any] = json.loads(source.read_text())
+        return found
 
     def put(self, key: str, folder: Path, submission: str) -> None:
         """Keep a finished scenario folder (atomically: a half-copied entry is never used)."""

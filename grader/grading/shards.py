@@ -14,8 +14,12 @@ import hashlib
 import json
 import shutil
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from grader.errors import GraderError
+
+if TYPE_CHECKING:
+    from grader.rubric.schema import Rubric
 
 NOTE = ".shard.json"
 
@@ -25,16 +29,16 @@ def in_shard(submission: str, k: int, n: int) -> bool:
     return int(hashlib.sha256(submission.encode()).hexdigest(), 16) % n == k - 1
 
 
-def rubric_digest(rubric) -> str:
+def rubric_digest(rubric: Rubric) -> str:
     return hashlib.sha256(Path(rubric.source).read_bytes()).hexdigest()[:16]
 
 
-def write_shard_note(out: Path, rubric, k: int, n: int) -> None:
+def write_shard_note(out: Path, rubric: Rubric, k: int, n: int) -> None:
     (Path(out) / NOTE).write_text(json.dumps({"lab": rubric.lab, "rubric": rubric_digest(rubric),
                                               "shard": [k, n]}))
 
 
-def merge_outputs(parts: list[Path], out: Path, rubric) -> list[str]:
+def merge_outputs(parts: list[Path], out: Path, rubric: Rubric) -> list[str]:
     """Copy every submission of ``parts`` into ``out``; refuses a part graded with another rubric
     or a submission that two parts both hold (nothing is copied then). Returns the ids merged."""
     digest = rubric_digest(rubric)

@@ -24,7 +24,7 @@ import subprocess
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from grader.errors import GraderError
 from grader.scenario.model import LaunchedProcess, Process, param_text
@@ -129,7 +129,7 @@ def describe_launch(path: Path, arguments: dict[str, str], env: dict[str, str]) 
     if run.timed_out:
         raise GraderError(f"{path.name}: loading the launch file took longer than "
                           f"{DESCRIBE_TIMEOUT_S:.0f} s")
-    proc = subprocess.CompletedProcess(argv, run.returncode, stdout, stderr)
+    proc = subprocess.CompletedProcess(argv, cast(int, run.returncode), stdout, stderr)
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
     try:
         doc = json.loads(lines[-1])
@@ -192,7 +192,7 @@ def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> Launc
         name = _unique(f"{proc.name}.{Path(str(label)).name}", used)
         if entity["kind"] == "node" and (entity.get("package"), entity["executable"]) == (SIM_PACKAGE, SIM_EXECUTABLE):
             sim_node = entity.get("name") or "turtlesim"
-            declared = dict(name=name, process=proc.name, node_name=sim_node, package=SIM_PACKAGE,
+            declared: dict[str, Any] = dict(name=name, process=proc.name, node_name=sim_node, package=SIM_PACKAGE,
                             executable=SIM_EXECUTABLE)
             if sim_in_scenario:
                 notes.append(f"{entity['at']}: turtlesim_node '{sim_node}' is the grader's reference "

@@ -88,11 +88,11 @@ class _Page:
         parts = []
         tables = []
         if rows:
-            tables.append(f'<table class="ev"><caption>Measurements</caption><tbody>'
+            tables.append('<table class="ev"><caption>Measurements</caption><tbody>'
                          + "".join(f'<tr><th scope="row">{escape(k)}</th><td>{v}</td></tr>' for k, v in rows)
                          + "</tbody></table>")
         if thresholds:
-            tables.append(f'<table class="ev"><caption>Settings and thresholds</caption><tbody>'
+            tables.append('<table class="ev"><caption>Settings and thresholds</caption><tbody>'
                          + "".join(f'<tr><th scope="row">{escape(k)}</th><td>{v}</td></tr>'
                                    for k, v in thresholds) + "</tbody></table>")
         if tables:

@@ -281,6 +281,7 @@ def render_index(results: Mapping[str, Result], *, title: str | None = None,
     heading = title or (f"{first.title}: class view" if first else "Class view")
     if subs:
         scores = [s.result.auto_score for s in subs]
+        assert first is not None                    # (there are submissions)
         lead = (f"{len(subs)} submission(s). Automatic score out of {first.auto_max:g}: median "
                 f"{statistics.median(scores):g}, mean {statistics.mean(scores):.1f}, lowest {min(scores):g}, "
                 f"highest {max(scores):g}. Totals stay empty (—) until manual items are graded.")

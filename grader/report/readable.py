@@ -235,7 +235,7 @@ def raw_json(evidence: Mapping[str, Any], hidden: set[str] | None = None, max_li
                                            ensure_ascii=False, default=str))
 
 
-def spread_text(decided: dict[str, Any] | None) -> str:
+def spread_text(decided: Mapping[str, Any] | None) -> str:
     """The report's sentence: "Graded by the median of 3 runs: 2 of 3 runs partial (1.5 points),
     1 of 3 pass (3 points)." Empty for an item decided by one run."""
     if not decided or int(decided.get("runs") or 1) <= 1:

@@ -10,7 +10,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import os
 import re
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Any, Mapping
 from grader.errors import GraderError
 from grader.rubric.schema import Rubric, Section, SectionSpec
 from grader.rubric.score import ItemResult, Notice, Result
+from grader.spec.jsonable import jsonable
 
 RESULT_SCHEMA = 1
 SUBMISSION_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@+-]{0,127}$")
@@ -30,31 +30,6 @@ def check_submission_id(submission: str) -> str:
         raise GraderError(f"submission id {submission!r} must start with a letter or digit and "
                           f"contain only letters, digits and . _ @ + - (no '..')")
     return submission
-
-
-def jsonable(obj: Any) -> Any:
-    """Evidence comes from pandas/numpy code: make it strict JSON (NaN/inf -> null)."""
-    if obj is None or isinstance(obj, (bool, str)):
-        return obj
-    if isinstance(obj, int):
-        return obj
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, Mapping):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, (set, frozenset)):
-        return [jsonable(v) for v in sorted(obj, key=str)]
-    if isinstance(obj, os.PathLike):
-        return os.fspath(obj)
-    if hasattr(obj, "tolist"):           # numpy arrays and scalars, pandas Series
-        return jsonable(obj.tolist())
-    if hasattr(obj, "item"):
-        return jsonable(obj.item())
-    if hasattr(obj, "isoformat"):
-        return obj.isoformat()
-    return str(obj)
 
 
 def item_to_dict(item: ItemResult) -> dict[str, Any]:

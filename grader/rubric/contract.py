@@ -22,14 +22,15 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, replace
-from typing import Annotated, Any, Iterable, Iterator
+from typing import Annotated, Any, Iterable, Iterator, Mapping
 
 from pydantic import Field, field_validator, model_validator
 
 from grader.scenario.fields import (ActionType, ExecutableName, LaunchFile, Model, MsgType, PackageName,
-                                    RosName, SrvType, _named)
+                                    RosName, SrvType)
+from grader.spec.text import pattern_text, suggest
 
-Role = _named(r"^[a-z][a-z0-9_]*$", "a role id like news or greeter (lower case, digits, _)")
+Role = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "a role id like news or greeter (lower case, digits, _)")]
 Why = Annotated[str, Field(min_length=1, pattern=r"\S", description="where the lab text fixes it")]
 
 #: a whole value ``$role``, and ``${role}`` inside text
@@ -220,7 +221,6 @@ def resolve_references(data: Any) -> tuple[Any, list[tuple[tuple, str]]]:
 def _name_of(role: str, table: dict, path: tuple, problems: list, kinds: tuple[str, ...] | None) -> Any:
     found = table.get(role)
     if found is None:
-        from grader.rubric.located import suggest
 
         known = ", ".join(f"${r}" for r in table) or "none: the rubric has no contract"
         problems.append((path, f"${role} is not in the contract{suggest(role, list(table))} (roles: {known})"))
@@ -249,11 +249,12 @@ def _resolve_contract(contract: dict, table: dict, problems: list) -> dict:
                 for key, kinds in keys.items():
                     value = entry.get(key)
                     at = ("contract", kind, role, key)
-                    if isinstance(value, str) and REF.match(value):
-                        entry[key] = _name_of(REF.match(value)[1], table, at, problems, kinds) or value
+                    if isinstance(value, str) and (ref := REF.match(value)):
+                        entry[key] = _name_of(ref[1], table, at, problems, kinds) or value
                     elif isinstance(value, list):
-                        entry[key] = [(_name_of(REF.match(v)[1], table, at + (i,), problems, kinds) or v)
-                                      if isinstance(v, str) and REF.match(v) else v for i, v in enumerate(value)]
+                        entry[key] = [(_name_of(ref[1], table, at + (i,), problems, kinds) or v)
+                                      if isinstance(v, str) and (ref := REF.match(v)) else v
+                                      for i, v in enumerate(value)]
                 if table.get(role, ("",))[0] == kind:
                     table[role] = (kind, entry)      # a process using it takes the resolved package
             new_group[role] = entry
@@ -337,14 +338,14 @@ def scenario_roles(contract: Contract, scenario: Any) -> set[str]:
         return set()
     out: set[str] = set()
     for proc in scenario.processes:
-        for role, e in contract.packages.items():
-            if proc.package == e.name:
+        for role, pkg in contract.packages.items():
+            if proc.package == pkg.name:
                 out.add(role)
-        for role, e in contract.executables.items():
-            if (proc.package, proc.executable) == (e.package, e.name):
+        for role, exe in contract.executables.items():
+            if (proc.package, proc.executable) == (exe.package, exe.name):
                 out.add(role)
-        for role, e in contract.launch_files.items():
-            if (proc.package, proc.launch) == (e.package, e.name):
+        for role, launch in contract.launch_files.items():
+            if (proc.package, proc.launch) == (launch.package, launch.name):
                 out.add(role)
     data = scenario.model_dump(mode="json", include={"goal_topic", "steps"})
     return out | _named_roles(contract, (s for _, s in _strings(data)))
@@ -371,7 +372,7 @@ class Mismatch:
                 "feedback": self.feedback, "scenarios": list(self.scenarios), "blocks": list(self.blocks)}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Mismatch":
+    def from_dict(cls, d: Mapping[str, Any]) -> "Mismatch":
         return cls(role=str(d.get("role", "")), kind=str(d.get("kind", "")), expected=str(d.get("expected", "")),
                    found=tuple(d.get("found") or ()), feedback=str(d.get("feedback", "")),
                    scenarios=tuple(d.get("scenarios") or ()), blocks=tuple(d.get("blocks") or ()))

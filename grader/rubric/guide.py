@@ -68,7 +68,7 @@ def json_schema() -> dict[str, Any]:
                      "anyOf": [defs[key], {"type": "string", "description": "the name alone"}]}
     for key in ("ActionGoal", "Publish"):  # a contract name's type is filled in: `name: $turtle_goal`
         defs[key]["required"] = [r for r in defs[key].get("required", []) if r != "type"]
-    schema = _with_references(schema)
+    schema = dict(_with_references(schema))
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     schema["title"] = "grader rubric"
     return schema
@@ -120,7 +120,7 @@ def analyzer_reference() -> str:
 def _schema_type(prop: dict[str, Any]) -> str:
     """A field's type in words, from its JSON Schema."""
     if "$ref" in prop:
-        return prop["$ref"].rsplit("/", 1)[-1]
+        return str(prop["$ref"]).rsplit("/", 1)[-1]
     if "anyOf" in prop:
         kinds = [_schema_type(p) for p in prop["anyOf"] if p.get("type") != "null"]
         return " or ".join(dict.fromkeys(kinds))
@@ -131,7 +131,7 @@ def _schema_type(prop: dict[str, Any]) -> str:
         return f"list of {_schema_type(prop.get('items', {}))}"
     if kind == "object":
         return "mapping"
-    return {"number": "number", "integer": "integer", "string": "text", "boolean": "true/false"}.get(kind, kind)
+    return str({"number": "number", "integer": "integer", "string": "text", "boolean": "true/false"}.get(kind, kind))
 
 
 def _fields_table(cls: Any, skip: tuple[str, ...] = ()) -> str:

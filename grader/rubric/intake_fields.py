@@ -14,11 +14,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from grader.scenario.fields import ExecutableName, Model, PackageName, _named
+from grader.scenario.fields import ExecutableName, Model, PackageName
+from grader.spec.text import pattern_text
 
 #: ``my_node.py`` or ``my_node.py:main`` (the function the console script calls; default main)
-PyFile = _named(r"^[A-Za-z_][A-Za-z0-9_]*\.py(:[A-Za-z_][A-Za-z0-9_]*)?$",
-                "a Python file name like my_node.py (or my_node.py:function)")
+PyFile = Annotated[str, pattern_text(r"^[A-Za-z_][A-Za-z0-9_]*\.py(:[A-Za-z_][A-Za-z0-9_]*)?$",
+                "a Python file name like my_node.py (or my_node.py:function)")]
 Percent = Annotated[float, Field(gt=0, le=100, allow_inf_nan=False)]
 UNIT_SECONDS = {"day": 86400.0, "hour": 3600.0}
 

@@ -10,18 +10,17 @@ into :class:`Problem` lines an instructor can fix in one pass, in words ("expect
 
 from __future__ import annotations
 
-import difflib
 import re
 import typing
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping, Sequence
 
 import yaml
 from pydantic import BaseModel, RootModel
 from yaml.constructor import SafeConstructor
 from yaml.nodes import MappingNode, Node, SequenceNode
 
-from grader.scenario.fields import PATTERN_WHAT
+from grader.spec.text import PATTERN_WHAT, suggest
 
 MERGE_TAG = "tag:yaml.org,2002:merge"
 _IDENT_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")
@@ -53,12 +52,6 @@ def dotted(path: Iterable[Any]) -> str:
         else:
             out += f"[{key!r}]"
     return out
-
-
-def suggest(word: str, candidates: Iterable[str]) -> str:
-    """`` (did you mean 'x'?)`` for a near miss, else an empty string."""
-    close = difflib.get_close_matches(str(word), [str(c) for c in candidates], n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 class Located:
@@ -115,7 +108,8 @@ class Located:
 
     def _pairs(self, node: MappingNode, path: Path_) -> list[tuple[Node, Node, bool]]:
         """Explicit keys first, then keys merged in with ``<<`` (which explicit keys override)."""
-        explicit, merged = [], []
+        explicit: list[tuple[Node, Node, bool]] = []
+        merged: list[tuple[Node, Node, bool]] = []
         for key_node, value_node in node.value:
             if key_node.tag != MERGE_TAG:
                 explicit.append((key_node, value_node, True))
@@ -151,7 +145,7 @@ def load_located(text: str, file: str, empty: str = "the file is empty") -> tupl
 # ----------------------------------------------------------------------------------------------
 # pydantic errors -> problems
 
-def problems_from(errors: list[dict], data: Any, located: Located, model: type) -> list[Problem]:
+def problems_from(errors: Sequence[Mapping[str, Any]], data: Any, located: Located, model: type) -> list[Problem]:
     """One Problem per validation error, located at the path's line, worded for a person."""
     nested = {tuple(e["loc"][:-1]) for e in errors if len(e["loc"]) > 1}
     by_path: dict[Path_, list[tuple[str, Any]]] = {}
@@ -201,7 +195,7 @@ def _describe(value: Any) -> str:
     return repr(value)
 
 
-def _message(err: dict, path: Path_, model: type) -> str:
+def _message(err: Mapping[str, Any], path: Path_, model: type) -> str:
     kind, ctx, given = err["type"], err.get("ctx") or {}, err.get("input")
     annotation, bounds = _field_at(model, tuple(err["loc"]))
     if kind == "missing":
@@ -212,7 +206,7 @@ def _message(err: dict, path: Path_, model: type) -> str:
         hint = suggest(key, allowed) or (f" (allowed: {', '.join(allowed)})" if allowed else "")
         return f"unknown key {key!r}{hint}"
     if kind in ("rule", "value_error", "assertion_error"):
-        return err["msg"].removeprefix("Value error, ").removeprefix("Assertion failed, ")
+        return str(err["msg"]).removeprefix("Value error, ").removeprefix("Assertion failed, ")
     if kind == "string_pattern_mismatch":
         what = PATTERN_WHAT.get(ctx.get("pattern", ""), "text matching " + str(ctx.get("pattern")))
         return f"expected {what}, got {_describe(given)}"
@@ -243,7 +237,7 @@ def _message(err: dict, path: Path_, model: type) -> str:
         return f"expected a list, got {_describe(given)}"
     if kind == "too_short":
         return f"expected at least {ctx.get('min_length', 1)} entr{'y' if ctx.get('min_length', 1) == 1 else 'ies'}"
-    return err["msg"]
+    return str(err["msg"])
 
 
 def _num(value: Any) -> str:
@@ -253,7 +247,8 @@ def _num(value: Any) -> str:
 # -- following a loc through the model's types, for allowed keys and numeric bounds ----------
 def _field_at(model: type, loc: tuple) -> tuple[Any, list[tuple[str, Any]]]:
     """The annotation at ``loc`` and its bounds ``[('>=', 0), ...]`` (best effort)."""
-    tp, meta = model, []
+    tp: Any = model
+    meta: list[tuple[str, Any]] = []
     for element in loc:
         tp, meta = _step(tp, element)
         if tp is None:

@@ -19,24 +19,24 @@ from pydantic import BeforeValidator, Field, PrivateAttr, ValidationInfo, field_
 
 from grader.rubric.intake_fields import LatePolicy, LooseFiles, intake_problems
 from grader.rubric.contract import Contract, item_roles, resolve_references, scenario_roles
-from grader.scenario.fields import Model, PackageName, _named, with_rules
+from grader.scenario.fields import Model, PackageName, with_rules
 from grader.scenario.model import Scenario
+from grader.spec.text import pattern_text, suggest
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION: Literal[1] = 1
 KINDS = ("auto", "manual", "advisory", "integrity")
-STATUSES = ("pass", "partial", "fail", "error")
 _EPS = 1e-9
 
-LabId = _named(r"^[a-z0-9][a-z0-9._-]*$", "a lab id like 'enee467-lab3' (lower case, digits, . _ -)")
-ItemId = _named(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", "an item id like 'ex1.pub_rate'")
-ScenarioId = _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "a scenario id (letters, digits, _ or -)")
-AnalyzerName = _named(r"^[a-z][a-z0-9_]*$", "an analyzer name (lower_case)")
+LabId = Annotated[str, pattern_text(r"^[a-z0-9][a-z0-9._-]*$", "a lab id like 'enee467-lab3' (lower case, digits, . _ -)")]
+ItemId = Annotated[str, pattern_text(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", "an item id like 'ex1.pub_rate'")]
+ScenarioId = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_-]*$", "a scenario id (letters, digits, _ or -)")]
+AnalyzerName = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "an analyzer name (lower_case)")]
 # (the same language as an analyzer name, written differently so each has its own error text)
-SectionKind = _named(r"^[a-z][a-z_0-9]*$", "a lower-case section kind like exercise")
+SectionKind = Annotated[str, pattern_text(r"^[a-z][a-z_0-9]*$", "a lower-case section kind like exercise")]
 SectionNumber = Union[Annotated[int, Field(ge=0)],
-                      _named(r"^[A-Za-z0-9._-]+$", "a section number like 1 or '2b'")]
+                      Annotated[str, pattern_text(r"^[A-Za-z0-9._-]+$", "a section number like 1 or '2b'")]]
 Text = Annotated[str, Field(min_length=1, pattern=r"\S")]
-MutantId = _named(r"^[a-z][a-z_]*-[0-9a-f]{8}$", "a mutant id like 'flip_sign-1a2b3c4d' (grader rubric audit)")
+MutantId = Annotated[str, pattern_text(r"^[a-z][a-z_]*-[0-9a-f]{8}$", "a mutant id like 'flip_sign-1a2b3c4d' (grader rubric audit)")]
 Points = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 
@@ -301,6 +301,9 @@ class Rubric(Model):
                                        "submission folder); it must earn no points")
     support: dict[PackageName, RubricPath] = Field(
         {}, description="packages supplied when a submission lacks them (e.g. given interfaces)")
+    analyzers: Annotated[tuple[RubricPath, ...], Field(strict=False)] = Field(
+        (), description="Python files (relative to the rubric) defining this lab's own analyzers and "
+                        "figures; imported when the rubric is loaded (grader.analyze.plugins)")
     contract: Contract = Field(Contract(), description="the names students must use exactly (package, "
                                "executable, node, topic, service, action, launch file), each under a role; "
                                "the rest of the rubric refers to them as $role")
@@ -389,8 +392,6 @@ class Rubric(Model):
     def problems(self, analyzers: Mapping[str, Any] | Collection[str] | None, check_files: bool) -> list[tuple[str, str]]:
         """Cross-references as ``(field path, message)``: scenarios, analyzers, sections, sums,
         ``requires``, files. ``analyzers``: name -> accepted parameter names (None: unchecked)."""
-        from grader.scenario.model import _suggest
-
         out: list[tuple[str, str]] = []
         for sid, scenario in self.scenarios.items():
             out += [(f"scenarios.{sid}.{path}", msg) for path, msg in scenario.problems()]
@@ -399,6 +400,16 @@ class Rubric(Model):
                     if step.replay is not None and not step.replay.bag.exists():
                         out.append((f"scenarios.{sid}.steps[{i}].replay.bag",
                                     f"bag not found (looked for {step.replay.bag})"))
+        seen_files: dict[Path, int] = {}
+        for index, file in enumerate(self.analyzers):
+            at = f"analyzers[{index}]"
+            if file.suffix != ".py":
+                out.append((at, f"an analyzer file is a Python module ending in .py, not {file.name!r}"))
+            elif file in seen_files:
+                out.append((at, f"{file.name} is listed twice (first at analyzers[{seen_files[file]}])"))
+            elif check_files and not file.is_file():
+                out.append((at, f"analyzer file not found (looked for {file})"))
+            seen_files.setdefault(file, index)
         if check_files:
             for name, path in self.support.items():
                 if not (path / "package.xml").is_file():
@@ -413,20 +424,20 @@ class Rubric(Model):
             ids.setdefault(item.id, index)
             for sid in item.scenario:
                 if sid not in self.scenarios:
-                    hint = _suggest(sid, list(self.scenarios)) or (
+                    hint = suggest(sid, list(self.scenarios)) or (
                         f" (defined: {', '.join(sorted(self.scenarios))})" if self.scenarios
                         else " (no scenarios defined)")
                     out.append((f"{at}.scenario", f"unknown scenario {sid!r}{hint}"))
             if item.analyzer and analyzers is not None:
                 if item.analyzer not in analyzers:
                     out.append((f"{at}.analyzer", f"unknown analyzer {item.analyzer!r}"
-                                + _suggest(item.analyzer, list(analyzers))))
+                                + suggest(item.analyzer, list(analyzers))))
                 elif isinstance(analyzers, Mapping):
                     accepted = set(analyzers[item.analyzer])
                     for key in item.params:
                         if key not in accepted:
                             out.append((f"{at}.params.{key}", f"analyzer {item.analyzer!r} takes no parameter "
-                                        f"{key!r}" + (_suggest(key, sorted(accepted)) or
+                                        f"{key!r}" + (suggest(key, sorted(accepted)) or
                                                       f" (accepted: {', '.join(sorted(accepted)) or 'none'})")))
                     needed = accepted if not isinstance(analyzers[item.analyzer], Mapping) else \
                         {k for k, req in analyzers[item.analyzer].items() if req is True}
@@ -438,7 +449,7 @@ class Rubric(Model):
                                         f"parameter {key!r} to hide"))
             for req in item.requires:
                 if req not in all_ids:
-                    out.append((f"{at}.requires", f"unknown item {req!r}" + _suggest(req, all_ids)))
+                    out.append((f"{at}.requires", f"unknown item {req!r}" + suggest(req, all_ids)))
                 elif req not in scored:
                     out.append((f"{at}.requires", f"{req!r} is not a scored (auto) item; only those can gate points"))
                 elif req == item.id:
@@ -493,9 +504,8 @@ class Rubric(Model):
                 seen.add(spec.section)
             for index, item in enumerate(self.items):
                 if item.section not in declared:
-                    from grader.scenario.model import _suggest
                     out.append((f"items[{index}].section", f"section {item.section.key!r} is not in the "
-                                "sections table" + _suggest(item.section.key, [s.section.key for s in self.sections])))
+                                "sections table" + suggest(item.section.key, [s.section.key for s in self.sections])))
                     continue
                 sums[item.section] += item.max_points
             for index, spec in enumerate(self.sections):

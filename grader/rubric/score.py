@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, Protocol
 
 from grader.errors import GraderError
 from grader.rubric.contract import Mismatch
-from grader.rubric.schema import STATUSES, Item, Rubric, Section, SectionSpec
+from grader.rubric.schema import Item, Rubric, Section, SectionSpec
+from grader.spec.status import STATUSES
 
 if TYPE_CHECKING:
     from grader.intake.late import LatePenalty
@@ -432,7 +433,8 @@ class _Missing:
 class _Formatter(string.Formatter):
     def get_field(self, field_name: str, args: Any, kwargs: Any) -> tuple[Any, str]:
         try:
-            return super().get_field(field_name, args, kwargs)
+            value, key = super().get_field(field_name, args, kwargs)
+            return value, str(key)
         except (KeyError, AttributeError, IndexError, TypeError, ValueError):
             return _Missing(field_name), field_name
 
@@ -440,7 +442,7 @@ class _Formatter(string.Formatter):
         if value is None:
             return "n/a"
         try:
-            return super().format_field(value, format_spec)
+            return str(super().format_field(value, format_spec))
         except (ValueError, TypeError):
             return str(value)
 

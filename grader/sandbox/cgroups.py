@@ -47,7 +47,7 @@ class CgroupSupport:
 
 def _mounts() -> list[tuple[str, str, set[str]]]:
     """(fstype, mount point, super options) of every cgroup mount."""
-    out = []
+    out: list[tuple[str, str, set[str]]] = []
     try:
         lines = Path("/proc/self/mountinfo").read_text().splitlines()
     except OSError:

@@ -69,7 +69,7 @@ class Jail:
 
     @classmethod
     def from_json(cls, data: Mapping) -> "Jail":
-        return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()})
+        return cls(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()})  # type: ignore[arg-type]
 
 
 @dataclass

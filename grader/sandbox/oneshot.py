@@ -14,7 +14,7 @@ import signal
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Mapping, Sequence, cast
 
 from grader.sandbox import cgroups
 from grader.sandbox.capture import CappedLog
@@ -95,10 +95,10 @@ def run_jailed(argv: Sequence[str], *, env: Mapping[str, str], cwd: Path, stdout
         if group is not None:
             group.remove()
         raise
-    logs = []
+    logs: list[CappedLog] = []
     for (r, w), path, stream in zip(pipes, [stdout, stderr], ["output", "stderr"]):
         os.close(w)
-        logs.append(CappedLog(r, path, output_cap, stream=stream))
+        logs.append(CappedLog(r, cast(Path, path), output_cap, stream=stream))   # (a pipe per log file)
     try:
         proc.wait(timeout=timeout_s)
     except subprocess.TimeoutExpired:

@@ -11,30 +11,23 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any, Union
 
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-#: ``pattern -> what it is``: validation errors say "expected a topic name" instead of a regex
-PATTERN_WHAT: dict[str, str] = {}
+from grader.spec.text import pattern_text
 
-
-def _named(pattern: str, what: str, **field: Any) -> Any:
-    PATTERN_WHAT[pattern] = what
-    return Annotated[str, StringConstraints(pattern=pattern), Field(description=what, **field)]
-
-
-RosName = _named(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", "a ROS name like /turtle1/pose")
-PackageName = _named(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digits, _)")
-ExecutableName = _named(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "an executable name")
-EntryPoint = _named(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$",
-                    "a Python entry point 'package.module:function'")
-LaunchFile = _named(r"^[A-Za-z0-9_*?][A-Za-z0-9_.*?-]*$",
-                    "a launch file name like app.launch.py, or a pattern like *launch.py")
-LocalId = _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "an id (letters, digits, _ or -)")
-EnvName = _named(r"^[A-Za-z_][A-Za-z0-9_]*$", "an environment variable name")
-MsgType = _named(r"^[A-Za-z][A-Za-z0-9_]*/msg/[A-Z][A-Za-z0-9]*$", "a message type like std_msgs/msg/String")
-SrvType = _named(r"^[A-Za-z][A-Za-z0-9_]*/srv/[A-Z][A-Za-z0-9]*$", "a service type like turtlesim/srv/SetPen")
-ActionType = _named(r"^[A-Za-z][A-Za-z0-9_]*/action/[A-Z][A-Za-z0-9]*$",
-                    "an action type like turtlesim/action/RotateAbsolute")
+RosName = Annotated[str, pattern_text(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", "a ROS name like /turtle1/pose")]
+PackageName = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digits, _)")]
+ExecutableName = Annotated[str, pattern_text(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "an executable name")]
+EntryPoint = Annotated[str, pattern_text(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$",
+                    "a Python entry point 'package.module:function'")]
+LaunchFile = Annotated[str, pattern_text(r"^[A-Za-z0-9_*?][A-Za-z0-9_.*?-]*$",
+                    "a launch file name like app.launch.py, or a pattern like *launch.py")]
+LocalId = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_-]*$", "an id (letters, digits, _ or -)")]
+EnvName = Annotated[str, pattern_text(r"^[A-Za-z_][A-Za-z0-9_]*$", "an environment variable name")]
+MsgType = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_]*/msg/[A-Z][A-Za-z0-9]*$", "a message type like std_msgs/msg/String")]
+SrvType = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_]*/srv/[A-Z][A-Za-z0-9]*$", "a service type like turtlesim/srv/SetPen")]
+ActionType = Annotated[str, pattern_text(r"^[A-Za-z][A-Za-z0-9_]*/action/[A-Z][A-Za-z0-9]*$",
+                    "an action type like turtlesim/action/RotateAbsolute")]
 #: sequences and paths accept what YAML/JSON give (lists, text); their items stay strict
 LaxPath = Annotated[Path, Field(strict=False)]
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]

@@ -19,12 +19,14 @@ The field types and base model live in ``grader.scenario.fields``, the ``until:`
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Union, cast
 
 from pydantic import (BeforeValidator, ConfigDict, Field, RootModel, ValidationInfo, field_validator,
                       model_validator)
 
 # re-exported: the whole scenario language is importable from here
+from grader.spec.text import suggest
+from grader.spec.world import WORLD_SIZE_M
 from grader.scenario.conditions import (  # noqa: F401
     ActionDone, Advertised, Condition, GoalReached, Messages, Output, ProcessExit, ReplayDone, ServiceDone,
     Subscribed)
@@ -33,16 +35,14 @@ from grader.scenario.fields import (  # noqa: F401
     LaunchFile, LaxPath, LocalId, Model, MsgType, NonNegativeFloat, PackageName, ParamValue,
     PositiveFloat, PositiveInt, RosName, SrvType, with_rules)
 
-#: turtlesim's world is [0, WORLD_M]^2 (float32 of 499/45: grader.sim.physics.W)
-WORLD_M = 11.088889
 
 
 class Placement(Model):
     """Where the grader puts a turtle before a step's action (turtlesim's ``teleport_absolute``),
     so the step starts from the same pose in every run, whatever the turtle did before."""
 
-    x: Annotated[float, Field(ge=0.0, le=WORLD_M, description="m")]
-    y: Annotated[float, Field(ge=0.0, le=WORLD_M, description="m")]
+    x: Annotated[float, Field(ge=0.0, le=WORLD_SIZE_M, description="m")]
+    y: Annotated[float, Field(ge=0.0, le=WORLD_SIZE_M, description="m")]
     theta: Annotated[float, Field(allow_inf_nan=False, description="rad, 0 = facing +x")]
     turtle: LocalId = Field("turtle1", description="the turtle's name")
 
@@ -281,10 +281,10 @@ class Step(Model):
                                       "use 'wait: N' for a plain pause)"))
         until = value.get("until")
         name = until if isinstance(until, str) else until.get("condition") if isinstance(until, dict) else None
-        needs = {"action_done": "action", "service_done": "service", "replay_done": "replay"}.get(name)
+        needs = {"action_done": "action", "service_done": "service", "replay_done": "replay"}.get(cast(str, name))
         if needs and needs not in actions:
             own.append((("until",), f"{name!r} waits for this step's {needs}, but the step has no {needs!r}"))
-        if name == "goal_reached" and "goal" not in until and value.get("goal") is None:
+        if name == "goal_reached" and "goal" not in cast(Any, until) and value.get("goal") is None:
             own.append((("until", "goal"), "goal_reached needs a goal: give one here, or use it "
                                            "on a 'goal:' step"))
         return with_rules(cls, handler, value, own)
@@ -378,7 +378,7 @@ class Scenario(Model):
                 for name in (value.root if value is not None else ()):
                     if name not in names:
                         out.append((f"steps[{i}].{key}", f"no process {name!r} in this scenario"
-                                    + _suggest(name, names)))
+                                    + suggest(name, names)))
                     elif key == "start":
                         started.add(name)
                         if self.process(name).autostart:
@@ -387,7 +387,7 @@ class Scenario(Model):
             proc_ref = getattr(step.until, "process", None)
             if proc_ref is not None and proc_ref not in names:
                 out.append((f"steps[{i}].until.process", f"no process {proc_ref!r} in this scenario"
-                            + _suggest(proc_ref, names)))
+                            + suggest(proc_ref, names)))
         for i, proc in enumerate(self.processes):
             if not proc.autostart and proc.name not in started:
                 out.append((f"processes[{i}]", f"process {proc.name!r} has autostart: false but no "
@@ -396,13 +396,6 @@ class Scenario(Model):
             out.append(("limits.wall_s", f"the steps may take up to {self.budget_s:g} s (start delays + "
                         f"step limits) but wall_s is {self.limits.wall_s:g}; raise it or shorten the steps"))
         return out
-
-
-def _suggest(word: str, candidates: list[str]) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(word, candidates, n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 # ------------------------------------------------------------------ what the scenario child reads

@@ -24,7 +24,7 @@ import threading
 import time
 import traceback
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Iterator, Sequence, cast
 
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
@@ -121,7 +121,7 @@ class Launcher:
         clock = self.driver.clock
         if proc.start_delay:
             clock.sleep(proc.start_delay)
-        launched = self.run.launched.get(name, ())
+        launched: Sequence[LaunchedProcess] = self.run.launched.get(name, ())
         started: list[str] = []
         launched = [lp for lp in launched if not lp.stand_in]   # the reference sim plays those
         delayed = [lp for lp in launched if lp.start_delay > 0]
@@ -147,16 +147,16 @@ class Launcher:
             if self._start_one(proc, lp):
                 self._wait_up(before, [lp.name])
 
-    def _wait_up(self, before: tuple[set, int | None], names: list[str]) -> None:
+    def _wait_up(self, snapshot: tuple[set, int | None], names: list[str]) -> None:
         """While the clock is held: wait (wall time) until the started processes' nodes are in
         the graph with their topics recorded (or the processes ended); on simulated time also
         until the clock owner has matched their ``/clock`` readers, then a moment for their
-        first ``/clock``. ``before``: the student nodes and matched readers before they started."""
+        first ``/clock``. ``snapshot``: the student nodes and matched readers before they started."""
         clock = self.driver.clock
         if not names:
             return
         driver = self.driver
-        before, readers = before
+        before, readers = snapshot
 
         def alive() -> list[str]:
             return [n for n in names if n in self.students and self.students[n].alive()]
@@ -193,7 +193,7 @@ class Launcher:
             close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.scenario.time_limit_s),
             nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0, untrusted=True),
             process_class=_EventedProcess, stdin_gate=gate)
-        managed.driver = driver
+        managed.driver = driver  # type: ignore[attr-defined]  # (an _EventedProcess)
         if gate is not None:
             threading.Thread(target=_open_gate, args=(driver, managed, before, gate), daemon=True).start()
         self.students[lp.name] = managed
@@ -248,7 +248,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if scale:
                 if not driver.clock.wait_for_clock(SIM_READY_S):
                     raise RuntimeError(f"no {CLOCK_TOPIC} from the grader's clock within {SIM_READY_S:.0f}s")
-                driver.watchdog = RateWatchdog(run.expected_rates, clock_owner=clock_node)
+                driver.watchdog = RateWatchdog(run.expected_rates, clock_owner=cast(str, clock_node))
                 for expect in run.expected_rates:
                     driver.count_messages(expect.topic, None, wait_s=0.0)
             if sim is not None:
@@ -262,7 +262,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 # the clock is held from here until the autostarted processes are up: a recorder
                 # still discovering the clock owner's topics would miss K times more of the start
                 start_hold.enter_context(driver.clock.held())
-                driver.wait_until(lambda: driver.recorder_matched((clock_node, "/")), RECORDER_READY_S,
+                driver.wait_until(lambda: driver.recorder_matched((cast(str, clock_node), "/")), RECORDER_READY_S,
                                   wall=True)
                 time.sleep(FIRST_CLOCK_S)
             launcher = Launcher(run, graph, driver, students)
@@ -326,12 +326,12 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if scale and driver is not None and not driver.clock.stop():
                 record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "
                                                             "or stopped the simulated clock")
-            for name, proc in students.items():
-                crashed = proc.returncode is not None and not proc.stopped_by_grader
-                rc = proc.stop()
+            for name, student in students.items():
+                crashed = student.returncode is not None and not student.stopped_by_grader
+                rc = student.stop()
                 record["processes"][name] = {"returncode": rc, "crashed": crashed and rc != 0,
-                                             "exited_early": crashed, "timed_out": proc.timed_out,
-                                             "killed": proc.killed}
+                                             "exited_early": crashed, "timed_out": student.timed_out,
+                                             "killed": student.killed}
             if driver is not None:
                 if scale:
                     record["time_scale"].update(sim_s=round(driver.clock.sim_s(), 3),

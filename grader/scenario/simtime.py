@@ -165,7 +165,7 @@ class ScenarioClock:
 
         reply = self._request(self._stop_client, Trigger.Request())
         try:
-            return int(reply.split()[1]) <= self.requests
+            return int(reply.split()[1]) <= self.requests  # type: ignore[union-attr]  # (None: caught)
         except (AttributeError, IndexError, ValueError):
             return True
 
@@ -188,7 +188,7 @@ class ScenarioClock:
 
         reply = self._request(self._client, SetBool.Request(data=on))
         try:
-            at, readers = reply.split()
+            at, readers = reply.split()  # type: ignore[union-attr]  # (None: caught)
             return int(at), int(readers)
         except (AttributeError, ValueError):
             return None

@@ -13,7 +13,7 @@ import re
 import time
 import uuid
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 from grader.scenario import model as m
 from grader.scenario.driver import Driver, fill, import_type, to_plain
@@ -191,7 +191,7 @@ def _hand_over(rt: Runtime, step: m.Step, state: StepState, before: tuple[int, A
     t0 = time.monotonic()
     driver.clock.sleep(PLACE_HANDOFF_S)
     time.sleep(max(0.0, t0 + PLACE_HANDOFF_S - time.monotonic()))
-    entry = driver.commands.get(handoff_topic(step.place), [0, None])
+    entry = driver.commands.get(handoff_topic(cast(m.Placement, step.place)), [0, None])   # (a placed step)
     seen: list[int] = []
 
     def taken() -> bool:
@@ -209,7 +209,7 @@ def _command_at_placement(rt: Runtime, step: m.Step) -> tuple[int, Any]:
     until it has sent two commands since the placement showed (at most ``PLACE_SETTLE_S``; a
     controller without a goal may send none), then note how many it sent and the last one."""
     driver = rt.driver
-    entry = driver.commands.get(handoff_topic(step.place), [0, None])
+    entry = driver.commands.get(handoff_topic(cast(m.Placement, step.place)), [0, None])   # (a placed step)
     start = entry[0]
     driver.wait_until(lambda: entry[0] >= start + 2, PLACE_SETTLE_S, poll=0.002, wall=True)
     return entry[0], entry[1]
@@ -323,7 +323,7 @@ def _replay(rt: Runtime, step: m.Step, spec: m.Replay, state: StepState) -> dict
         if paced and spec.lead is not None:
             ahead = i + 1 - spec.lead
             # the student's processing takes wall time: it gets the 1x allowance at any speed
-            if not driver.wait_until(lambda: driver.output_count() - base >= ahead, 0.25, poll=0.002,
+            if not driver.wait_until(lambda: driver.output_count() - base >= ahead, 0.25, poll=0.002,  # noqa: B023 - called here
                                      wall=True):
                 base = driver.output_count() - (i + 1)   # inputs lost or ignored: re-sync
             if i == 4 * spec.lead and driver.output_count() == base:
@@ -398,7 +398,7 @@ def _goal_reached(rt: Runtime, cond: m.GoalReached, state: StepState) -> Predica
             return False
         now = rt.driver.clock.now()
         since[0] = since[0] or now
-        return now - since[0] >= cond.settle
+        return now - cast(float, since[0]) >= cond.settle
 
     return check
 

@@ -178,7 +178,7 @@ def _match(results: Mapping[str, Result], roster: Roster | None, report: ExportR
             owner[student.line] = sid
     matched = set(owner.values())
     report.no_roster_row = sorted(sid for sid in results if sid not in matched)
-    pairs = []
+    pairs: list[tuple[Student | None, str]] = []
     for student in roster.students:
         if student.line in owner:
             pairs.append((student, owner[student.line]))
@@ -199,11 +199,11 @@ def _kept_ids(intake: Mapping) -> dict[str, str]:
 
 def _by_identity(roster: Roster, kept: Mapping[str, str]) -> Student | None:
     """The one roster row with the strongest id the intake record kept."""
-    for field in _IDENTITY:
-        value = str(kept.get(field) or "").strip().casefold()
-        if not value or field not in roster.columns:
+    for key in _IDENTITY:
+        value = str(kept.get(key) or "").strip().casefold()
+        if not value or key not in roster.columns:
             continue
-        rows = [s for s in roster.students if s.get(field).strip().casefold() == value]
+        rows = [s for s in roster.students if s.get(key).strip().casefold() == value]
         if len(rows) == 1:
             return rows[0]
     return None

@@ -110,7 +110,7 @@ def _apply_row(row: SheetRow, before: dict[str, ManualScore], source: str,
             comment = update.comment if update.comment is not None else (old.comment if old else "")
             if old is not None and old.points == points and old.comment == comment:
                 continue                              # unchanged: keep where it came from
-            after[item_id] = ManualScore(float(points), comment, f"{source} line {row.line}", stamp)
+            after[item_id] = ManualScore(float(points), comment, f"{source} line {row.line}", stamp)  # type: ignore[arg-type]
     changes = [Change(row.submission, i, before.get(i), after.get(i))
                for i in row.updates if before.get(i) != after.get(i)]
     return after, changes
@@ -184,5 +184,8 @@ def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
     if (sub_out / "result.json").read_bytes() == path.read_bytes() and (sub_out / "report.html").exists():
         return
     canvases = {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
+    from grader.analyze.plugins import load_recorded_files
+
+    load_recorded_files(g.doc.get("analyzer_files") or [])      # the lab's own figures and labels
     write_html(stage, g.sid, result, versions=versions, canvas_png=canvases or None,
                problems=list(g.doc.get("errors") or []), intake=g.doc.get("intake"))

@@ -93,7 +93,7 @@ def parse_mapping(specs: Iterable[str]) -> dict[str, str]:
 def _find(header: list[str], column: str) -> int | None:
     exact = [j for j, h in enumerate(header) if h == column]
     loose = [j for j, h in enumerate(header) if h.casefold() == column.casefold()]
-    return (exact or loose or [None])[0]
+    return (exact or loose or [None])[0]  # type: ignore[list-item]  # (None: no such column)
 
 
 def read_roster(path: str | os.PathLike[str], mapping: Mapping[str, str] | None = None, *,

@@ -228,7 +228,7 @@ def _row(table: Table, columns: list[Column], key: int, line: int, cells: list[s
                 problems.append(f"{at}: {value} is over the maximum of {item.max_points:g} points")
             else:
                 updates[item.id] = Update("set", points=points)
-    for item_id, (j, text) in comments.items():
+    for item_id, (_j, text) in comments.items():
         update = updates.get(item_id)
         if update is not None and update.action == "set":
             updates[item_id] = Update("set", points=update.points, comment=text)

@@ -149,6 +149,6 @@ def make_clock_node(context: Any, time_scale: float) -> Any:
         clock.tick()
         clock.publish()
 
-    node.sim_clock = clock
+    node.sim_clock = clock  # type: ignore[attr-defined]  # (grader_clock keeps it on its node)
     node.create_timer(clock.period_s, on_tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
     return node

@@ -363,6 +363,7 @@ class TurtlesimNode(Node):
         if not self.context.ok():
             return
         self._debug = self._sim_logger.is_enabled_for(LoggingSeverity.DEBUG)
+        assert self.sim_clock is not None           # (this timer exists only with a clock)
         now = self.sim_clock.tick()
         if now is not None and self.world.tick(now, self._publish) and self._sim_graveyard:
             self._bury()
@@ -446,7 +447,7 @@ class TurtlesimNode(Node):
         if target is None:
             return None
         turtles = [(t.x * METER, t.ys * METER, t.orient) for t in self.world.ordered()]
-        return self.world.canvas.save_png(target, self.background(), turtles)
+        return self.world.canvas.save_png(target, self.background(), turtles)  # type: ignore[union-attr]
 
 
 def make_executor(context: rclpy.context.Context) -> Any:

@@ -66,7 +66,7 @@ class Browser:
             os.dup2(high[1], 4)
 
         self.proc = subprocess.Popen(
-            [self.executable, *FLAGS, "--remote-debugging-pipe", f"--user-data-dir={self._profile.name}",
+            [str(self.executable), *FLAGS, "--remote-debugging-pipe", f"--user-data-dir={self._profile.name}",
              "about:blank"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             preexec_fn=fds, pass_fds=(3, 4), close_fds=True)   # kept after the dup2 above
         os.close(to_chrome_r)

@@ -23,6 +23,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 from grader.cache import default_cache_dir
 from grader.cache.code import build_code
@@ -177,7 +178,7 @@ def _colcon_env() -> dict[str, str]:
     return env
 
 
-def _run_colcon(root: Path, log_file: Path, skip: list[str] = ()) -> int:
+def _run_colcon(root: Path, log_file: Path, skip: Sequence[str] = ()) -> int:
     """colcon build in the build area; student code (setup.py, CMake) runs here, so in a jail
     that can write only build/, install/ and log/ and has no network (grader.sandbox)."""
     cmake_args = [f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",

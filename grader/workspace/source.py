@@ -63,7 +63,7 @@ def extract_archive(archive: Path, dest: Path, warnings: list[str] | None = None
     try:
         if archive.name.lower().endswith(".zip"):
             with zipfile.ZipFile(archive) as zf:
-                members = []
+                members: list = []
                 for info in zf.infolist():
                     mode = info.external_attr >> 16
                     if _outside(info.filename):

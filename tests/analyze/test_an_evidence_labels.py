@@ -67,7 +67,7 @@ def test_times_are_relative_to_the_scenario_start(findings) -> None:
         assert isinstance(t0, float) and t0 > 1e9, where
 
 
-@pytest.mark.parametrize("name", A.names())
+@pytest.mark.parametrize("name", A.builtin_names())
 def test_labels_units_and_expectation(name: str) -> None:
     labels = A.evidence_labels(name)
     value = labels.get("value")

@@ -24,7 +24,8 @@ EXPECTED = {
 
 
 def test_all_analyzers_registered() -> None:
-    assert set(A.names()) == EXPECTED
+    assert set(A.builtin_names()) == EXPECTED
+    assert set(A.builtin_names()) <= set(A.names())
 
 
 def test_unknown_param_is_rejected_with_the_accepted_names() -> None:

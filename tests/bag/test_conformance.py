@@ -241,7 +241,7 @@ def test_verify_command(tmp_path: Path, capsys) -> None:
     assert out[1:] == [f"{good}: note: mcap-ros2-support cannot parse {SPAWN_EVENT} (service/action "
                        "part names are outside its .msg grammar); /spawn/_service_event counted undecoded"]
     assert main(["bag", "verify", str(good), str(bad)]) == 1
-    lines = [l for l in capsys.readouterr().out.splitlines() if l.startswith(f"{bad}: ")]
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith(f"{bad}: ")]
     assert lines == [f"{bad}: {p}" for p in check_bag(bad)] and len(lines) == 3
     assert main(["bag", "verify", str(tmp_path / "nope")]) == 2
     assert "is not a bag directory" in capsys.readouterr().err

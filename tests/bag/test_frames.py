@@ -74,10 +74,10 @@ def write_bag(path: Path, topics: dict[str, tuple[str, list[bytes]]], definition
               period_ns: int = 10_000_000) -> Path:
     definitions = definitions or {}
     with BagWriter(path) as w:
-        for name, (typ, payloads) in topics.items():
+        for name, (typ, _payloads) in topics.items():
             w.add_topic(name, typ, definitions[typ] if typ in definitions else SRC.full_text(typ))
         k = 0
-        for name, (typ, payloads) in topics.items():
+        for name, (_typ, payloads) in topics.items():
             for i, p in enumerate(payloads):
                 w.write(name, T0 + i * period_ns + k, p, T0 + i * period_ns - 1000 if i % 2 else 0)
             k += 1

@@ -64,7 +64,7 @@ def test_reference_has_every_figure_with_units_legend_and_alt_text(lab3, recorde
             svg = fig.svg
             assert svg.startswith('<svg xmlns="http://www.w3.org/2000/svg"') and "<?xml" not in svg
             assert 'role="img"' in svg and re.search(r'width="\d+" height="\d+"', svg)
-            assert f"<title id=" in svg and len(fig.alt) > 60 and len(fig.title) > 20
+            assert "<title id=" in svg and len(fig.alt) > 60 and len(fig.title) > 20
             labels = re.findall(r"\((m|s|m/s|rad|rad/s|°|unitless|count|per unit of z)\)</text>", svg)
             assert len(labels) >= 2, f"{item.id}: both axes say their unit"
             assert 'id="t-' in svg and "legend" in svg, f"{item.id}: legend"

@@ -39,7 +39,7 @@ class _Collector(HTMLParser):
 
     def _hidden(self) -> bool:
         """Inside an svg, a pre, or a details element other than in its summary (closed)."""
-        for k, (tag, attrs) in enumerate(self.stack):
+        for k, (tag, _attrs) in enumerate(self.stack):
             if tag in ("svg", "pre", "style", "script"):
                 return True
             if tag == "details" and not (k + 1 < len(self.stack) and self.stack[k + 1][0] == "summary"):

@@ -110,7 +110,7 @@ def test_geometry_of_ex2_goals():
     the next one needs (b) a turn that only a *wrapped* theta_e takes the short way, for any
     plausible arrival heading at (2, 7), (c) about 180 degrees, (d) a RIGHT turn > 90 degrees."""
     import math
-    start = (5.544444561004639, 5.544444561004639)
+    _start = (5.544444561004639, 5.544444561004639)     # where the turtle starts (for the reader)
     scenario = load_rubric(LAB3, check_files=False).scenarios["ex2_controller"]
     a, b, c, d = [s.goal.xy for s in scenario.steps if s.goal is not None]
     assert a == (2.0, 7.0)  # the lab's own goal

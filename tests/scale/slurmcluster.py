@@ -72,7 +72,7 @@ class SlurmCluster:
 
     def stop(self) -> None:
         try:
-            self.run("scancel", "--full", f"--partition=test")
+            self.run("scancel", "--full", "--partition=test")
         except (RuntimeError, subprocess.TimeoutExpired):
             pass
         for proc in self.procs:

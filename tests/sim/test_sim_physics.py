@@ -55,6 +55,9 @@ def drive_ticks(sim: Sim, n: int) -> tuple[float, float, float, float, float]:
 
 def test_world_size_and_start_pose(sim: Sim) -> None:
     assert W == 11.088889122009277 == H
+    from grader.spec.world import WORLD_SIZE_M
+
+    assert abs(W - WORLD_SIZE_M) < 1e-6      # the one world size every other package uses
     assert sim.t1.pose() == (5.544444561004639, 5.544444561004639, 0.0, 0.0, 0.0)
     assert sim.logs == [("info", "Spawning turtle [turtle1] at x=[5.544445], y=[5.544445], "
                                  "theta=[0.000000]")]

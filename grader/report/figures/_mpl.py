@@ -34,7 +34,7 @@ PALETTE = (BLUE, VERMILION, GREEN, PINK, ORANGE, SKY, BLACK)
 LINESTYLES = ("-", "--", "-.", ":")
 PASS, FAIL, MUTED = GREEN, VERMILION, "#777777"
 
-STYLE: dict[str, Any] = {
+STYLE: Any = {            # (typed Any: matplotlib types rc keys as a Literal)
     "font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.fontsize": 8,
     "xtick.labelsize": 8, "ytick.labelsize": 8, "axes.titlelocation": "left",
     "axes.grid": True, "grid.color": "#dddddd", "grid.linewidth": 0.6,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from grader.spec.world import WORLD_SIZE_M
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import OUTSIDE, BLUE, FAIL, GREEN, MUTED, PALETTE, PASS, floats, fmt, key, num
 
@@ -26,7 +27,7 @@ def _relevant(analyzer: str, row: Mapping[str, Any], ctx: FigureContext) -> bool
     x, y = num(row.get("x")), num(row.get("y"))
     if x is None or y is None:
         return False
-    outer = num(ctx.param("outer_bound")) or 11.088889
+    outer = num(ctx.param("outer_bound")) or WORLD_SIZE_M
     inside = 0 <= x <= outer and 0 <= y <= outer
     short = num(row.get("time_out")) is not None and 0 < (num(row.get("time_out")) or 0) <= \
         (num(ctx.param("short_timeout_s")) or 5.0)

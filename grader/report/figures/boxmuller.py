@@ -33,7 +33,7 @@ def printed_vs_expected(ctx: FigureContext) -> Plot | None:
     if not isinstance(pairs, Mapping):
         return None
     z, printed = floats(pairs.get("expected_z")), floats(pairs.get("printed"))
-    matched = pairs.get("matched") if isinstance(pairs.get("matched"), list) else []
+    matched: list = pairs["matched"] if isinstance(pairs.get("matched"), list) else []
     if not z or printed is None or len(z) != len(printed):
         return None
     formula = str(pairs.get("formula") or "correct")

@@ -4,10 +4,10 @@ the heading error over time per goal (turn_direction)."""
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, cast
 
 from grader.report.figures import FigureContext, Plot, figure
-from grader.report.figures._mpl import OUTSIDE, BLUE, LINESTYLES, MUTED, PALETTE, VERMILION, floats, fmt, num
+from grader.report.figures._mpl import OUTSIDE, BLUE, LINESTYLES, MUTED, PALETTE, floats, fmt, num
 
 BELOW = {"loc": "upper left", "bbox_to_anchor": (0.0, -0.2), "borderaxespad": 0.0, "fontsize": 7}
 FIT_TITLE = "Controller commands against the errors: the points should lie on the fitted lines"
@@ -16,7 +16,7 @@ HEADING_TITLE = "Heading error per goal: it should shrink to 0° without crossin
 
 def _series(rows: Mapping[str, Any], *keys: str) -> list[list[float]] | None:
     cols = [floats(rows.get(k)) for k in keys]
-    if any(c is None for c in cols) or len({len(c) for c in cols}) != 1 or not cols[0]:
+    if any(c is None for c in cols) or len({len(cast(list, c)) for c in cols}) != 1 or not cols[0]:
         return None
     return cols  # type: ignore[return-value]
 
@@ -88,7 +88,7 @@ def heading_error(ctx: FigureContext) -> Plot | None:
     series = ctx.evidence.get("heading_error")
     if not isinstance(series, list):
         return None
-    usable = []
+    usable: list[Any] = []
     for s in series:
         if isinstance(s, Mapping):
             cols = _series(s, "t", "theta_e_deg")

@@ -3,12 +3,12 @@ colour changes where the path crosses its line, and the service calls on a timel
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, cast
 
+from grader.spec.world import WORLD_SIZE_M
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import BLUE, GREEN, OUTSIDE, VERMILION, floats, fmt, key, num
 
-WORLD_M = 11.088889
 
 
 def _path(evidence: Mapping[str, Any]) -> tuple[list[float], list[float]] | None:
@@ -24,8 +24,8 @@ def _path(evidence: Mapping[str, Any]) -> tuple[list[float], list[float]] | None
 def _world(ax: Any) -> None:
     from matplotlib.patches import Rectangle
 
-    ax.add_patch(Rectangle((0, 0), WORLD_M, WORLD_M, fill=False, ec="#555555", lw=1.2, label="walls"))
-    ax.set(xlim=(-0.3, WORLD_M + 0.3), ylim=(-0.3, WORLD_M + 0.3), xlabel="x (m)", ylabel="y (m)", aspect="equal")
+    ax.add_patch(Rectangle((0, 0), WORLD_SIZE_M, WORLD_SIZE_M, fill=False, ec="#555555", lw=1.2, label="walls"))
+    ax.set(xlim=(-0.3, WORLD_SIZE_M + 0.3), ylim=(-0.3, WORLD_SIZE_M + 0.3), xlabel="x (m)", ylabel="y (m)", aspect="equal")
 
 
 @figure("circle_radius")
@@ -42,10 +42,10 @@ def fitted_circle(ctx: FigureContext) -> Plot | None:
     fig, ax = ctx.axes(title, size=(7.4, 4.8), legend_width=2.9)
     _world(ax)
     ax.plot(*pts, color=BLUE, lw=1.4, label="turtle path")
-    ax.add_patch(Circle(tuple(centre), radius, fill=False, ec=VERMILION, lw=1.2, ls="--",
+    ax.add_patch(Circle(cast(Any, tuple(centre)), radius, fill=False, ec=VERMILION, lw=1.2, ls="--",
                         label=f"fitted circle, r = {fmt(radius, 3)} m"))
     if expected:
-        ax.add_patch(Circle(tuple(centre), expected, fill=False, ec=GREEN, lw=1.0, ls=":",
+        ax.add_patch(Circle(cast(Any, tuple(centre)), expected, fill=False, ec=GREEN, lw=1.0, ls=":",
                             label=f"expected r = {expected:g} m"))
     ax.plot(*centre, "+", color=VERMILION, ms=10, mew=2, label=f"centre ({centre[0]:.2f}, {centre[1]:.2f})")
     ax.legend(**OUTSIDE)
@@ -72,7 +72,7 @@ def walls(ctx: FigureContext) -> Plot | None:
         ax.plot([c[0] for c in contacts], [c[1] for c in contacts], "x", color=VERMILION, ms=7,
                 label=f"wall contact ({len(contacts)})")
     ax.legend(**OUTSIDE)
-    return Plot(fig, title, alt=f"Turtle path inside the {WORLD_M:.2f} m square; closest approach "
+    return Plot(fig, title, alt=f"Turtle path inside the {WORLD_SIZE_M:.2f} m square; closest approach "
                 f"{fmt(num(ctx.evidence.get('min_clearance_m')), 2)} m; {len(contacts)} wall contacts.")
 
 
@@ -117,7 +117,7 @@ def service_timeline(ctx: FigureContext) -> Plot | None:
     if msgs:
         ax.plot(msgs, [0] * len(msgs), "o", color=GREEN, ms=7, ls="none", label=f"message on {topic}")
     for r in rows:
-        req = r.get("request") if isinstance(r.get("request"), Mapping) else {}
+        req: Mapping = r["request"] if isinstance(r.get("request"), Mapping) else {}
         text = ", ".join(f"{k}={v:g}" if isinstance(v, (int, float)) else f"{k}={v}" for k, v in list(req.items())[:3])
         ax.annotate(text, (num(r["t"]), 1), textcoords="offset points", xytext=(0, 8), ha="center", fontsize=7)
     ax.set(yticks=[0, 1], yticklabels=[topic, "calls"], ylim=(-0.6, 1.8), xlabel="time since the scenario started (s)")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Mapping, cast
 
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import OUTSIDE, BLUE, GREEN, VERMILION, floats, fmt, num
@@ -35,7 +35,8 @@ def intervals(ctx: FigureContext) -> Plot | None:
                 label=f"longer than {limit:.3g} s (pause; drawn at the top)")
     if period:
         if tol:
-            ax.axhspan(1.0 / (expected * (1 + tol)), 1.0 / (expected * (1 - tol)) if tol < 1 else limit,
+            rate = cast(float, expected)                 # (a period: there is a rate)
+            ax.axhspan(1.0 / (rate * (1 + tol)), 1.0 / (rate * (1 - tol)) if tol < 1 else limit,
                        color=GREEN, alpha=0.15, lw=0, label=f"expected {period:.3g} s ± {tol:.0%} of the rate")
         ax.axhline(period, color=GREEN, lw=1.5, label=f"expected period {period:.3g} s ({expected:g} Hz)")
     if measured:

@@ -6,10 +6,10 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
+from grader.spec.world import WORLD_SIZE_M     # the world is [0, WORLD_SIZE_M]^2 (a wall on every side)
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import OUTSIDE, LINESTYLES, MUTED, PALETTE, floats, fmt, key, num
 
-WORLD_M = 11.088889      # turtlesim's world is [0, WORLD_M]^2 (a wall on every side)
 TITLE = "Turtle path per goal: each path should end inside its goal's circle"
 
 
@@ -17,7 +17,7 @@ def _paths(evidence: Mapping[str, Any]) -> list[dict[str, Any]]:
     """Usable entries of ``evidence["trajectory"]`` (one path per goal); malformed ones dropped."""
     raw = evidence.get("trajectory")
     entries = raw if isinstance(raw, list) else [raw]
-    out = []
+    out: list[dict[str, Any]] = []
     for entry in entries:
         if not isinstance(entry, Mapping):
             continue
@@ -90,17 +90,17 @@ def trajectory(ctx: FigureContext) -> Plot | None:
     walls = ctx.evidence.get("wall_points")
     n_walls = int(num(ctx.evidence.get("wall_contacts")) or 0)
     if isinstance(walls, list) and walls:
-        pts = [floats(w) for w in walls]
+        pts: list[Any] = [floats(w) for w in walls]
         pts = [p for p in pts if p and len(p) == 3]
         if pts:
             ax.plot([p[1] for p in pts], [p[2] for p in pts], "s", ms=8, mfc="none", mec="black", mew=1.8,
                     label=f"wall contact ({n_walls}×)")
     if tol:
         ax.plot([], [], color=MUTED, ls=":", label=f"goal tolerance ({tol:g} m)")
-    ax.set(xlim=(-0.3, WORLD_M + 0.3), ylim=(-0.3, WORLD_M + 0.3), xlabel="x (m)", ylabel="y (m)",
+    ax.set(xlim=(-0.3, WORLD_SIZE_M + 0.3), ylim=(-0.3, WORLD_SIZE_M + 0.3), xlabel="x (m)", ylabel="y (m)",
            aspect="equal")
     ax.legend(**OUTSIDE)
-    alt = (f"Turtle path in the {WORLD_M:.1f} m square world for {len(paths)} goal(s). "
+    alt = (f"Turtle path in the {WORLD_SIZE_M:.1f} m square world for {len(paths)} goal(s). "
            + ". ".join(descs) + "."
            + (f" Goal tolerance {tol:g} m." if tol else "")
            + (f" The turtle hit a wall {n_walls} time(s)." if n_walls else " No wall contact."))
@@ -110,7 +110,7 @@ def trajectory(ctx: FigureContext) -> Plot | None:
 def _rect(ax: Any) -> Any:
     from matplotlib.patches import Rectangle
 
-    return Rectangle((0, 0), WORLD_M, WORLD_M, fill=False, edgecolor="#444444", lw=1.2, zorder=0)
+    return Rectangle((0, 0), WORLD_SIZE_M, WORLD_SIZE_M, fill=False, edgecolor="#444444", lw=1.2, zorder=0)
 
 
 def _circle(ax: Any, centre: tuple[float, float], radius: float, colour: str) -> Any:

@@ -1,0 +1,279 @@
+"""The grader as a Python library: the functions the ``grader`` command itself calls.
+
+Each function is the engine behind one command (as otter-grader's ``grade_submission`` is behind
+``otter grade``): ``grader grade`` is :func:`grade`, ``grader check`` is :func:`check`, ``grader
+regrade`` is :func:`regrade`; the CLI only parses its arguments and prints. So a notebook, a
+course's own script or a test gets exactly what the command line gets::
+
+    from grader import api
+
+    rubric = api.load_rubric("rubrics/enee467_lab3.yaml")          # RubricError: file:line problems
+    batch = api.grade("canvas-download.zip", rubric, "out/", jobs=2)  # build, record, analyze, score
+    for graded in batch.graded:
+        print(graded.id, graded.result.score, graded.result.total_max)
+    api.regrade("out/", rubric)                                     # after changing a threshold
+    frames = api.read_frames("out/alice/scenarios/ex1_publisher")   # topic -> pandas DataFrame
+    finding = api.analyze(rubric, "ex1.pub_rate", frames)           # one item, offline
+
+User errors raise :class:`grader.errors.GraderError` (one actionable sentence), as the CLI
+reports them. Paths may be ``str`` or ``pathlib.Path``; a rubric may be a path or a loaded
+:class:`~grader.rubric.schema.Rubric`.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable, Mapping, Sequence
+
+from grader.errors import GraderError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from grader.analyze import Finding
+    from grader.grading.pipeline import GradedSubmission
+    from grader.intake.batch import IntakeBatch
+    from grader.rubric.schema import Rubric
+
+__all__ = ["BatchResult", "PathLike", "analyze", "check", "grade", "load_rubric", "read_frames", "regrade"]
+
+PathLike = str | os.PathLike[str]
+
+
+def load_rubric(path: PathLike, *, check_files: bool = True) -> Rubric:
+    """Load and validate a rubric (its own analyzer files imported, every problem listed as
+    ``file:line: field: message`` in a :class:`grader.rubric.load.RubricError`)."""
+    from grader.rubric.load import load_rubric as load
+
+    return load(path, check_files=check_files)
+
+
+def _rubric(rubric: PathLike | Rubric) -> Rubric:
+    from grader.analyze.plugins import load_rubric_files
+    from grader.rubric.schema import Rubric
+
+    if isinstance(rubric, Rubric):
+        load_rubric_files(rubric)          # a Rubric built without load_rubric: its analyzer files
+        return rubric
+    return load_rubric(rubric)
+
+
+@dataclass
+class BatchResult:
+    """What :func:`grade` did: one GradedSubmission per graded submission (in finishing order),
+    the submissions that have no result and why, the ones the intake refused, and whether a
+    KeyboardInterrupt stopped the batch (finished submissions are saved; ``resume=True`` goes on)."""
+
+    out: Path
+    graded: list[GradedSubmission] = field(default_factory=list)
+    failures: dict[str, str] = field(default_factory=dict)
+    refused: dict[str, str] = field(default_factory=dict)
+    interrupted: bool = False
+
+    @property
+    def ok(self) -> bool:
+        """Every submission given was graded."""
+        return not (self.failures or self.refused or self.interrupted)
+
+
+def due_override(rubric: Rubric, due: str | None, timezone: str | None) -> dict[str, str | None] | None:
+    """``due``/``timezone`` (``grader grade --due/--timezone``) checked against the rubric's late
+    policy: the override :func:`grade` passes on, or None."""
+    from pydantic import ValidationError
+
+    from grader.rubric.load import display_path
+
+    if due is None:
+        if timezone:
+            raise GraderError("--timezone goes with --due (the rubric's late policy has its own time zone)")
+        return None
+    if rubric.late is None:
+        raise GraderError(f"--due replaces the due date of the rubric's late policy, and {display_path(rubric.source)} has "
+                          "none: add a late: section to the rubric (rubrics/README.md, \"Late policy\")")
+    try:
+        rubric.late.with_due(due, timezone)
+    except ValidationError as exc:
+        raise GraderError("--due: " + "; ".join(e["msg"].removeprefix("Value error, ") for e in exc.errors())) from None
+    return {"due": due, "timezone": timezone}
+
+
+def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
+          jobs: int | None = None, only: Sequence[str] | None = None, shard: tuple[int, int] | None = None,
+          resume: bool = False, reuse: bool = True, cache_dir: PathLike | None = None,
+          time_scale: float = 1.0, intake: str = "auto", roster: PathLike | None = None,
+          roster_map: Sequence[str] = (), classroom_prefix: str | None = None,
+          due: str | None = None, timezone: str | None = None, cache_max_size: str | None = None,
+          on_intake: Callable[[IntakeBatch], None] | None = None,
+          on_start: Callable[[int, int], None] | None = None,
+          on_done: Callable[[str, GradedSubmission | None, str | None], None] | None = None,
+          progress: Callable[[str], None] | None = None) -> BatchResult:
+    """``grader grade``: build each submission, record the rubric's scenarios, analyze, score.
+
+    ``submissions``: a Canvas download, a Gradescope export, Classroom clones (``classroom_prefix``),
+    a folder of submissions or one submission (``intake`` says which when its shape does not).
+    Writes ``out/<id>/`` (result.json, report.html, bags, logs), ``out/grades.csv``,
+    ``out/index.html`` and ``out/intake.csv``. ``jobs``: scenarios and builds at once (default:
+    twice the cores); ``only``: these ids; ``shard=(k, n)``: shard k of n (``grader merge``);
+    ``resume``: skip ids that have a result.json; ``reuse``: copy identical earlier recordings;
+    ``time_scale`` > 1: simulated time where the rubric allows; ``roster`` (+ ``roster_map``
+    ``FIELD=COLUMN`` entries): match each submission to a student; ``due``/``timezone``: replace
+    the late policy's due date; ``cache_max_size`` (``5G``, ``800M``): the cache's cap, enforced
+    least-recently-used at the end of the batch (default ``$GRADER_CACHE_MAX_SIZE`` or 5 GB). ``on_intake`` gets what was found, ``on_start(selected, done)``
+    how many submissions are to be graded and how many of them already are (``resume``) before
+    grading starts, ``on_done(id, graded or None, error or None)`` each finished submission,
+    ``progress`` status lines of a single submission.
+    """
+    from grader.grading.batch import grade_batch
+    from grader.grading.outputs import write_batch_outputs
+    from grader.grading.schedule import Slots, default_jobs
+    from grader.grading.shards import in_shard, write_shard_note
+    from grader.intake.batch import WORK_DIR, read_intake
+    from grader.report.result import atomic_write
+    from grader.scores.roster import parse_mapping, read_roster
+
+    loaded = _rubric(rubric)
+    out = Path(out)
+    override = due_override(loaded, due, timezone)
+    if roster_map and not roster:
+        raise GraderError("--map describes the roster's columns: give the roster with --roster")
+    students = read_roster(Path(roster), parse_mapping(list(roster_map)), require_submission=False) if roster else None
+    out.mkdir(parents=True, exist_ok=True)
+    found = read_intake(Path(submissions), loaded, work=out / WORK_DIR, roster=students,
+                        classroom_prefix=classroom_prefix, kind=intake)
+    if on_intake is not None:
+        on_intake(found)
+    atomic_write(out / "intake.csv", found.csv_text())
+    subs = found.gradable
+    batch = BatchResult(out, refused={a.original[0]: a.refused or "" for a in found.refused})
+    if only:
+        subs = [s for s in subs if s.id in set(only)]
+        if not subs:
+            raise GraderError(f"none of {', '.join(only)} is among the submissions in {submissions}.")
+        batch.refused = {}
+    if shard:
+        subs = [s for s in subs if in_shard(s.id, *shard)]
+        write_shard_note(out, loaded, *shard)
+    todo = [s for s in subs if not (resume and (out / s.id / "result.json").exists())]
+    if on_start is not None:
+        on_start(len(subs), len(subs) - len(todo))
+
+    def done(sid: str, graded: GradedSubmission | None, error: str | None) -> None:
+        if graded is not None:
+            batch.graded.append(graded)
+        if on_done is not None:
+            on_done(sid, graded, error)
+
+    try:
+        batch.failures = grade_batch(todo, loaded, out, slots=Slots(jobs or default_jobs()),
+                                     cache_dir=Path(cache_dir) if cache_dir else None, reuse=reuse,
+                                     on_done=done, progress=progress, time_scale=time_scale,
+                                     due_override=override, cache_max_size=cache_max_size)
+    except KeyboardInterrupt:
+        batch.interrupted = True
+    finally:
+        write_batch_outputs(out, loaded)
+    batch.interrupted = batch.interrupted or any("interrupted" in m for m in batch.failures.values())
+    return batch
+
+
+def check(workspace: PathLike = ".", *, lab: str | None = None, rubric: PathLike | Rubric | None = None,
+          out: PathLike | None = None, jobs: int | None = None, cache_dir: PathLike | None = None,
+          reuse: bool = True, time_scale: float = 1.0, cache_max_size: str | None = None,
+          progress: Callable[[str], None] | None = None) -> GradedSubmission:
+    """``grader check``: a student's self-check of ``workspace`` on the lab's public items.
+
+    The rubric is ``rubric`` or the one of ``lab`` (an id of ``grader labs``). Writes the report
+    to ``out`` (default ``WORKSPACE/.grader-check``). ``graded.result`` holds each item's status.
+    """
+    from grader.grading.pipeline import grade_submission
+    from grader.grading.schedule import Slots, default_jobs
+    from grader.labs import rubric_for_lab
+
+    if rubric is None and lab is None:
+        raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
+    loaded = _rubric(rubric if rubric is not None else rubric_for_lab(str(lab)))
+    ws = Path(workspace).resolve()
+    where = (Path(out) if out is not None else ws / ".grader-check").resolve()
+    from grader.cache import default_cache_dir
+    from grader.cache.store import end_batch
+
+    graded = grade_submission(ws, loaded, where, cache_dir=Path(cache_dir) if cache_dir else None,
+                              public_only=True, sid="check", progress=progress,
+                              slots=Slots(jobs or default_jobs()), reuse=reuse, time_scale=time_scale)
+    ended = end_batch(Path(cache_dir or default_cache_dir()), [graded.cache], cache_max_size)
+    if ended.get("message"):
+        print(f"grader: {ended['message']}", file=sys.stderr)
+    return graded
+
+
+def regrade(path: PathLike, rubric: PathLike | Rubric, *,
+            on_done: Callable[[GradedSubmission], None] | None = None) -> list[GradedSubmission]:
+    """``grader regrade``: recompute grades from recorded bags only (no build, no ROS).
+
+    ``path`` is a batch (``OUT``: every ``OUT/<id>`` is regraded and the batch files rewritten)
+    or one submission (``OUT/<id>``). ``on_done`` gets each one as it is regraded.
+    """
+    from grader.grading.outputs import write_batch_outputs
+    from grader.grading.pipeline import SCENARIOS_DIR, regrade_submission
+
+    loaded = _rubric(rubric)
+    path = Path(path)
+    if (path / SCENARIOS_DIR).is_dir():
+        graded = regrade_submission(path, loaded)
+        if on_done is not None:
+            on_done(graded)
+        return [graded]
+    subs = sorted(p for p in path.iterdir() if (p / SCENARIOS_DIR).is_dir()) if path.is_dir() else []
+    if not subs:
+        raise GraderError(f"{path} holds no graded submissions (no */{SCENARIOS_DIR}/ folders).")
+    out: list[GradedSubmission] = []
+    for sub in subs:
+        out.append(regrade_submission(sub, loaded))
+        if on_done is not None:
+            on_done(out[-1])
+    write_batch_outputs(path, loaded)
+    return out
+
+
+def read_frames(path: PathLike, topics: Sequence[str] | None = None) -> dict[str, pd.DataFrame]:
+    """A recording as the analyzers see it: topic name -> DataFrame (index ``t``: receive time in
+    seconds; message fields flattened with dots; docs/ARCHITECTURE.md, "Bag → DataFrames").
+
+    ``path``: a scenario folder of a graded submission (``OUT/<id>/scenarios/<scenario>``; the
+    frames then include ``__meta__`` and the saved canvas, exactly what its items were graded
+    on) or a bag folder (rosbag2 MCAP: ``metadata.yaml`` + ``*.mcap``). ``topics`` selects topics
+    of a bag (naming one the bag lacks is an error).
+    """
+    from grader.bag.frames import load_frames
+    from grader.grading.pipeline import scenario_frames
+
+    where = Path(path)
+    if not where.exists():
+        raise GraderError(f"{where} not found: give a scenario folder (OUT/<id>/scenarios/<scenario>) or a bag folder")
+    if (where / "bag").is_dir() and topics is None:
+        return scenario_frames(where)
+    bag = where / "bag" if (where / "bag").is_dir() else where
+    return load_frames(bag, list(topics) if topics is not None else None)
+
+
+def analyze(rubric: PathLike | Rubric, item_id: str,
+            frames: Mapping[str, pd.DataFrame] | PathLike) -> Finding:
+    """One rubric item's analyzer on one recording (frames, or a folder as for
+    :func:`read_frames`), as grading runs it: the item's parameters over the analyzer's
+    defaults; never raises for the recording's sake (an analysis that cannot happen is an
+    ``error`` finding). Scoring (partial credit, ``requires``, the contract) is not applied."""
+    from grader.grading.pipeline import analyze_item
+
+    loaded = _rubric(rubric)
+    try:
+        item = loaded.item(item_id)
+    except KeyError:
+        raise GraderError(f"rubric {loaded.lab} has no item {item_id!r}; its items: "
+                          f"{', '.join(loaded.item_ids)}") from None
+    if not item.analyzer:
+        raise GraderError(f"item {item_id!r} is graded by a person (kind: {item.kind}): it has no analyzer")
+    given = read_frames(frames) if isinstance(frames, (str, os.PathLike)) else dict(frames)
+    return analyze_item(item, given)
