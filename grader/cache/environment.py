@@ -77,7 +77,7 @@ def fastdds_version(prefixes: list[Path] | None = None) -> str:
 
 def python_distributions() -> list[str]:
     """Every distribution importable here, as its metadata folder names it (``mcap-1.3.0``)."""
-    names = set()
+    names: set[str] = set()
     for entry in sys.path:
         try:
             listing = os.listdir(entry or ".")

@@ -343,7 +343,7 @@ def end_batch(cache: Path, uses: Iterable[dict[str, int]], cap_option: str | Non
     pruned = enforce_cap(cache, cap)
     doc = record_batch(cache, uses, pruned)
     doc["cap"] = cap
-    if pruned is not None and (pruned.removed or pruned.size_after > cap):
+    if pruned is not None and cap is not None and (pruned.removed or pruned.size_after > cap):
         held = (f"; {len(pruned.busy)} entries held by running batches stay" if pruned.busy else "")
         doc["message"] = (f"cache {cache} over its {human(cap)} cap: removed {len(pruned.removed)} least "
                           f"recently used entries ({human(pruned.freed)}), now {human(pruned.size_after)}{held}")

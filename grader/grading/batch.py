@@ -60,8 +60,8 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
                     graded, error = None, str(exc)
                 except KeyboardInterrupt:
                     graded, error = None, "interrupted before it finished (no result written)"
-                if error:
-                    failures[sid] = error
+                if error or graded is None:
+                    failures[sid] = error or "no result"
                 else:
                     uses.append(graded.cache)
                 if on_done:

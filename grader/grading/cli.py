@@ -6,9 +6,12 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from grader.errors import GraderError
+
+if TYPE_CHECKING:
+    from grader.grading.pipeline import GradedSubmission
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -236,7 +239,7 @@ def run_regrade(args: argparse.Namespace) -> int:
 
     other_made: list[str] = []
 
-    def done(g) -> None:
+    def done(g: GradedSubmission) -> None:
         other = by_other_grader(g.recordings)
         note = f"  (rests on recordings another grader made: {', '.join(other)})" if other else ""
         print(f"{g.id}: {g.result.auto_score:g}/{g.result.auto_max:g}{note}")

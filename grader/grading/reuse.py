@@ -218,7 +218,7 @@ def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder
         t0 = time.monotonic()
         source = cache.get(key, folder)
         if source is not None:
-            record = json.loads((folder / "scenario.json").read_text())
+            record: dict[str, Any] = json.loads((folder / "scenario.json").read_text())
             record.update(reused={"from": source.get("submission"), "key": key,
                                   "recorded": source.get("recorded"), "made_by": source.get("made_by")},
                           parent_wall_s=round(time.monotonic() - t0, 3))
