@@ -6,6 +6,12 @@ testable on synthetic DataFrames. So analyzers only read the ``frames`` dict pro
 
 Registry
 --------
+Analyzers come from three places, all registered with the same ``@register`` and validated the
+same way (``grader.analyze.plugins``): every public module of this package (discovered, no list
+to edit), the modules an installed distribution names under the entry point group
+``grader.analyzers``, and Python files next to a rubric that names them (``analyzers:
+[my_lab_checks.py]``). A name defined twice is an error naming both places.
+
 ``@register("name", defaults={...})`` records an analyzer and the parameters it accepts. The
 registered callable merges the caller's ``params`` over those defaults and rejects unknown keys
 (a misspelt rubric parameter must not silently fall back to a default). ``get(name)`` returns the
@@ -24,11 +30,10 @@ from __future__ import annotations
 
 import copy
 import functools
-import importlib
 import math
 import traceback
 from dataclasses import asdict, dataclass, field
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Collection, Mapping
 
 import numpy as np
 import pandas as pd
@@ -36,7 +41,7 @@ import pandas as pd
 from grader.errors import GraderError
 
 __all__ = ["Finding", "register", "get", "names", "defaults", "required", "run", "jsonable", "STATUSES",
-           "evidence_labels", "expected_text", "REQUIRED"]
+           "evidence_labels", "expected_text", "REQUIRED", "DuplicateAnalyzer", "origin", "graded"]
 
 
 class _Required:
@@ -53,24 +58,6 @@ REQUIRED = _Required()
 
 STATUSES = ("pass", "partial", "fail", "error")
 
-# Modules whose import registers analyzers. Imported lazily by get()/names() so that importing
-# grader.analyze itself stays cheap and free of import cycles.
-_MODULES = (
-    "rate",
-    "random_numbers",
-    "boxmuller",
-    "controller",
-    "control_law",
-    "goal_publisher",
-    "action_server",
-    "integrity",
-    "graph",
-    "services",
-    "motion",
-    "logs",
-    "pen",
-)
-
 Frames = Mapping[str, pd.DataFrame]
 AnalyzerFn = Callable[[Frames, dict], "Finding"]
 
@@ -78,7 +65,13 @@ _REGISTRY: dict[str, AnalyzerFn] = {}
 _DEFAULTS: dict[str, dict[str, Any]] = {}
 _LABELS: dict[str, dict[str, Any]] = {}
 _EXPECT: dict[str, str] = {}
-_loaded = False
+_ORIGIN: dict[str, str] = {}      # name -> where it was defined (a module, an entry point, a file)
+#: set by grader.analyze.plugins while it imports a plug-in, so a name says where it came from
+_defining: list[str] = []
+
+
+class DuplicateAnalyzer(GraderError, ValueError):
+    """An analyzer name defined twice (by two modules, plug-ins or rubric files)."""
 
 
 def jsonable(obj: Any) -> Any:
@@ -174,8 +167,10 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
     dflt = dict(defaults or {})
 
     def deco(fn: AnalyzerFn) -> AnalyzerFn:
+        origin = _defining[-1] if _defining else fn.__module__
         if name in _REGISTRY:
-            raise ValueError(f"analyzer {name!r} registered twice")
+            raise DuplicateAnalyzer(f"analyzer {name!r} is defined twice: by {_ORIGIN.get(name, '?')} and by "
+                                    f"{origin}; rename one of them")
 
         @functools.wraps(fn)
         def wrapper(frames: Frames, params: Mapping[str, Any] | None = None) -> Finding:
@@ -203,6 +198,7 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
         wrapper.analyzer_name = name  # type: ignore[attr-defined]
         wrapper.defaults = dict(dflt)  # type: ignore[attr-defined]
         _REGISTRY[name] = wrapper
+        _ORIGIN[name] = origin
         _DEFAULTS[name] = dict(dflt)
         _LABELS[name] = dict(evidence or {})
         if expect:
@@ -213,12 +209,23 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
 
 
 def _load_all() -> None:
-    global _loaded
-    if _loaded:
-        return
-    for mod in _MODULES:
-        importlib.import_module(f"{__name__}.{mod}")
-    _loaded = True
+    """Import the built-in analyzer modules and the installed plug-ins (once per process)."""
+    from grader.analyze.plugins import load_builtin_and_installed
+
+    load_builtin_and_installed()
+
+
+def origin(name: str) -> str:
+    """Where analyzer ``name`` was defined: its module, ``entry point ...`` or a rubric's file."""
+    get(name)
+    return _ORIGIN[name]
+
+
+def forget(names_: Collection[str]) -> None:
+    """Unregister analyzers (a plug-in file reloaded after it changed, or unloaded by a test)."""
+    for name in names_:
+        for table in (_REGISTRY, _DEFAULTS, _LABELS, _EXPECT, _ORIGIN):
+            table.pop(name, None)
 
 
 def get(name: str) -> AnalyzerFn:

@@ -193,6 +193,9 @@ def analyze_bags(rubric, items: list, sub_out: Path,
     from grader.analyze import Finding
     from grader.analyze.contract import check_contract
     from grader.rubric.contract import merge_mismatches
+    from grader.analyze.plugins import load_rubric_files
+
+    load_rubric_files(rubric)       # its own analyzer files (done by load_rubric already; idempotent)
 
     frames_cache: dict[str, dict | Exception] = {}
     problems: list[str] = []

@@ -54,6 +54,27 @@ def registered_analyzers() -> dict[str, dict[str, bool]] | None:
             for name in analyze.names()}
 
 
+def load_analyzer_files(rubric: Rubric) -> list[tuple[str, str]]:
+    """Import the rubric's own analyzer files (``analyzers:``, grader.analyze.plugins); the
+    problems as ``(field path, message)``. Nothing when grader.analyze is not importable (a
+    wheel build reads rubrics with PyYAML and pydantic only)."""
+    try:
+        from grader.analyze.plugins import load_file
+    except ImportError:
+        return []
+    out: list[tuple[str, str]] = []
+    for index, file in enumerate(rubric.analyzers):
+        if file.suffix != ".py" or not file.is_file():
+            if file.suffix == ".py":
+                out.append((f"analyzers[{index}]", f"analyzer file not found (looked for {file})"))
+            continue                              # (a wrong suffix is the model's problem)
+        try:
+            load_file(file)
+        except GraderError as exc:
+            out.append((f"analyzers[{index}]", str(exc)))
+    return out
+
+
 def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
                 analyzers: Collection[str] | Mapping[str, Collection[str]] | _Registry | None = REGISTRY,
                 ) -> Rubric:
@@ -62,12 +83,10 @@ def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
     Relative paths in the rubric (``support`` packages, ``handout``, replayed bags) are resolved
     against the rubric's own directory, so a rubric and its fixtures can move together.
     ``check_files`` makes missing ones errors. ``analyzers`` (default: the grader.analyze
-    registry) makes unknown analyzer names and parameters errors now, not hours into a batch;
-    pass None to skip that. Raises :class:`RubricError` (a GraderError) listing every problem as
+    registry, after importing the rubric's own ``analyzers:`` files) makes unknown analyzer names
+    and parameters errors now, not hours into a batch; pass None to skip that (and the import). Raises :class:`RubricError` (a GraderError) listing every problem as
     ``file:line: field: message``.
     """
-    if isinstance(analyzers, _Registry):
-        analyzers = registered_analyzers()
     path = Path(path)
     shown = display_path(path)
     try:
@@ -93,7 +112,12 @@ def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
         raise RubricError(shown, sorted(set(refs + found))) from None
     if refs:
         raise RubricError(shown, refs)
+    plugin_problems: list[tuple[str, str]] = []
+    if isinstance(analyzers, _Registry):
+        plugin_problems = load_analyzer_files(rubric)
+        analyzers = registered_analyzers()
     cross = rubric.problems(analyzers, check_files)
+    cross += [p for p in plugin_problems if p not in cross]
     if cross:
         raise RubricError(shown, sorted({Problem(shown, located.line(_split(p)), p, m) for p, m in cross}))
     rubric._source = path.resolve()

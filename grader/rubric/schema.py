@@ -301,6 +301,9 @@ class Rubric(Model):
                                        "submission folder); it must earn no points")
     support: dict[PackageName, RubricPath] = Field(
         {}, description="packages supplied when a submission lacks them (e.g. given interfaces)")
+    analyzers: Annotated[tuple[RubricPath, ...], Field(strict=False)] = Field(
+        (), description="Python files (relative to the rubric) defining this lab's own analyzers and "
+                        "figures; imported when the rubric is loaded (grader.analyze.plugins)")
     contract: Contract = Field(Contract(), description="the names students must use exactly (package, "
                                "executable, node, topic, service, action, launch file), each under a role; "
                                "the rest of the rubric refers to them as $role")
@@ -399,6 +402,16 @@ class Rubric(Model):
                     if step.replay is not None and not step.replay.bag.exists():
                         out.append((f"scenarios.{sid}.steps[{i}].replay.bag",
                                     f"bag not found (looked for {step.replay.bag})"))
+        seen_files: dict[Path, int] = {}
+        for index, file in enumerate(self.analyzers):
+            at = f"analyzers[{index}]"
+            if file.suffix != ".py":
+                out.append((at, f"an analyzer file is a Python module ending in .py, not {file.name!r}"))
+            elif file in seen_files:
+                out.append((at, f"{file.name} is listed twice (first at analyzers[{seen_files[file]}])"))
+            elif check_files and not file.is_file():
+                out.append((at, f"analyzer file not found (looked for {file})"))
+            seen_files.setdefault(file, index)
         if check_files:
             for name, path in self.support.items():
                 if not (path / "package.xml").is_file():

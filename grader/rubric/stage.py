@@ -1,6 +1,6 @@
 """Copy rubrics together with every file they reference, so they work from anywhere.
 
-A rubric names its support packages and replayed bags by paths relative to the rubric file
+A rubric names its analyzer files, support packages and replayed bags by paths relative to the rubric file
 (``../fixtures/support/...``). To ship a rubric in the wheel or a Gradescope bundle, the rubric and
 those files are copied keeping their layout relative to a common root: the relative paths then
 resolve inside the copy exactly as in the source tree, so the rubric is copied byte for byte and
@@ -26,9 +26,11 @@ IGNORED = ("build", "install", "log", ".git", "__pycache__", "*.pyc", ".pytest_c
 
 
 def referenced_paths(rubric: Rubric) -> list[Path]:
-    """Absolute paths of everything ``rubric`` needs besides itself: support packages and the
-    bags its scenarios replay, in rubric order without repeats."""
+    """Absolute paths of everything ``rubric`` needs besides itself: its analyzer files, support
+    packages and the bags its scenarios replay, in rubric order without repeats."""
     found: dict[Path, None] = {}
+    for path in rubric.analyzers:
+        found.setdefault(Path(path), None)
     for path in rubric.support.values():
         found.setdefault(Path(path), None)
     for scenario in rubric.scenarios.values():

@@ -1,7 +1,9 @@
 """Figures of the report: matplotlib (Agg) drawings of an item's evidence, inlined as SVG.
 
 A figure is chosen by the item's analyzer. Adding one is one function in a module of this package
-(every module here is imported on first use; no list to edit)::
+(every module here is imported on first use; no list to edit), in an installed plug-in's module
+or in a rubric's analyzer file (``grader.analyze.plugins``: they are imported before figures are
+drawn)::
 
     from grader.report.figures import FigureContext, Plot, figure
 
@@ -104,6 +106,8 @@ def figure(*analyzers: str) -> Callable[[FigureFn], FigureFn]:
 
 
 def _load_all() -> None:
+    """Import this package's figure modules, then the installed plug-ins (which may draw some);
+    a rubric's analyzer files were imported when the rubric was loaded."""
     global _loaded
     if _loaded:
         return
@@ -111,6 +115,22 @@ def _load_all() -> None:
         if not mod.name.startswith("_"):
             importlib.import_module(f"{__name__}.{mod.name}")
     _loaded = True
+    from grader.analyze.plugins import load_builtin_and_installed
+
+    load_builtin_and_installed()
+
+
+def defined_by(module: str) -> bool:
+    """Whether a figure of module ``module`` is registered (a plug-in file that only draws)."""
+    return any(fn.__module__ == module for fns in _FIGURES.values() for fn in fns)
+
+
+def forget_module(module: str) -> None:
+    """Unregister the figures a module defined (its plug-in file was unloaded or reloaded)."""
+    for name in list(_FIGURES):
+        _FIGURES[name] = [fn for fn in _FIGURES[name] if fn.__module__ != module]
+        if not _FIGURES[name]:
+            del _FIGURES[name]
 
 
 def registered() -> dict[str, list[str]]:
