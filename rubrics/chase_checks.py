@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from grader.analyze import REQUIRED, Finding, provenance, register
-from grader.analyze._common import Frames, events, since_start, sim_pose, thin, times, topic
+from grader.analyze.toolkit import Frames, events, since_start, sim_pose, thin, times, topic
 from grader.analyze.evidence import SHARE
 from grader.scenario.client_gid import GUID_PREFIX_BYTES
 from grader.scenario.events import Event
@@ -45,7 +45,8 @@ EVIDENCE: dict[str, Any] = {
     **provenance.EVIDENCE,
     "calls": ("calls of /spawn by student code", ""), "name": ("turtle name asked for", ""), "by": ("called by", ""),
     "spawned": ("turtles the simulator spawned for student code", ""),
-    "service": ("service", ""), "request_name": ("name requested", ""), "response_name": ("name the simulator gave", ""),
+    "service": ("service", ""), "request_name": ("name requested", ""),
+    "response_name": ("name the simulator gave", ""),
     "extra_calls": ("calls after the turtle existed", ""), "max_calls": ("calls allowed", ""),
     "extra_calls_credit": ("credit when the turtle was spawned with extra calls", SHARE),
     "moves": ("moves of turtle1", ""), "caught": ("moves caught in time", ""),
@@ -60,6 +61,7 @@ EVIDENCE: dict[str, Any] = {
     "min_share": ("share of the time needed", SHARE), "share": ("share of the time within", SHARE),
     "max_m": ("largest distance after catching up", "m"), "mean_m": ("mean distance after catching up", "m"),
     "driven_m": ("distance turtle1 was driven", "m"), "judged_s": ("time judged", "s"),
+    "chased_m": ("distance turtle2 drove meanwhile", "m"),
     "required_turn_deg": ("turn toward turtle1 from the placement", "deg"),
     "naive_turn_deg": ("unwrapped heading error there", "deg"), "angular_z": ("angular.z of the command", "rad/s"),
     "cmd_topic": ("command topic", ""), "min_turn_deg": ("moves judged from a turn of", "deg"),
@@ -259,9 +261,12 @@ def chase_catches(frames: Frames, p: dict) -> Finding:
     bad = [r for r in rows if not r["ok"]]
     first = bad[0]
     where = f" at ({first['turtle1'][0]:g}, {first['turtle1'][1]:g})" if "turtle1" in first else ""
-    drives_t1 = any("drive turtle2 only" in str(r.get("why")) for r in bad)
-    advice = (" Publish your commands on /turtle2/cmd_vel; turtle1 belongs to the grader." if drives_t1 else
-              " Steer with the heading error wrapped into [-pi, pi] and a speed that grows with the distance.")
+    if any("drive turtle2 only" in str(r.get("why")) for r in bad):
+        advice = " Publish your commands on /turtle2/cmd_vel; turtle1 belongs to the grader."
+    elif all(r.get("teleported") for r in bad):
+        advice = " Only velocity commands may move a turtle."
+    else:
+        advice = " Steer with the heading error wrapped into [-pi, pi] and a speed that grows with the distance."
     return Finding(value, good / len(rows), "partial" if good else "fail",
                    f"turtle2 caught turtle1 within {p['catch_m']:g} m and {p['time_limit_s']:g} s after {good} of "
                    f"{len(rows)} moves; after move {rows.index(first) + 1} (turtle1{where}) {first['why']}." + advice,
@@ -303,17 +308,23 @@ def chase_follows(frames: Frames, p: dict) -> Finding:
         return provenance.moved_finding(frames, moved, "following turtle1")
     d = judged["d"].to_numpy(float)
     share = float(np.mean(d <= p["follow_m"]))
+    chased = float(np.hypot(np.diff(w["x2"]), np.diff(w["y2"])).sum())
     ev.update(share=round(share, 4), max_m=round(float(d.max()), 3), mean_m=round(float(d.mean()), 3),
+              chased_m=round(chased, 3),
               judged_s=round(float(judged["t"].iloc[-1] - judged["t"].iloc[0]), 2))
     value = f"{share:.0%} within {p['follow_m']:g} m"
     if share >= p["min_share"]:
         return Finding(value, 1.0, "pass", f"While turtle1 drove {driven:.1f} m, turtle2 stayed within "
                        f"{p['follow_m']:g} m of it {share:.0%} of the time after {p['catch_up_s']:g} s "
                        f"(at most {d.max():.2f} m away).", ev)
+    if chased < p["min_drive_m"]:
+        return Finding(value, 0.0, "fail", f"turtle2 moved only {chased:.2f} m while turtle1 drove {driven:.1f} m: "
+                       f"no command reached it: publish your commands on /{provenance.turtle_of(p['chaser_pose'])}/cmd_vel.",
+                       ev)
     return Finding(value, 0.0, "fail", f"While turtle1 drove {driven:.1f} m, turtle2 was within {p['follow_m']:g} m "
                    f"of it only {share:.0%} of the time after {p['catch_up_s']:g} s (needs {p['min_share']:.0%}; up to "
-                   f"{d.max():.2f} m away, {d.mean():.2f} m on average). A faster chaser keeps up: linear.x growing with "
-                   "the distance, the heading error wrapped into [-pi, pi].", ev)
+                   f"{d.max():.2f} m away, {d.mean():.2f} m on average). A faster chaser keeps up: linear.x growing "
+                   "with the distance, the heading error wrapped into [-pi, pi].", ev)
 
 
 @register("chase_short_way", evidence={**EVIDENCE, "value": ("turned the short way", "")},
@@ -380,8 +391,8 @@ def chase_short_way(frames: Frames, p: dict) -> Finding:
         row["ok"] = bool(ambiguous or np.sign(w[pick]) == np.sign(req))
         if not row["ok"]:
             side = "left" if req > 0 else "right"
-            row["why"] = (f"turtle1 was {abs(math.degrees(req)):.0f}° to the {side}, and the node turned the other way "
-                          f"(angular.z = {w[pick]:.2f})")
+            row["why"] = (f"turtle1 was {abs(math.degrees(req)):.0f}° to the {side}, and the node turned the other "
+                          f"way (angular.z = {w[pick]:.2f})")
     if not rows:
         return Finding.error(f"No move in steps {p['steps']} needed a large turn or a wrapped heading error; "
                              "nothing to judge (rubric problem).")
@@ -392,7 +403,9 @@ def chase_short_way(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"turtle2 turned toward turtle1 the short way at each of the {len(rows)} "
                        "moves that test it.", ev)
     first = next(r for r in rows if not r["ok"])
+    advice = (f"Publish the commands on {p['cmd_topic']}." if "no turning command" in first["why"] else
+              "The heading error atan2(dy, dx) - theta must be wrapped into [-pi, pi] (atan2(sin e, cos e)), "
+              "and angular.z must have its sign.")
     return Finding(value, good / len(rows), "partial" if good else "fail",
                    f"turtle2 turned the short way at {good} of {len(rows)} moves; at {first['step']}, {first['why']}. "
-                   "The heading error atan2(dy, dx) - theta must be wrapped into [-pi, pi] (atan2(sin e, cos e)), "
-                   "and angular.z must have its sign.", ev)
+                   + advice, ev)
