@@ -37,6 +37,7 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, provenance, register
 from grader.analyze.toolkit import Frames, events, since_start, sim_pose, thin, times, topic
 from grader.analyze.evidence import SHARE
+from grader.report.figures import FigureContext, Plot, figure
 from grader.scenario.client_gid import GUID_PREFIX_BYTES
 from grader.scenario.events import Event
 
@@ -51,7 +52,7 @@ EVIDENCE: dict[str, Any] = {
     "extra_calls_credit": ("credit when the turtle was spawned with extra calls", SHARE),
     "moves": ("moves of turtle1", ""), "caught": ("moves caught in time", ""),
     "step": ("step", ""), "turtle1": ("turtle1 placed at (x, y)", "m"),
-    "turtle2_start": ("turtle2 started at (x, y, heading)", "m, m, rad"),
+    "turtle2_start": ("turtle2 placed at (x m, y m, heading rad)", ""),
     "caught_s": ("time to catch", "s"), "closest_m": ("closest approach", "m"),
     "turtle1_moved_m": ("turtle1 moved meanwhile", "m"), "ok": ("in time", ""), "why": ("why not", ""),
     "catch_m": ("caught within", "m"), "time_limit_s": ("time allowed per move", "s"),
@@ -68,6 +69,7 @@ EVIDENCE: dict[str, Any] = {
     "wrap_turn_deg": ("and where wrapping matters, from", "deg"),
     "ambiguous_deg": ("within this of 180° either way counts", "deg"), "min_drive_m": ("turtle1 driven at least", "m"),
     "teleported": ("calls of student code that moved a turtle meanwhile", ""),
+    "x": ("x", "m"), "y": ("y", "m"), "theta": ("heading", "rad"),
     "distance": None,
 }
 
@@ -409,3 +411,41 @@ def chase_short_way(frames: Frames, p: dict) -> Finding:
     return Finding(value, good / len(rows), "partial" if good else "fail",
                    f"turtle2 turned the short way at {good} of {len(rows)} moves; at {first['step']}, {first['why']}. "
                    + advice, ev)
+
+
+# ------------------------------------------------------------------------------------- figure
+def _curves(evidence: Any) -> list[tuple[str, list[float], list[float]]]:
+    """The distance series of the evidence as (label, t, d); [] for anything malformed."""
+    out = []
+    for k, s in enumerate(evidence if isinstance(evidence, list) else [], 1):
+        t, d = (s.get("t"), s.get("d")) if isinstance(s, dict) else (None, None)
+        if (isinstance(t, list) and isinstance(d, list) and len(t) == len(d) > 1
+                and all(isinstance(v, (int, float)) for v in t + d)):
+            out.append((f"move {s.get('move', k)}" if "move" in s else "during the drive", t, d))
+    return out
+
+
+@figure("chase_catches", "chase_follows")
+def chase_distance(ctx: FigureContext) -> Plot | None:
+    """turtle2's distance to turtle1 over time, with the distance and time the lab asks for."""
+    curves = _curves(ctx.evidence.get("distance"))
+    if not curves:
+        return None
+    catches = ctx.item.analyzer == "chase_catches"
+    limit = ctx.param("catch_m" if catches else "follow_m")
+    when = ctx.param("time_limit_s" if catches else "catch_up_s")
+    if not isinstance(limit, (int, float)) or not isinstance(when, (int, float)):
+        return None
+    title = (f"After each jump of turtle1 the distance should fall below {limit:g} m within {when:g} s" if catches
+             else f"After {when:g} s the distance should stay below {limit:g} m")
+    fig, ax = ctx.axes(title, size=(6.4, 3.6))
+    for label, t, d in curves:
+        ax.plot(t, d, label=label)
+    ax.axhline(limit, color="0.3", linestyle="--", label=f"{limit:g} m")
+    ax.axvline(when, color="0.6", linestyle=":", label=f"{when:g} s")
+    ax.set(xlabel="time since the release (s)" if catches else "time since the drive began (s)",
+           ylabel="distance turtle2 to turtle1 (m)")
+    ax.legend(loc="upper right")
+    closest = ", ".join(f"{label}: {min(d):.2f} m" for label, _t, d in curves)
+    return Plot(fig, title, alt=f"Distance from turtle2 to turtle1 over time; closest approach {closest}; "
+                f"limit {limit:g} m, time {when:g} s.")

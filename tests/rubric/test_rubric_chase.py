@@ -271,3 +271,68 @@ def test_a_student_teleport_onto_turtle1_earns_nothing_for_that_move() -> None:
     catches = grade(simulate(p_law(1.0, 4.0), cheat_teleport=True))["chase.catches"]
     assert catches.status == "partial" and [r["ok"] for r in catches.evidence["moves"]] == [False, True, True]
     assert "/turtle2/teleport_absolute called by student code" in catches.feedback
+
+
+UNITS = {"", "m", "s", "Hz", "m/s", "rad", "rad/s", "deg", "1/s", "time", "share", "s since start"}
+
+
+def _unlabelled(labels: dict, ev: dict, prefix: str = "") -> set[str]:
+    """Evidence keys without a label (as tests/analyze/test_an_evidence_labels.py judges them)."""
+    missing = set()
+    for key, value in ev.items():
+        if prefix + key not in labels and key not in labels:
+            missing.add(prefix + key)
+        elif labels.get(prefix + key, labels.get(key)) is None:
+            continue
+        elif isinstance(value, dict):
+            missing |= _unlabelled(labels, value, prefix + key + ".")
+        elif isinstance(value, list):
+            for row in value:
+                if isinstance(row, dict):
+                    missing |= {f"{prefix}{key}[].{k}" for k in _unlabelled(labels, row)}
+    return missing
+
+
+def test_the_lab_analyzers_say_what_their_evidence_means() -> None:
+    """The report shows only labelled evidence: every key the lab's analyzers produce on the
+    recordings above has a label in words and a unit, as the built-in analyzers' must."""
+    runs = [simulate(p_law(1.0, 4.0)), simulate(p_law(1.0, 4.0, wrap=False)), simulate(p_law(1.0, 4.0), spawns=0),
+            simulate(p_law(1.0, 4.0), drives_turtle1=True, spawns=2), simulate(p_law(1.0, 4.0), cheat_teleport=True)]
+    missing: dict[str, set[str]] = {}
+    for frames in runs:
+        for item_id, finding in grade(frames).items():
+            gaps = _unlabelled(analyze.evidence_labels(finding_analyzer(item_id)), finding.evidence)
+            if gaps:
+                missing.setdefault(item_id, set()).update(gaps)
+    assert not missing, missing
+    for name in ("chase_spawned", "chase_catches", "chase_short_way", "chase_follows"):
+        labels = analyze.evidence_labels(name)
+        assert labels["value"] and analyze.expected_text(name), name
+        for key, label in labels.items():
+            assert label is None or (label[0] and label[1] in UNITS), (name, key, label)
+
+
+def finding_analyzer(item_id: str) -> str:
+    return next(i.analyzer for i in load_rubric(CHASE, check_files=False).items if i.id == item_id)
+
+
+def test_the_lab_file_draws_the_distance_figure() -> None:
+    """The lab's file registers a report figure too; it draws the real evidence and ignores junk."""
+    from grader.report.figures import FigureContext, figures_for
+    from grader.rubric.score import ItemResult
+    from grader.rubric.schema import Section
+
+    found = grade(simulate(p_law(0.0, 4.0, speed=0.5, stop=0.3)))
+
+    def item(item_id: str, analyzer: str, evidence: object) -> FigureContext:
+        res = ItemResult(id=item_id, title="", section=Section("part", 2), kind="auto", public=True, points=0,
+                         max_points=7, status="fail", feedback="", evidence={"distance": evidence},
+                         analyzer=analyzer)
+        return FigureContext(item=res, evidence=res.evidence, params=found[item_id].params)
+
+    for item_id, analyzer in (("chase.catches", "chase_catches"), ("chase.follows", "chase_follows")):
+        drawn, errors = figures_for(item(item_id, analyzer, found[item_id].evidence["distance"]), "x")
+        assert len(drawn) == 1 and not errors, errors
+        assert "closest approach" in drawn[0].alt and "<svg" in drawn[0].svg
+        for junk in (None, [], [{"t": [0, 1], "d": [1]}], [{"t": "a", "d": "b"}], ["x"], {"t": [1, 2]}):
+            assert figures_for(item(item_id, analyzer, junk), "x") == ([], []), junk
