@@ -226,8 +226,10 @@ def chase_catches(frames: Frames, p: dict) -> Finding:
             row["why"] = "no poses of both turtles during the step"
             continue
         x1, y1 = float(w["x1"].iloc[0]), float(w["y1"].iloc[0])
+        held = pairs[(pairs["t"] >= start) & (pairs["t"] <= t0)]
+        placed = held.iloc[-1] if not held.empty else w.iloc[0]     # before the first tick of the chase
         row.update(turtle1=[round(x1, 3), round(y1, 3)],
-                   turtle2_start=[round(float(w[c].iloc[0]), 3) for c in ("x2", "y2", "th2")],
+                   turtle2_start=[round(float(placed[c]), 3) for c in ("x2", "y2", "th2")],
                    closest_m=round(float(w["d"].min()), 3))
         series.append({"move": k, **_series(frames, w, t0)})
         during = provenance.within(moved, start, end)
@@ -361,10 +363,12 @@ def chase_short_way(frames: Frames, p: dict) -> Finding:
         start, released, end = _step_times(frames, step)
         if start is None or released is None:
             continue
-        at = pairs[pairs["t"] >= released]
+        # the placement: the last pose of the hold (the first one after the release has moved a tick)
+        held = pairs[(pairs["t"] >= start) & (pairs["t"] <= released)]
+        at = held if not held.empty else pairs[pairs["t"] > released]
         if at.empty:
             continue
-        r = at.iloc[0]
+        r = at.iloc[-1] if not held.empty else at.iloc[0]
         bearing = math.atan2(r["y1"] - r["y2"], r["x1"] - r["x2"])
         naive = bearing - float(r["th2"])
         req = math.atan2(math.sin(naive), math.cos(naive))

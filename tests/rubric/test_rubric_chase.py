@@ -155,7 +155,9 @@ def simulate(law: Law, *, period_ticks: int = 3, spawn_name: str = "turtle2", sp
         if step.place is not None:
             tick(round(HOLD_S / DT))
             state["held"] = False
+            rec.t += DT / 2          # the release comes between two ticks: the next pose has moved
             rec.event("turtles_released", step=step.id, ok=True)
+            rec.t -= DT / 2
             if cheat_teleport and step.id == "catch_a":
                 t1 = turtles["turtle1"]
                 rec.call("/turtle2/teleport_absolute", STUDENT_GID, {"x": t1.pose_x, "y": t1.pose_y, "theta": 0.0})
@@ -228,6 +230,11 @@ def test_no_wrap_turns_the_long_way_and_loses_turtle1() -> None:
     assert found["chase.catches"].status == "pass"
     assert found["chase.short_way"].status == "partial" and found["chase.short_way"].fraction == 0.5
     assert "catch_b" in found["chase.short_way"].feedback and "wrapped" in found["chase.short_way"].feedback
+    # judged from the placement itself (the held pose), not from a pose a tick into the turn
+    turns = {m["step"]: m["required_turn_deg"] for m in found["chase.short_way"].evidence["moves"]}
+    assert turns == pytest.approx({"catch_b": 62.6, "catch_c": 137.5}, abs=0.2)
+    starts = [m["turtle2_start"] for m in found["chase.catches"].evidence["moves"]]
+    assert sum(starts, []) == pytest.approx([2.0, 2.0, 0.0, 8.0, 8.0, 3.0, 8.5, 2.5, 0.0], abs=1e-3)
     assert found["chase.follows"].status == "fail"
 
 
