@@ -191,6 +191,9 @@ def _present(df: pd.DataFrame, i: int, part: str) -> bool:
 
 
 _CHASE = {"chaser_pose": "/turtle2/pose", "target_pose": "/turtle1/pose"}
+#: what a chaser that catches and keeps up does (the lab text's law)
+_STEER = ("Steer toward turtle1: angular.z = K_w * e with e = atan2(dy, dx) - theta wrapped into [-pi, pi] and "
+          "K_w > 0, and a speed that grows with the distance, linear.x = K_v * d.")
 
 
 @register("chase_catches", evidence={**EVIDENCE, "value": ("moves caught", "")},
@@ -225,9 +228,9 @@ def chase_catches(frames: Frames, p: dict) -> Finding:
         if len(w) < 2:
             row["why"] = "no poses of both turtles during the step"
             continue
-        x1, y1 = float(w["x1"].iloc[0]), float(w["y1"].iloc[0])
         held = pairs[(pairs["t"] >= start) & (pairs["t"] <= t0)]
         placed = held.iloc[-1] if not held.empty else w.iloc[0]     # before the first tick of the chase
+        x1, y1 = float(placed["x1"]), float(placed["y1"])
         row.update(turtle1=[round(x1, 3), round(y1, 3)],
                    turtle2_start=[round(float(placed[c]), 3) for c in ("x2", "y2", "th2")],
                    closest_m=round(float(w["d"].min()), 3))
@@ -270,7 +273,7 @@ def chase_catches(frames: Frames, p: dict) -> Finding:
     elif all(r.get("teleported") for r in bad):
         advice = " Only velocity commands may move a turtle."
     else:
-        advice = " Steer with the heading error wrapped into [-pi, pi] and a speed that grows with the distance."
+        advice = " " + _STEER
     return Finding(value, good / len(rows), "partial" if good else "fail",
                    f"turtle2 caught turtle1 within {p['catch_m']:g} m and {p['time_limit_s']:g} s after {good} of "
                    f"{len(rows)} moves; after move {rows.index(first) + 1} (turtle1{where}) {first['why']}." + advice,
@@ -327,8 +330,7 @@ def chase_follows(frames: Frames, p: dict) -> Finding:
                        ev)
     return Finding(value, 0.0, "fail", f"While turtle1 drove {driven:.1f} m, turtle2 was within {p['follow_m']:g} m "
                    f"of it only {share:.0%} of the time after {p['catch_up_s']:g} s (needs {p['min_share']:.0%}; up to "
-                   f"{d.max():.2f} m away, {d.mean():.2f} m on average). A faster chaser keeps up: linear.x growing "
-                   "with the distance, the heading error wrapped into [-pi, pi].", ev)
+                   f"{d.max():.2f} m away, {d.mean():.2f} m on average). " + _STEER, ev)
 
 
 @register("chase_short_way", evidence={**EVIDENCE, "value": ("turned the short way", "")},
@@ -410,8 +412,8 @@ def chase_short_way(frames: Frames, p: dict) -> Finding:
                        "moves that test it.", ev)
     first = next(r for r in rows if not r["ok"])
     advice = (f"Publish the commands on {p['cmd_topic']}." if "no turning command" in first["why"] else
-              "The heading error atan2(dy, dx) - theta must be wrapped into [-pi, pi] (atan2(sin e, cos e)), "
-              "and angular.z must have its sign.")
+              "angular.z must have the sign of the heading error atan2(dy, dx) - theta wrapped into [-pi, pi] "
+              "(atan2(sin e, cos e)): positive turns left.")
     return Finding(value, good / len(rows), "partial" if good else "fail",
                    f"turtle2 turned the short way at {good} of {len(rows)} moves; at {first['step']}, {first['why']}. "
                    + advice, ev)
