@@ -269,7 +269,8 @@ def chase_catches(frames: Frames, p: dict) -> Finding:
     first = bad[0]
     where = f" at ({first['turtle1'][0]:g}, {first['turtle1'][1]:g})" if "turtle1" in first else ""
     if any("drive turtle2 only" in str(r.get("why")) for r in bad):
-        advice = " Publish your commands on /turtle2/cmd_vel; turtle1 belongs to the grader."
+        advice = (f" Publish your commands on /{provenance.turtle_of(p['chaser_pose'])}/cmd_vel; "
+                  f"{provenance.turtle_of(p['target_pose'])} belongs to the grader.")
     elif all(r.get("teleported") for r in bad):
         advice = " Only velocity commands may move a turtle."
     else:
