@@ -11,7 +11,7 @@ GRADER := $(VENV)/bin/grader
 bootstrap:
 	@$(PYTHON) -m grader.bootstrap
 
-LABS := enee467_lab3 goal_setter wall_pen first_nodes
+LABS := enee467_lab3 goal_setter wall_pen first_nodes chase
 
 demo: bootstrap
 	$(GRADER) doctor

@@ -94,8 +94,15 @@ def analyzer_reference() -> str:
     from grader import analyze
     from grader.analyze import REQUIRED
 
+    from grader.analyze.plugins import loaded_files
+
+    # a lab's own analyzers (a rubric's ``analyzers:`` file) are documented with that lab, and are
+    # loaded only in processes that loaded its rubric: the guide lists the grader's (and plug-ins')
+    lab_files = {n for defined in loaded_files().values() for n in defined}
     out = []
     for name in analyze.names():
+        if name in lab_files:
+            continue
         fn = analyze.get(name)
         doc = (fn.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
         module = fn.__module__.rsplit(".", 1)[-1]

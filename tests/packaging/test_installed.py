@@ -259,6 +259,43 @@ def test_gradescope_bundle_grades_like_grader_grade(autograder: Path, tmp_path: 
 
 
 
+
+def test_installed_grader_grades_the_chase_lab_with_its_own_analyzer_file(autograder: Path,
+                                                                          tmp_path: Path) -> None:
+    """The fifth lab, written only through the analyzer plug-in point (issue 19), graded by the
+    grader pip-installed from the wheel into a new venv (the Gradescope image's): the wheel
+    carries ``chase.yaml`` with ``chase_checks.py`` beside it, the installed ``grader`` package
+    defines none of the lab's analyzers, and an instructor's copy of those two files, outside any
+    checkout, grades the chase reference with every point (one scenario, ``--jobs 1``)."""
+    venv = autograder / "grader-venv"
+    staged = venv / "lib" / "python3.11" / "site-packages" / "grader" / "_data" / "rubrics"
+    assert (staged / "chase.yaml").is_file() and (staged / "chase_checks.py").is_file()
+    course = tmp_path / "course"                      # where an instructor keeps a lab of their own
+    course.mkdir()
+    for name in ("chase.yaml", "chase_checks.py"):
+        shutil.copy(staged / name, course / name)
+    origins = sh([venv / "bin" / "python", "-c",
+                  "import sys; from grader import analyze; from grader.rubric import load_rubric; "
+                  "before = [n for n in analyze.names() if n.startswith('chase_')]; "
+                  "load_rubric(sys.argv[1]); "
+                  "print(before, sorted({analyze.origin(n) for n in analyze.names() if n.startswith('chase_')}))",
+                  course / "chase.yaml"], cwd=tmp_path, env=clean_env()).stdout.strip()
+    assert origins == f"[] ['{(course / 'chase_checks.py').resolve()}']", origins
+    subs = tmp_path / "submissions"
+    shutil.copytree(REPO / "fixtures" / "submissions" / "chase" / "reference" / "src", subs / "reference" / "src")
+    out = tmp_path / "out"
+    sh([venv_grader(autograder), "grade", subs, "--rubric", course / "chase.yaml", "-o", out, "--jobs", "1",
+        "--cache-dir", tmp_path / "cache"], cwd=tmp_path, env=clean_env(), timeout=900)
+    result = json.loads((out / "reference" / "result.json").read_text())
+    items = {i["id"]: i for i in result["items"]}
+    expected = yaml.safe_load((REPO / "fixtures" / "submissions" / "chase" / "reference" / "expected.yaml")
+                              .read_text())["expected"]
+    assert {i: items[i]["status"] for i in expected} == expected, \
+        {i: items[i]["feedback"][:200] for i in expected if items[i]["status"] != expected[i]}
+    assert (result["auto_score"], result["auto_max"]) == (20, 20)
+    assert {items[i]["analyzer"] for i in ("spawn.turtle2", "chase.catches", "chase.short_way", "chase.follows")} \
+        == {"chase_spawned", "chase_catches", "chase_short_way", "chase_follows"}
+
 # --- the sandbox on Gradescope: hostile submissions in a simulated /autograder, run as root ---
 
 FAULTS = REPO / "fixtures" / "faults"
