@@ -172,13 +172,14 @@ def simulate(law: Law, *, period_ticks: int = 3, spawn_name: str = "turtle2", sp
             goal, tol, settle = step.target, step.until.tolerance, step.until.settle
             since = [None]
 
+            # the closure is called within this iteration only (tick), so late binding is intended
             def reached() -> bool:
                 me = turtles.get("turtle2")
-                if me is None or math.hypot(me.pose_x - goal.x, me.pose_y - goal.y) > tol:
-                    since[0] = None
+                if me is None or math.hypot(me.pose_x - goal.x, me.pose_y - goal.y) > tol:  # noqa: B023
+                    since[0] = None  # noqa: B023
                     return False
-                since[0] = since[0] or rec.t
-                return rec.t - since[0] >= settle
+                since[0] = since[0] or rec.t  # noqa: B023
+                return rec.t - since[0] >= settle  # noqa: B023
 
             tick(round(remaining / DT), until=reached)
         elif step.until is not None:         # startup: turtle2's poses are there
