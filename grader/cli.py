@@ -23,6 +23,7 @@ SUBSYSTEMS = (
     "grader.rubric.guide",
     "grader.scores.cli",
     "grader.lms.cli",
+    "grader.similarity.cli",
 )
 
 

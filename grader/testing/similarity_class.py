@@ -1,0 +1,84 @@
+"""A Lab 3 class for the similarity tests and benchmark (grader.similarity), made from the fixtures.
+
+Every member hands in its ``turtle_control`` package only (the rubric's support package is added
+by the build), graded with the Lab 3 rubric cut down to the controller scenario
+(``controller_rubric``), which places the turtle before each goal, so paths compare:
+
+* ``orig``: ``fixtures/submissions/enee467_lab3/no_wrap`` (theta_e not wrapped: a buggy submission);
+* ``copy_a``, ``copy_b``: ``orig`` renamed and reformatted (grader.testing.copies);
+* ``rewritten``: ``orig``'s controller rewritten by hand (functions instead of a class, math instead
+  of numpy, another setup.py), same constants and behaviour;
+* ``known_copy``: the known public solution ``fixtures/similarity/enee467_lab3/known/`` renamed and
+  reformatted;
+* ``reference``, ``honest_b``, ``honest_c``: three correct solutions written independently with the
+  lab's suggested gains (K_1 = 0.5, K_2 = 1) and timer (0.03 s): they converge on one trajectory.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import yaml
+
+from grader.testing.copies import disguise_tree
+
+REPO = Path(__file__).resolve().parents[2]
+LAB3 = REPO / "fixtures" / "submissions" / "enee467_lab3"
+SIM = REPO / "fixtures" / "similarity" / "enee467_lab3"
+KNOWN = SIM / "known"
+COPIES = {"orig", "copy_a", "copy_b", "rewritten"}      # one code: no_wrap's
+HONEST = {"reference", "honest_b", "honest_c"}
+
+
+def controller_rubric(dest: Path, scenarios: tuple[str, ...] = ("ex2_controller",)) -> Path:
+    """The Lab 3 rubric with only ``scenarios`` and their items (paths made absolute)."""
+    src = REPO / "rubrics" / "enee467_lab3.yaml"
+    doc = yaml.safe_load(src.read_text(encoding="utf-8"))
+    doc["handout"] = str((src.parent / doc["handout"]).resolve())
+    doc["support"] = {k: str((src.parent / v).resolve()) for k, v in doc["support"].items()}
+    doc["scenarios"] = {k: v for k, v in doc["scenarios"].items() if k in scenarios}
+    items = []
+    for item in doc["items"]:
+        sc = item.get("scenario")
+        if sc is None:
+            continue
+        kept = [s for s in ([sc] if isinstance(sc, str) else sc) if s in scenarios]
+        if kept:
+            item["scenario"] = kept
+            items.append(item)
+    doc["items"] = items
+    used = {str(i["section"]) for i in items}
+    doc["sections"] = [s for s in doc["sections"] if str(s["section"]) in used]
+    for s in doc["sections"]:
+        s["points"] = sum(i.get("points", 0) for i in items if str(i["section"]) == str(s["section"]))
+    doc["total"] = sum(s["points"] for s in doc["sections"])
+    doc.pop("late", None)
+    dest = Path(dest)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    return dest
+
+
+def _package(src_ws: Path, dest: Path) -> None:
+    shutil.copytree(src_ws / "src" / "turtle_control", dest / "src" / "turtle_control")
+
+
+def build_class(root: Path) -> dict[str, Path]:
+    """The class's submissions under ``root`` (one workspace each); id -> folder."""
+    root = Path(root)
+    subs: dict[str, Path] = {}
+    _package(LAB3 / "no_wrap", root / "orig")
+    for i, name in enumerate(("copy_a", "copy_b"), 1):
+        disguise_tree(root / "orig" / "src", root / name / "src", seed=i)
+    _package(SIM / "rewritten_no_wrap", root / "rewritten")
+    disguise_tree(KNOWN / "public_turtle_lab3" / "src", root / "known_copy" / "src", seed=7)
+    _package(LAB3 / "reference", root / "reference")
+    for name in ("honest_b", "honest_c"):
+        _package(SIM / name, root / name)
+    for p in sorted(root.iterdir()):
+        subs[p.name] = p
+    return subs
+
+
+__all__ = ["COPIES", "HONEST", "KNOWN", "build_class", "controller_rubric"]
