@@ -33,6 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--no-reuse", action="store_true",
                    help="run every scenario, even when an identical one was recorded before")
     _time_scale_option(g)
+    from grader.similarity.cli import add_grade_options
+
+    add_grade_options(g)
     g.set_defaults(func=run_grade)
 
     c = sub.add_parser("check", help="self-check your own workspace (public items only)",
@@ -219,6 +222,10 @@ def run_grade(args: argparse.Namespace) -> int:
         print(f"grader: {sid}: {msg}", file=sys.stderr)
     for name, why in refused.items():
         print(f"grader: {name}: not graded: {why}", file=sys.stderr)
+    if not interrupted and not args.shard:     # a shard is compared once merged (grader merge)
+        from grader.similarity.cli import after_grading
+
+        after_grading(args.out, rubric, args)
     print(f"wrote {args.out / 'grades.csv'} and {args.out / 'index.html'}")
     if interrupted or any("interrupted" in m for m in failures.values()):
         print("grader: interrupted; finished submissions are saved; rerun with --resume to continue",

@@ -78,6 +78,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("parts", type=Path, nargs="+", help="the shard outputs OUT_1 ... OUT_N")
     m.add_argument("-o", "--out", type=Path, required=True)
     m.add_argument("--rubric", type=Path, required=True, help="the rubric every shard was graded with")
+    from grader.similarity.cli import add_grade_options
+
+    add_grade_options(m)
     m.set_defaults(func=run_merge)
 
 
@@ -88,5 +91,8 @@ def run_merge(args: argparse.Namespace) -> int:
     rubric = load_rubric(args.rubric)
     merged = merge_outputs(args.parts, args.out, rubric)
     write_batch_outputs(args.out, rubric)
+    from grader.similarity.cli import after_grading
+
+    after_grading(args.out, rubric, args)
     print(f"merged {len(merged)} submissions from {len(args.parts)} outputs into {args.out}")
     return 0

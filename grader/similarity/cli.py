@@ -20,6 +20,33 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="list a pair when its source or behaviour similarity reaches this (0-1, default 0.5)")
 
 
+def add_grade_options(p: argparse.ArgumentParser) -> None:
+    """`grader grade` and `grader merge`: similarity runs after grading unless --no-similarity."""
+    p.add_argument("--no-similarity", action="store_true",
+                   help="do not compare the graded submissions with each other (grader similarity)")
+    add_options(p)
+
+
+def after_grading(out: Path, rubric, args: argparse.Namespace) -> None:
+    """Similarity of the batch after `grader grade`/`grader merge` (seconds for a class): never
+    fails the grading; a problem is one line on stderr."""
+    import sys
+
+    from grader.similarity.run import graded_ids, run_similarity
+
+    if getattr(args, "no_similarity", False) or len(graded_ids(out)) < 2:
+        return
+    try:
+        summary = run_similarity(out, rubric, settings_from(args))
+    except Exception as exc:  # noqa: BLE001 - the grades are written; similarity is extra
+        print(f"grader: similarity not computed ({type(exc).__name__}: {exc}); run `grader similarity "
+              f"{out} --rubric ...` to retry", file=sys.stderr)
+        return
+    listed = sum(1 for p in summary["pairs"] if p["listed"])
+    print(f"similarity: {summary['pairs_compared']} pairs in {summary['timings'].get('total_s', 0):.1f} s, "
+          f"{listed} listed in {out / 'index.html'} (details: grader similarity)")
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser("similarity", help="source and behaviour similarity of a graded class",
                        description="Compare every pair of submissions of a graded batch (and each with known "
