@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV   := .venv
 GRADER := $(VENV)/bin/grader
 
-.PHONY: bootstrap demo test test-fast bench clean
+.PHONY: bootstrap demo test test-fast test-slurm bench clean
 
 bootstrap:
 	@$(PYTHON) -m grader.bootstrap
@@ -25,6 +25,11 @@ test: bootstrap
 
 test-fast: bootstrap
 	$(VENV)/bin/python -m pytest -m "not slow" $(PYTEST_ARGS)
+
+# the Slurm example on a real single-node Slurm (slurmctld + slurmd started and stopped by the
+# test; part of `make test` too)
+test-slurm: bootstrap
+	$(VENV)/bin/python -m pytest tests/scale/test_slurm.py $(PYTEST_ARGS)
 
 bench: bootstrap
 	$(VENV)/bin/python -m benchmarks

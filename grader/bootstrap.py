@@ -109,21 +109,27 @@ def ensure_tools() -> None:
                          f"{' '.join(pkgs)} (e.g. `sudo apt-get install {' '.join(pkgs)}`) and rerun.")
 
 
+def _apt_optional(packages: list[str], why: str) -> bool:
+    """Install optional Debian packages with apt when root (retrying after ``apt-get update``);
+    True when they are installed."""
+    if os.geteuid() != 0 or not shutil.which("apt-get"):
+        return False
+    log(f"installing {' '.join(packages)} with apt-get ({why})")
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    cmd = ["apt-get", "install", "-y", "-qq", *packages]
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        subprocess.run(["apt-get", "update", "-qq"], env=env, capture_output=True)
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    return proc.returncode == 0
+
+
 def ensure_browser() -> None:
     """Debian's chromium renders the HTML reports in the browser tests; optional elsewhere."""
     if shutil.which("chromium") or shutil.which("chromium-browser") or os.environ.get("GRADER_NO_BROWSER"):
         return
-    if os.geteuid() == 0 and shutil.which("apt-get"):
-        log("installing chromium with apt-get (headless browser for the HTML report tests)")
-        env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-        proc = subprocess.run(["apt-get", "install", "-y", "-qq", "chromium"], env=env,
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            subprocess.run(["apt-get", "update", "-qq"], env=env, capture_output=True)
-            proc = subprocess.run(["apt-get", "install", "-y", "-qq", "chromium"], env=env,
-                                  capture_output=True, text=True)
-        if proc.returncode == 0:
-            return
+    if _apt_optional(["chromium"], "headless browser for the HTML report tests"):
+        return
     log("note: chromium is not installed; HTML report browser tests will be skipped "
         "(install the Debian package `chromium` to run them)")
 
@@ -133,19 +139,24 @@ def ensure_sandbox() -> None:
     it grading still works, with reduced isolation and a warning in every result."""
     if shutil.which("bwrap") or os.environ.get("GRADER_NO_SANDBOX_INSTALL"):
         return
-    if os.geteuid() == 0 and shutil.which("apt-get"):
-        log("installing bubblewrap with apt-get (sandbox for student code)")
-        env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-        proc = subprocess.run(["apt-get", "install", "-y", "-qq", "bubblewrap"], env=env,
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            subprocess.run(["apt-get", "update", "-qq"], env=env, capture_output=True)
-            proc = subprocess.run(["apt-get", "install", "-y", "-qq", "bubblewrap"], env=env,
-                                  capture_output=True, text=True)
-        if proc.returncode == 0:
-            return
+    if _apt_optional(["bubblewrap"], "sandbox for student code"):
+        return
     log("note: bubblewrap is not installed; student code will run with reduced isolation "
         "(install the Debian package `bubblewrap`; `grader doctor` lists the active protections)")
+
+
+def ensure_slurm() -> None:
+    """Debian's Slurm (``slurmctld``, ``slurmd``, ``slurm-client``): the test of the Slurm example
+    (tests/scale/test_slurm.py) starts a single-node cluster of its own with them. Only for a
+    checkout's tests; the daemons are not started here (the package scripts find no init system
+    to start them with, or the test's own configuration is used)."""
+    if shutil.which("slurmctld") and shutil.which("slurmd") and shutil.which("sbatch") \
+            or os.environ.get("GRADER_NO_SLURM_INSTALL"):
+        return
+    if _apt_optional(["slurmctld", "slurmd", "slurm-client"], "a single-node Slurm for the Slurm example's test"):
+        return
+    log("note: Slurm is not installed; the Slurm example's test will be skipped (install the Debian "
+        "packages slurmctld, slurmd and slurm-client to run it)")
 
 
 def digest(*paths: Path, extra: str = "") -> str:
@@ -316,6 +327,7 @@ def main(argv: list[str] | None = None) -> int:
     ensure_tools()
     ensure_browser()
     ensure_sandbox()
+    ensure_slurm()
     ensure_venv(mode)
     prepare(repo_target(), mode)
     return 0

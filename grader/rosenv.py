@@ -52,6 +52,53 @@ def _prepend(env: dict[str, str], var: str, parts: Iterable[str]) -> None:
         env[var] = os.pathsep.join(new + old)
 
 
+#: the students' Python trees, for a grader process that imports their interface types: appended
+#: to ``sys.path`` after start-up (:func:`add_student_paths`) instead of being on ``PYTHONPATH``
+STUDENT_PATH_VAR = "GRADER_STUDENT_PYTHONPATH"
+#: the students' trees :func:`add_student_paths` added in this process (kept out of grader processes)
+_STUDENT_PATHS: list[str] = []
+
+
+def trusted_env(env: Mapping[str, str], prefixes: Iterable[Path]) -> dict[str, str]:
+    """``env`` for a grader process (the scenario child, the simulator), which runs outside the
+    students' jail: the students' Python trees (``<prefix>/lib/pythonX.Y/site-packages`` of their
+    builds) leave ``PYTHONPATH`` for :data:`STUDENT_PATH_VAR`.
+
+    On ``PYTHONPATH`` they come before the venv, so Python would run a ``sitecustomize.py`` or
+    ``usercustomize.py`` a student's package installs there at the start of every grader process
+    (as the grader's user: root on Gradescope), and a student's module named like one the grader
+    imports (``yaml``, ``numpy``) would shadow it.
+    """
+    out = dict(env)
+    roots = [Path(p) for p in [*prefixes, *_STUDENT_PATHS]]
+    theirs, ours = [], []
+    for entry in filter(None, out.get("PYTHONPATH", "").split(os.pathsep)):
+        path = Path(entry)
+        (theirs if any(path == r or r in path.parents for r in roots) else ours).append(entry)
+    if ours:
+        out["PYTHONPATH"] = os.pathsep.join(ours)
+    else:
+        out.pop("PYTHONPATH", None)
+    if theirs:
+        out[STUDENT_PATH_VAR] = os.pathsep.join(theirs)
+    return out
+
+
+def add_student_paths() -> None:
+    """In a grader process started with :func:`trusted_env`: make the students' interface types
+    importable, after everything of the grader's own (so nothing of theirs shadows it), and give
+    the processes it starts the build's ``PYTHONPATH`` back."""
+    theirs = [e for e in os.environ.pop(STUDENT_PATH_VAR, "").split(os.pathsep) if e]
+    _STUDENT_PATHS.extend(theirs)
+    for entry in theirs:
+        if entry not in sys.path:
+            sys.path.append(entry)
+    # what this process starts gets the build's environment as colcon's setup.bash gives it (the
+    # students' trees first); RosGraph takes them out again for the grader's own processes
+    if theirs:
+        os.environ["PYTHONPATH"] = os.pathsep.join([*theirs, *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))])
+
+
 def child_env(*, domain_id: int | None = None, prefixes: Iterable[Path] = (),
               base: Mapping[str, str] | None = None,
               extra: Mapping[str, str] | None = None) -> dict[str, str]:

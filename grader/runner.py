@@ -27,7 +27,7 @@ from typing import Iterable, Mapping, Sequence
 
 from grader.domain import DomainLease, lease_domain
 from grader.errors import GraderError
-from grader.rosenv import child_env
+from grader.rosenv import child_env, trusted_env
 from grader.sandbox.capture import CappedLog
 from grader.sandbox.jail import Prepared, prepare
 from grader.sandbox.scenario import ChildConfig, child_config
@@ -290,7 +290,8 @@ class RosGraph:
         extra = {"ROS_LOG_DIR": str(ros_log)}
         if self.sandbox is not None and self.sandbox.netns:
             extra["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"   # the namespace is the boundary
-        self.env = child_env(domain_id=self.domain_id, prefixes=prefixes, extra={**extra, **(extra_env or {})})
+        self._prefixes = [Path(p) for p in prefixes]
+        self.env = child_env(domain_id=self.domain_id, prefixes=self._prefixes, extra={**extra, **(extra_env or {})})
         self.processes: list[ManagedProcess] = []
         self.limits = LimitWatch(self.sandbox)
         self._spawner: ThreadPoolExecutor | None = None
@@ -317,8 +318,13 @@ class RosGraph:
             kwargs["prepared"] = prepare(self.sandbox.jail, spec.argv, env, extra_env=spec.env,
                                          cwd=str(spec.cwd) if spec.cwd else None)
             kwargs["output_cap"] = self.sandbox.policy.output_cap_bytes
-        elif spec.env:
-            env.update(spec.env)
+        else:
+            if spec.env:
+                env.update(spec.env)
+            if not spec.untrusted:
+                # a grader process (the simulator, also when a launch file starts it) runs outside
+                # the jail: nothing of the students' Python trees may run in it at start-up
+                env = trusted_env(env, self._prefixes)
         proc = process_class(spec, env, self.logdir, **kwargs)
         if kwargs.get("output_cap"):
             self.limits.watch_output(proc)

@@ -129,6 +129,9 @@ class Finding:
     feedback: str
     evidence: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)    # the parameters it ran with (defaults merged)
+    #: how the grade was decided when a scenario ran more than once (grader.grading.repeat):
+    #: runs, how many agreed, each run's outcome; empty for an analyzer's own finding
+    decided: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:

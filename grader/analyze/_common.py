@@ -80,14 +80,22 @@ def topic(frames: Frames, name: str) -> pd.DataFrame | None:
 
 
 def sim_pose(frames: Frames, pose_topic: str) -> pd.DataFrame | None:
-    """The simulator's own poses for ``pose_topic``: its grader-only copy
-    (``/grader/sim/turtle1/pose``, published by the reference simulator alone), else — in bags
-    recorded before the copy existed — the public topic. A node that publishes its own
-    ``/turtle1/pose`` therefore cannot move the turtle a grade is judged on."""
+    """The poses of ``pose_topic`` that the simulator published: its own record of them
+    (``/grader/sim_record/turtle1/pose``, written into the bag from the simulator's file, never
+    taken from DDS: :mod:`grader.sim.record` says why only that is proof of origin). In bags
+    recorded before the record existed: the simulator's live copy ``/grader/sim/turtle1/pose``,
+    else the public topic (which any node can publish on)."""
     from grader.sim import truth_pose_topic
+    from grader.sim.record import record_topic
 
-    return topic(frames, truth_pose_topic(pose_topic)) if topic(frames, truth_pose_topic(pose_topic)) is not None \
-        else topic(frames, pose_topic)
+    record = frames.get(record_topic(pose_topic))
+    if isinstance(record, pd.DataFrame):       # the bag holds the record: nothing else counts
+        return record if len(record) else None
+    for name in (truth_pose_topic(pose_topic), pose_topic):
+        df = topic(frames, name)
+        if df is not None:
+            return df
+    return None
 
 
 def topic_or_student_topic(frames: Frames, name: str, type_name: str | None
@@ -143,6 +151,15 @@ def _nz(c: Any) -> bool:
 
 
 def missing_topic_feedback(frames: Frames, name: str, what: str = "") -> str:
+    """Why ``name`` has no messages, in words that tell the causes apart: a node advertised it
+    and never published, or nothing published there (and what was published instead)."""
+    graph = [n for e in events(frames, Event.GRAPH) if isinstance(e.get("publishers"), dict)
+             for n in e["publishers"].get(name) or []]
+    advertisers = [p for p in dict.fromkeys([*publishers_of(frames, name), *graph]) if not str(p).startswith("grader_")]
+    if advertisers:
+        return (f"{', '.join(advertisers)} advertised {name} but published no message on it"
+                f"{' (' + what + ')' if what else ''}: check that publish() is called, e.g. from a timer "
+                "that keeps running.")
     present = topics_present(frames)
     similar = [t for t in present if _similar(t, name)]
     msg = f"No messages were recorded on {name}{' (' + what + ')' if what else ''}."
@@ -343,38 +360,25 @@ def _request(df, i: int) -> dict:
 
 def service_calls(df: pd.DataFrame) -> list[dict]:
     """Calls recorded on a ``<service>/_service_event`` topic (service introspection), one entry
-    ``{t, request}`` per request: the several events of one call (request received, response
-    sent, ...) share the client gid and sequence number."""
+    ``{t, request, client_gid}`` per request: the several events of one call (request received,
+    response sent, ...) share the client gid and sequence number. ``client_gid`` is the tuple of
+    the GID's bytes as the server saw it (empty when the bag has none): whose call it was, see
+    :mod:`grader.analyze.provenance`."""
     t = times(df)
     seq = df["info.sequence_number"].to_numpy() if "info.sequence_number" in df.columns else np.arange(len(df))
-    gid_cols = [c for c in df.columns if str(c).startswith("info.client_gid")]
+    gid_cols = sorted((c for c in df.columns if re.fullmatch(r"info\.client_gid\[\d+\]", str(c))),
+                      key=lambda c: int(str(c)[len("info.client_gid["):-1]))
     calls: dict = {}
     for i in range(len(df)):
-        key = (tuple(df[c].iloc[i] for c in gid_cols), seq[i])
+        gid = tuple(int(v) if v == v else -1 for v in (df[c].iloc[i] for c in gid_cols))
+        key = (gid, seq[i])
         if key not in calls:
-            calls[key] = {"t": float(t[i]), "request": _request(df, i)}
+            calls[key] = {"t": float(t[i]), "request": _request(df, i), "client_gid": gid}
         elif not calls[key]["request"]:
             calls[key]["request"] = _request(df, i)
     return sorted(calls.values(), key=lambda c: c["t"])
 
 
-#: services that move the turtle without driving it
+#: services the driver places a turtle with (a goal's window ends at the driver's next one);
+#: whose call a service event is: grader.analyze.provenance
 TELEPORT_SERVICES = ("teleport_absolute", "teleport_relative", "reset")
-
-
-def teleport_times(frames: Frames, driver_match_s: float = 2.0) -> list[float]:
-    """When something other than the grader's driver teleported or reset a turtle (from the
-    simulator's service introspection): a goal "reached" through one of those earns nothing."""
-    driver = [e["t"] for e in events(frames, Event.SERVICE_CALL)
-              if str(e.get("service", "")).rsplit("/", 1)[-1] in TELEPORT_SERVICES]
-    out = []
-    for key, df in frames.items():
-        if not key.endswith("/_service_event") or not isinstance(df, pd.DataFrame) or len(df) == 0:
-            continue
-        service = key[: -len("/_service_event")].rsplit("/", 1)[-1]
-        if service not in TELEPORT_SERVICES:
-            continue
-        for call in service_calls(df):
-            if not any(abs(call["t"] - d) <= driver_match_s for d in driver):
-                out.append(call["t"])
-    return sorted(out)

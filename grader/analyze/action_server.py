@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from grader.analyze.evidence import SHARE
-from grader.analyze import Finding, graded, register
+from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (WORLD_MAX, Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
 from grader.analyze.goal_publisher import parse_xy_line
 from grader.analyze.goals import goal_xy
@@ -30,6 +30,7 @@ from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    **provenance.EVIDENCE,
     "action_name": ('action name', ''),
     "client_logger": ("the client's logger", ''),
     "reject_pattern": ("pattern of the client's rejection message", ''),
@@ -273,6 +274,7 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
     if not gs:
         return _no_action_events(frames)
     rows, ok_n = [], 0
+    moved = provenance.moves(frames, p["pose_topic"])
     for k, g in enumerate(gs, 1):
         tol = g["goal_tol"] if g["goal_tol"] else p["default_goal_tol"]
         row = {"goal": [g["x"], g["y"]], "goal_tol": tol, "accepted": g["accepted"], "success": g["success"],
@@ -285,6 +287,11 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
             problem = "rejected although it is inside the world"
         elif g["t_result"] is None:
             problem = "accepted but no result ever came back"
+        elif provenance.within(moved, g["t_sent"], g["t_result"]):
+            during = provenance.within(moved, g["t_sent"], g["t_result"])
+            row["teleported"] = len(during)
+            problem = (f"the turtle was moved without driving ({provenance.moved_text(frames, during)}) while "
+                       "the goal ran: a goal reached that way earns nothing")
         else:
             pos = _pose_at(frames, p["pose_topic"], g["t_result"])
             dist = math.hypot(pos[0] - g["x"], pos[1] - g["y"]) if pos else None
@@ -301,6 +308,8 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
         rows.append(row)
     frac = ok_n / len(gs)
     ev = {"goals": rows, "timeline": _timeline(frames, p["pose_topic"])}
+    if any(r.get("teleported") for r in rows):
+        ev["student_moves"] = [c.plain(frames) for c in moved[:10]]
     value = f"{ok_n}/{len(gs)} succeeded"
     unanswered = _unanswered(rows)
     if unanswered:

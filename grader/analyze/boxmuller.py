@@ -29,7 +29,7 @@ import numpy as np
 from scipy import stats
 
 from grader.analyze import Finding, graded, register
-from grader.analyze._common import ROSOUT, Frames, meta_row, thin, topic
+from grader.analyze._common import ROSOUT, Frames, meta_row, stdout_lines, thin, topic
 from grader.analyze.evidence import SHARE
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -191,6 +191,13 @@ def boxmuller_logging(frames: Frames, p: dict) -> Finding:
     if std:
         s = max(std, key=lambda s: s.n_numeric)
         ev.update({"process": s.name, "n_numeric_lines": s.n_numeric, "examples": s.text[:3]})
+        lines = stdout_lines(frames)
+        mine = lines[lines["process"] == s.name]
+        if len(mine) and mine["logger"].notna().mean() > 0.5:
+            # the ROS console format: logged, but with a logger that is not a node's
+            return Finding("console logger", 0.0, "fail",
+                           "Your subscriber logs its values with a logger that is not its node's (they reach the "
+                           "console in the ROS format but not /rosout): use self.get_logger().info(...).", ev)
         return Finding("print()", 0.0, "fail",
                        "Your subscriber prints its values with print(), which does not reach /rosout: "
                        "use self.get_logger().info(f\"{z}\") as the lab asks.", ev)

@@ -10,6 +10,10 @@ its send time until the next goal (or the end of the recording).
 * ``turn_direction``: with the wrapped theta_e of eq. (3) the turtle always turns the short way;
   a missing wrap (atan2(dy, dx) - theta) makes it turn the long way when the difference crosses
   +-pi, and a wrong sign makes it turn away.
+
+Both judge the simulator's own poses only (``sim_pose``), and a goal during which student code
+moved the turtle without driving it (a teleport, a reset, a kill and spawn: the call's client id
+says whose call it was, :mod:`grader.analyze.provenance`) earns nothing in either.
 The gains and form of Lab 3's law are checked by ``control_law`` (its own module).
 """
 
@@ -20,8 +24,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
-from grader.analyze._common import (WORLD_MAX, Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, teleport_times, thin, times, topic)
+from grader.analyze import Finding, graded, provenance, register
+from grader.analyze._common import (WORLD_MAX, Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, thin, times, topic)
 from grader.analyze.goals import Goal, goals, heading_error
 from grader.analyze.evidence import SHARE, TIME
 from grader.scenario.events import Event
@@ -65,7 +69,7 @@ EVIDENCE = {
     "goal_source": ("where goals are read (events, topic, auto)", ""),
     "trajectory": None,
     "wall_contacts": ("times the turtle hit a wall", ""),
-    "teleported": ("teleport or reset calls while the goal was active", ""),
+    "teleported": ("calls of student code that moved the turtle while the goal was active", ""),
     "wall_points": None,
     # turn_direction
     "start": None,
@@ -74,11 +78,17 @@ EVIDENCE = {
     "wrap_matters": ("wrapping changes the turn", ""),
     "evaluated": ("judged", ""),
     "initial_turn": ("first turned", ""),
-    "first_cmd_angular_z": ("first angular.z sent", "rad/s"),
+    "first_cmd_angular_z": ("angular.z of the controller's first command for the goal", "rad/s"),
+    "commanded_turn": ("the controller's first command for the goal turned", ""),
+    "command_sent_s": ("that command sent this long after the goal", "s"),
+    "turn": ("turned (the verdict)", ""),
+    "basis": ("judged from", ""),
+    "judged_from_s": ("judged from this long after the goal was sent", "s"),
     "ambiguous": ("either way is fine (near 180°)", ""),
     "short_way": ("turned the short way", ""),
     "min_turn_deg": ("goals judged from a turn of", "deg"),
     "heading_error": None,
+    **provenance.EVIDENCE,
     # control_law
     "rows": ("cmd_vel messages paired with a pose and a goal", ""),
     "K1": ("fitted K1 (linear.x = K1·d_e)", "1/s"),
@@ -88,6 +98,8 @@ EVIDENCE = {
     "K2_unwrapped": ("K2 if theta_e is not wrapped", "1/s"),
     "R2_angular_unwrapped": ("R² if theta_e is not wrapped", ""),
     "rows_where_wrap_matters": ("messages where wrapping changes theta_e", ""),
+    "rows_turning_fast": ("messages left out of the angular fit: theta_e changed too much in a tick", ""),
+    "max_tick_turn": ("theta_e change per tick beyond which a message is left out", "rad"),
     "wrap": ("theta_e wrapped to [−π, π]", ""),
     "r2_min": ("R² needed", ""),
     "min_d": ("closest distance used in the angular fit", "m"),
@@ -166,17 +178,20 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
     v = pose["linear_velocity"].to_numpy(float) if "linear_velocity" in pose.columns else None
-    teleports = teleport_times(frames)
+    moved = provenance.moves(frames, p["pose_topic"])
+    counted: list[provenance.Call] = []     # the moves that cost a goal
     rows = []
     score = 0.0
     for k, g in enumerate(gl, 1):
         m = (t >= g.t) & (t <= g.t_end)
         row = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "window_s": g.t_end - g.t}
-        moved = [tp for tp in teleports if g.t <= tp <= g.t_end]
-        if moved:
-            # the turtle was teleported (or reset) while this goal was active: no arrival counts
-            row.update(reached=False, teleported=len(moved), note="the turtle was teleported or reset while "
-                       "this goal was active: an arrival does not count")
+        during = provenance.within(moved, g.t, g.t_end)
+        if during:
+            # student code put the turtle somewhere while this goal was active: no arrival counts
+            counted += during
+            row.update(reached=False, teleported=len(during),
+                       note=f"the turtle was moved without driving ({provenance.moved_text(frames, during)}) while "
+                            "this goal was active: a goal reached that way earns nothing")
             rows.append(row)
             continue
         if m.sum() < 2:
@@ -203,14 +218,23 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     n_reached = sum(1 for r in rows if r.get("reached"))
     ev = {"goals": rows, "tol_reached": p["tol_reached"], "goal_source": gl[0].source,
           "trajectory": _trajectory(t, x, y, gl, pose["theta"].to_numpy(float))}
+    if counted:     # the rubric's advice for a wrong controller is not for these (rubric.score)
+        ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
     ev.update(_wall_contacts(frames, t, x, y))
     value = f"{n_reached}/{len(gl)} reached"
     problems = []
+    moved_goals = [r for r in rows if r.get("teleported")]
+    if moved_goals:     # one sentence for all of them
+        labels = ", ".join(f"{r['goal']} ({r['x']:g}, {r['y']:g})" for r in moved_goals)
+        problems.append(f"goal{'s' if len(moved_goals) > 1 else ''} {labels}: the turtle was moved without "
+                        f"driving ({provenance.moved_text(frames, counted)}) while "
+                        f"{'they were' if len(moved_goals) > 1 else 'it was'} active: a goal reached that way "
+                        "earns nothing")
     for r in rows:
         label = f"goal {r['goal']} ({r['x']:g}, {r['y']:g})"
         if not r.get("reached"):
             if r.get("teleported"):
-                problems.append(f"{label}: {r['note']}")
+                continue
             elif "min_distance" in r:
                 problems.append(f"{label}: closest approach {r['min_distance']:.2f} m "
                                 f"(needs < {p['tol_reached']:g} m), final error {r['final_error']:.2f} m")
@@ -223,9 +247,10 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         times_txt = ", ".join(f"{r['time_to_reach']:.1f} s" for r in rows)
         return Finding(value, 1.0, "pass", f"All {len(gl)} goals reached and held (time to reach: {times_txt}).", ev)
     hint = ""
-    if n_reached == 0:
+    if n_reached == 0 and not any(r.get("teleported") for r in rows):
         hint = (" Check the signs of the distance and heading errors and of the gains, and that the "
                 "velocity commands reach the turtle's cmd_vel topic.")
+    hint += provenance.ignored_poses_note(frames, p["pose_topic"])
     return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
 
 
@@ -264,15 +289,27 @@ def _wall_contacts(frames: Frames, t: np.ndarray, x: np.ndarray, y: np.ndarray, 
     "min_turn_deg": 90.0,     # goals whose required turn is at least this are evaluated
     "wrap_turn_deg": 10.0,    # ... and goals where wrapping changes the turn, if at least this
     "ambiguous_deg": 10.0,    # within this of 180 deg both directions are accepted
-    "detect_deg": 5.0,        # heading change that marks the initial rotation
-    "react_s": 0.1,           # the turn is measured from this long after the goal (commands the
-                              # controller computed before it had the goal still act until then)
+    "detect_deg": 5.0,        # heading change that marks the turtle's first turn (evidence, and the
+                              # verdict for a controller that turns without cmd_vel)
+    "react_s": 0.1,           # a goal handed over without a hold: commands and turns count from
+                              # this long after it (the controller may still be steering for the
+                              # previous goal until its new one arrives)
     "cmd_topic": "/turtle1/cmd_vel",
 })
 def turn_direction(frames: Frames, p: dict) -> Finding:
     """For goals needing a large turn (or where the naive angle difference crosses +-pi), did the
-    turtle start rotating the short way? Judged from the heading in /turtle1/pose (what the turtle
-    did), with the first angular.z on cmd_vel as supporting evidence.
+    controller turn the short way? Judged from the sign of angular.z of the command the controller
+    computed for the goal from the pose it was handed over at, against the turn needed from there.
+
+    Why a command and not the path: when the step places the turtle, the simulator holds it still
+    until the goal has been handed over (``turtles_released``), so the last command sent before
+    the release was computed from the placement and the new goal, the same in every run. The
+    path that follows is chaotic for exactly the controllers this item is about: one whose
+    heading error is in degrees turns up to 3 rad per 16 ms tick, overshoots at once and turns
+    back, so which way its heading seems to go, and the sign of its later commands, depend on
+    its timer's phase. Without a hold, the first turning command from ``react_s`` after the goal
+    decides. The heading the turtle took is kept as evidence, and decides only for a controller
+    that sends no turning command (e.g. one that uses rotate_absolute).
     """
     pose = _pose(frames, p)
     if pose is None:
@@ -283,6 +320,9 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
     cmd = topic(frames, p["cmd_topic"])
+    released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
+    moved = provenance.moves(frames, p["pose_topic"])
+    counted: list[provenance.Call] = []
     rows, judged, good = [], 0, 0
     series: list[dict] = []
     for k, g in enumerate(gl, 1):
@@ -305,24 +345,46 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             rows.append(row)
             continue
         row["evaluated"] = True
-        i1 = min(int(np.searchsorted(t, g.t + p["react_s"], side="left")), len(t) - 1)
-        m1 = (t >= t[i1]) & (t <= g.t_end)
-        dth = np.unwrap(th[m1]) - th[i1]
-        over = np.nonzero(np.abs(dth) >= math.radians(p["detect_deg"]))[0]
-        turn = int(np.sign(dth[over[0]])) if len(over) else 0
-        row["initial_turn"] = {1: "left (CCW)", -1: "right (CW)", 0: "none"}[turn]
+        during = provenance.within(moved, g.t, g.t_end)
+        if during:      # a turn made by a teleport is no turn: this goal earns nothing
+            counted += during
+            row.update(short_way=False, teleported=len(during), note=provenance.moved_text(frames, during))
+            judged += 1
+            rows.append(row)
+            continue
+        # a held hand-over: the last command before the release (computed from the placement);
+        # else the first turning command from react_s after the goal
+        t_release = released.get(g.extra.get("step"))
+        t_from = t_release if t_release is not None else g.t + p["react_s"]
+        row["judged_from_s"] = float(t_from - g.t)
+        pose_turn = _first_turn(t, th, t_from, g.t_end, p["detect_deg"])
+        row["initial_turn"] = _TURN_WORDS[pose_turn]
+        w_judged = None
         if cmd is not None and "angular.z" in cmd.columns:
-            ct = times(cmd)
+            ct = cmd["pub_t"].to_numpy(float) if "pub_t" in cmd.columns else times(cmd)
+            ct = np.where(np.isfinite(ct), ct, times(cmd))
             w = cmd["angular.z"].to_numpy(float)
-            sel = (ct >= g.t + p["react_s"]) & (ct <= g.t_end) & (np.abs(w) > 1e-3)
-            row["first_cmd_angular_z"] = float(w[sel][0]) if sel.any() else None
+            turning = np.abs(w) > 1e-3
+            during = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
+            after = np.nonzero(turning & (ct > t_from) & (ct <= g.t_end))[0]
+            if len(during):
+                w_judged, row["command_sent_s"] = float(w[during[-1]]), float(ct[during[-1]] - g.t)
+            elif len(after):
+                w_judged, row["command_sent_s"] = float(w[after[0]]), float(ct[after[0]] - g.t)
+            row["first_cmd_angular_z"] = w_judged
+        cmd_turn = int(np.sign(w_judged)) if w_judged is not None else 0
+        row["commanded_turn"] = _TURN_WORDS[cmd_turn]
+        turn = cmd_turn if w_judged is not None else pose_turn
+        row["basis"] = "command" if w_judged is not None else "pose"
         ambiguous = abs(req) >= math.pi - math.radians(p["ambiguous_deg"])
         ok = turn != 0 and (ambiguous or turn == int(np.sign(req)))
-        row.update(ambiguous=bool(ambiguous), short_way=bool(ok))
+        row.update(ambiguous=bool(ambiguous), short_way=bool(ok), turn=_TURN_WORDS[turn])
         judged += 1
         good += ok
         rows.append(row)
     ev = {"goals": rows, "heading_error": series}
+    if counted:
+        ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
     if judged == 0:
         return Finding.error("No goal in this scenario required a large turn from where the turtle was, "
                              "so the turn direction could not be judged.", ev)
@@ -332,19 +394,36 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"The turtle turned the short way for all {judged} large-turn goal(s).", ev)
     bad = [r for r in rows if r.get("evaluated") and not r.get("short_way")]
     r = bad[0]
-    if r["initial_turn"] == "none":
+    if r.get("teleported"):
+        msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle was moved without driving ({r['note']}): "
+               "a turn made that way earns nothing.")
+    elif r["turn"] == "none":
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle did not turn at all (needed "
                f"{r['required_turn_deg']:+.0f}°): the angular command should be proportional to "
                "the heading error.")
     else:
+        how = ("the controller's first command for it turned" if r["basis"] == "command"
+               else "the turtle started turning")
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle needed to turn {r['required_turn_deg']:+.0f}° "
-               f"but started turning {r['initial_turn']}, the long way.")
+               f"but {how} {r['turn']}, the long way.")
         if r["wrap_matters"]:
             msg += (" The heading error must be wrapped to (-π, π]: atan2(dy, dx) - theta is not "
                     "(atan2(sin e, cos e) wraps it).")
         else:
             msg += " Check the sign of the heading error and of the angular gain."
     return Finding(value, frac, graded(frac), msg, ev)
+
+
+_TURN_WORDS = {1: "left (CCW)", -1: "right (CW)", 0: "none"}
+
+
+def _first_turn(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, detect_deg: float) -> int:
+    """Which way the heading first moved by ``detect_deg`` after ``t_from`` (+1 left, -1 right, 0)."""
+    i1 = min(int(np.searchsorted(t, t_from, side="left")), len(t) - 1)
+    m1 = (t >= t[i1]) & (t <= t_end)
+    dth = np.unwrap(th[m1]) - th[i1]
+    over = np.nonzero(np.abs(dth) >= math.radians(detect_deg))[0]
+    return int(np.sign(dth[over[0]])) if len(over) else 0
 
 
 def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,

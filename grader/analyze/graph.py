@@ -64,7 +64,7 @@ def nodes_running(frames: Frames, p: dict) -> Finding:
             problems.append(f"{name} is not declared by {launch} (it declares "
                             f"{', '.join(declared) or 'no named node'}; set name='{name.strip('/')}')")
         elif not running:
-            problems.append(f"{name} never appeared in the ROS graph (did it crash on start-up?)")
+            problems.append(f"{name} never appeared in the ROS graph ({_why_absent(frames, name, seen)})")
     ok = sum(1 for r in rows if r["running"] and r["declared"])
     frac = ok / len(rows)
     ev = {"nodes": rows, "seen": seen, "declared": declared, "launch": launch}
@@ -72,6 +72,26 @@ def nodes_running(frames: Frames, p: dict) -> Finding:
     if not problems:
         return Finding(value, 1.0, "pass", f"All {len(rows)} nodes ran: {', '.join(expected)}.", ev)
     return Finding(value, frac, graded(frac), "; ".join(problems) + ".", ev)
+
+
+def _why_absent(frames: Frames, name: str, seen: list[str]) -> str:
+    """What became of the process that should have created node ``name``: it could not be
+    started, it exited (crashed, or returned on its own), or it ran and created other nodes."""
+    started = events(frames, Event.NODE_STARTED)
+    mine = [e.get("process") for e in started if _full(e.get("node_name") or "") == name] or \
+        [e.get("process") for e in started if not e.get("node_name")]
+    unavailable = [e for e in events(frames, Event.NODE_UNAVAILABLE)
+                   if not e.get("node_name") or _full(e.get("node_name") or "") == name]
+    if not mine and unavailable:
+        return f"{unavailable[0].get('process')} could not be started"
+    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") in mine and not e.get("stopped_by_grader")]
+    if exits:
+        code = exits[0].get("returncode")
+        return (f"{exits[0].get('process')} crashed with exit code {code}" if code not in (0, None)
+                else f"{exits[0].get('process')} returned on its own before its node appeared")
+    others = [n for n in seen if not n.rsplit("/", 1)[-1].startswith("grader_")]
+    return ("its process kept running; the nodes seen are " + ", ".join(others)) if others else \
+        "its process kept running without creating a node"
 
 
 @register("launch_installed", evidence={**EVIDENCE, "value": ('launch file', '')},
@@ -88,5 +108,7 @@ def launch_installed(frames: Frames, p: dict) -> Finding:
     ev = {"launch": e.get("launch"), "installed": bool(e.get("installed")), "notes": e.get("notes") or []}
     if e.get("installed"):
         return Finding("installed", 1.0, "pass", f"{e.get('launch')} is installed with the package.", ev)
+    if not ev["notes"] and any(c in str(e.get("launch")) for c in "*?["):
+        return Finding.fail(f"The package has no launch file ({e.get('launch')}).", ev, value="no launch file")
     return Finding.fail(" ".join(ev["notes"]) or f"{e.get('launch')} is not installed with the package.", ev,
                         value="not installed")

@@ -1,23 +1,28 @@
 """What nodes say: log lines (``/rosout``, where ``get_logger().info`` goes) and text messages.
 
 * ``logged``: a node logged a line matching a pattern through the ROS logger. A line that only
-  reached stdout (``print()``) does not count, and the feedback says so.
+  reached stdout (``print()``) does not count, and the feedback says so; a line logged under
+  another node's name is logged (rclpy also prints it, in the ROS console format), and the
+  feedback says whose it was.
 * ``text_messages``: string messages on a topic match a pattern, and optionally count up.
 * ``heard_messages``: a subscriber logs what it received: each logged text is a published one,
-  and (almost) every message published while it listened was logged.
+  and (almost) every message published while it listened was logged. The subscriber is the node
+  that subscribes to the topic, whatever it is called, unless the rubric names its logger.
 """
 
 from __future__ import annotations
 
 import re
+from typing import Any, Iterable
 
 import numpy as np
 import pandas as pd
 
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SHARE
-from grader.analyze._common import (Frames, missing_topic_feedback, rosout_lines, stdout_lines,
-                                    times, topic)
+from grader.analyze._common import (Frames, events, missing_topic_feedback, rosout_lines, stdout_lines,
+                                    times, topic, traceback_mask)
+from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -27,13 +32,78 @@ EVIDENCE = {
     "counter": ("counter values", ""), "counting": ("counts up", ""), "published": ("messages published", ""),
     "heard": ("lines logged as heard", ""), "first_heard": ("first heard", ""), "share": ("share heard", SHARE),
     "foreign": ("logged but never published", ""), "published_while_listening": ("published while it listened", ""),
-    "min_share": ("share needed", SHARE),
+    "min_share": ("share needed", SHARE), "logged_by": ("matching lines logged by other nodes", ""),
 }
 
 
-def _logger_lines(frames: Frames, logger: str) -> pd.DataFrame:
+def _logger_lines(frames: Frames, logger: str | Iterable[str]) -> pd.DataFrame:
+    wanted = {_short(logger)} if isinstance(logger, str) else {_short(n) for n in logger}
     logs = rosout_lines(frames)
-    return logs[logs["logger"].astype(str).str.strip("/") == logger.strip("/")]
+    return logs[logs["logger"].map(_short).isin(wanted)]
+
+
+def _short(name: Any) -> str:
+    """A logger or node name without namespace (``ns.talker``, ``/ns/talker`` -> ``talker``)."""
+    return str(name).strip("/").replace("/", ".").rsplit(".", 1)[-1]
+
+
+def _printed(frames: Frames, pattern: re.Pattern) -> list[str]:
+    """Lines matching ``pattern`` that a student process wrote to stdout/stderr *without* the
+    ROS logger: a line in the ROS console format (``[INFO] [stamp] [node]: text``) was logged
+    (rclpy prints what it logs), and a traceback is a crash, not output."""
+    lines = stdout_lines(frames)
+    if lines.empty:
+        return []
+    plain = lines[lines["logger"].isna() & ~traceback_mask(lines["text"])]
+    return [str(t) for t in plain["text"] if pattern.search(str(t))]
+
+
+def _logged_by_others(frames: Frames, pattern: re.Pattern, loggers: set[str]) -> dict[str, list[str]]:
+    """Matching lines logged under another logger than ``loggers`` (on /rosout, or in the ROS
+    console format on a student's stdout): logger -> its lines. The grader's own and the
+    simulator's loggers are not students'."""
+    sim = _sim_node(frames)
+    mine = {_short(n) for n in loggers}
+    out: dict[str, list[str]] = {}
+    console = stdout_lines(frames)
+    console = console[console["logger"].notna()] if not console.empty else console
+    rosout = rosout_lines(frames)
+    for logger, text in [*zip(rosout["logger"], rosout["text"]), *zip(console["logger"], console["text"])]:
+        name = str(logger).strip("/")
+        if _short(name) in mine or _short(name).startswith("grader_") or _short(name) == sim:
+            continue
+        if pattern.search(str(text)) and str(text) not in out.get(name, []):
+            out.setdefault(name, []).append(str(text))
+    return out
+
+
+def _console_only(frames: Frames, pattern: re.Pattern, loggers: set[str]) -> list[str]:
+    """Matching lines a student process printed in the ROS console format under one of
+    ``loggers`` that are not on /rosout (a bare ``rclpy.logging.get_logger`` is not a node's)."""
+    mine = {_short(n) for n in loggers}
+    on_rosout = {str(t) for t in _logger_lines(frames, mine)["text"]}
+    console = stdout_lines(frames)
+    if console.empty:
+        return []
+    console = console[console["logger"].notna()]
+    return [str(t) for lg, t in zip(console["logger"], console["text"])
+            if _short(lg) in mine and pattern.search(str(t)) and str(t) not in on_rosout]
+
+
+def _sim_node(frames: Frames) -> str:
+    return str(next((e.get("sim_node") for e in events(frames, Event.SCENARIO_START)), None) or "turtlesim")
+
+
+def _subscribers(frames: Frames, name: str) -> set[str]:
+    """Student nodes seen subscribing to ``name`` in the driver's graph snapshots."""
+    sim = _sim_node(frames)
+    out = set()
+    for e in events(frames, Event.GRAPH):
+        subs = e.get("subscribers") if isinstance(e.get("subscribers"), dict) else {}
+        for node in subs.get(name) or []:
+            if not str(node).startswith("grader_") and str(node) != sim:
+                out.add(str(node))
+    return out
 
 
 @register("logged", evidence={**EVIDENCE, "value": ('logged line', '')},
@@ -43,23 +113,37 @@ def _logger_lines(frames: Frames, logger: str) -> pd.DataFrame:
     "min_count": 1,
 })
 def logged(frames: Frames, p: dict) -> Finding:
+    """A node logged a line matching ``pattern`` through the ROS logger under its name: on
+    /rosout, where ``get_logger().info`` goes. The feedback tells a printed line from one logged
+    under another node's name."""
     pattern = re.compile(p["pattern"])
-    lines = _logger_lines(frames, p["logger"])
+    logger = str(p["logger"]).strip("/")
+    lines = _logger_lines(frames, logger)
     hits = [str(t) for t in lines["text"] if pattern.search(str(t))]
-    ev = {"logger": p["logger"], "matching": hits[:10], "lines_from_logger": int(len(lines)),
+    ev = {"logger": logger, "matching": hits[:10], "lines_from_logger": int(len(lines)),
           "pattern": p["pattern"]}
     if len(hits) >= p["min_count"]:
-        return Finding(hits[0], 1.0, "pass", f"{p['logger']} logged {hits[0]!r}.", ev)
-    printed = [str(t) for t in stdout_lines(frames)["text"] if pattern.search(str(t))]
+        return Finding(hits[0], 1.0, "pass", f"{logger} logged {hits[0]!r}.", ev)
+    others = _logged_by_others(frames, pattern, {logger})
+    if others:
+        name, texts = next(iter(others.items()))
+        ev["logged_by"] = {k: v[:3] for k, v in others.items()}
+        return Finding.fail(f"{texts[0]!r} was logged by the node {name}, not by {logger}: the node that logs it "
+                            f"must be called {logger}.", ev, value=texts[0])
+    console = _console_only(frames, pattern, {logger})
+    if console:
+        return Finding.fail(f"{console[0]!r} reached the console under the name {logger} but not /rosout: log it "
+                            "through the node's own logger, self.get_logger().info(...).", ev, value=console[0])
+    printed = _printed(frames, pattern)
     ev["printed"] = printed[:10]
     if printed:
         return Finding.fail(f"{printed[0]!r} was printed, not logged: use self.get_logger().info(...) so the "
-                            f"line goes to /rosout under the logger {p['logger']}.", ev, value=printed[0])
+                            f"line goes to /rosout under the logger {logger}.", ev, value=printed[0])
     if len(lines):
-        return Finding.fail(f"{p['logger']} logged {len(lines)} line(s), none matching {p['pattern']!r} "
+        return Finding.fail(f"{logger} logged {len(lines)} line(s), none matching {p['pattern']!r} "
                             f"(first: {str(lines['text'].iloc[0])!r}).", ev)
-    return Finding.fail(f"Nothing was logged by {p['logger']} (is the node named {p['logger']!r}, and does it "
-                        "log with get_logger().info?).", ev)
+    return Finding.fail(f"Nothing matching {p['pattern']!r} was logged or printed (the lab asks {logger} to log it "
+                        "with get_logger().info).", ev)
 
 
 @register("text_messages", evidence={**EVIDENCE, "value": ('messages matching', '')},
@@ -103,27 +187,50 @@ def text_messages(frames: Frames, p: dict) -> Finding:
 @register("heard_messages", evidence={**EVIDENCE, "value": ('messages heard', '')},
           expect='{min_share:.0%} of the published messages logged', defaults={
     "topic": REQUIRED,             # required: the topic the subscriber listens to
-    "logger": REQUIRED,            # required: the subscriber's logger name
+    "logger": None,                # the subscriber's logger name; None: the nodes subscribing to topic
     "pattern": r"I heard: (.*)",   # group 1 = the text it heard
     "min_share": 0.9,          # share of messages published while it listened that it logged
 })
 def heard_messages(frames: Frames, p: dict) -> Finding:
+    """A subscriber logs what it received: each logged text is a published one, and (almost)
+    every message published while it listened was logged. Without ``logger``, the subscriber is
+    whichever node subscribes to ``topic`` (its name is the student's choice)."""
     df = topic(frames, p["topic"])
     published = [str(v) for v in df["data"]] if df is not None and "data" in df.columns else []
     pub_t = times(df) if df is not None else np.array([])
-    lines = _logger_lines(frames, p["logger"])
+    subscribers = _subscribers(frames, p["topic"])
+    if p["logger"]:
+        loggers, who = {str(p["logger"]).strip("/")}, str(p["logger"]).strip("/")
+    elif subscribers:
+        loggers, who = subscribers, "Your subscriber " + ", ".join(sorted(subscribers))
+    else:                           # nobody subscribed (or an older bag without graph snapshots)
+        loggers = {str(n) for n in rosout_lines(frames)["logger"]
+                   if not _short(n).startswith("grader_") and _short(n) != _sim_node(frames)}
+        who = "No node"
+    lines = _logger_lines(frames, loggers)
     pattern = re.compile(p["pattern"])
     heard = [(float(t), m.group(1).strip()) for t, text in zip(lines["time"], lines["text"])
              if (m := pattern.search(str(text)))]
-    ev = {"published": len(published), "heard": len(heard), "first_heard": [h for _, h in heard[:5]]}
+    ev = {"published": len(published), "heard": len(heard), "first_heard": [h for _, h in heard[:5]],
+          "logger": sorted(loggers)}
     if not heard:
-        printed = [str(t) for t in stdout_lines(frames)["text"] if pattern.search(str(t))]
+        others = _logged_by_others(frames, pattern, loggers)
+        if others:
+            name, texts = next(iter(others.items()))
+            ev["logged_by"] = {k: v[:3] for k, v in others.items()}
+            whose = (f"not by {p['logger']}" if p["logger"] else f"which does not subscribe to {p['topic']}")
+            return Finding.fail(f"{texts[0]!r} was logged by the node {name}, {whose}.", ev)
+        printed = _printed(frames, pattern)
         if printed:
+            ev["printed"] = printed[:10]
             return Finding.fail(f"{printed[0]!r} was printed, not logged: use self.get_logger().info(...).", ev)
         if not published:
             return Finding.error(missing_topic_feedback(frames, p["topic"], "nothing was published to hear"), ev)
-        return Finding.fail(f"{p['logger']} logged nothing matching {p['pattern']!r} while {len(published)} "
-                            f"messages were published on {p['topic']} (is it subscribed to {p['topic']} and spinning?).", ev)
+        if not p["logger"] and not subscribers:
+            return Finding.fail(f"No node subscribed to {p['topic']} while {len(published)} messages were published "
+                                "on it.", ev)
+        return Finding.fail(f"{who} logged nothing matching {p['pattern']!r} while {len(published)} "
+                            f"messages were published on {p['topic']} (is it spinning?).", ev)
     known = set(published)
     # lines heard before the recorder's first message may be messages the recorder had not yet
     # subscribed for: they cannot be checked, so they do not count either way
@@ -134,10 +241,11 @@ def heard_messages(frames: Frames, p: dict) -> Finding:
     share = min(1.0, sum(1 for _, h in heard if h in known) / expected)
     ev.update(share=share, foreign=foreign[:5], published_while_listening=expected)
     value = f"{share:.0%} heard"
+    name = ", ".join(sorted({str(n) for n in lines["logger"]})) or who
     if foreign:
         return Finding(value, 0.5, "partial", f"{len(foreign)} logged line(s) are not messages that were published, "
                        f"e.g. {foreign[0]!r}: log the received msg.data.", ev)
     if share >= p["min_share"]:
-        return Finding(value, 1.0, "pass", f"{p['logger']} logged {len(heard)} messages it heard on {p['topic']}.", ev)
-    return Finding(value, share, graded(share), f"{p['logger']} logged only {share:.0%} of the messages published "
+        return Finding(value, 1.0, "pass", f"{name} logged {len(heard)} messages it heard on {p['topic']}.", ev)
+    return Finding(value, share, graded(share), f"{name} logged only {share:.0%} of the messages published "
                    f"while it listened (needs {p['min_share']:.0%}).", ev)

@@ -5,12 +5,21 @@ moving. Judged on the simulator's own poses (``/turtle1/pose`` at 62.5 Hz).
   a circle of radius v / w, once round every 2 pi / w seconds. The radius and centre come from an
   algebraic least-squares circle fit (Kasa) to the positions, the period from the slope of the
   unwrapped heading (a line fit of theta over time), both over the poses after the turtle started
-  moving (``skip_s`` more, to leave out the first command's latency).
+  moving (``skip_s`` more, to leave out the first command's latency). ``turn``/``drive`` (optional)
+  also judge which way round: the sign of the heading's slope (left = counter-clockwise heading)
+  and whether the turtle moves the way it faces (the step between two poses projected on the
+  heading; the pose's ``linear_velocity`` is a speed, without a sign). (2, -1) and (-2, 1) make
+  the same radius and period as (2, 1), round another centre.
 * ``keeps_moving``: the commands arrive before turtlesim's 1 s command timeout stops the turtle,
   and the turtle is moving (judged from its positions, not its commanded velocity) for (almost)
   the whole run.
 * ``no_wall_contact``: turtlesim clamps the turtle at the walls and logs "Oh no! I hit the
-  wall!"; neither may happen. The closest approach to a wall is reported.
+  wall!"; neither may happen. The closest approach to a wall is reported; with ``approach_m``
+  it must be at most that: a turtle that circles in the middle never meets a wall to avoid.
+
+Each judges the whole run on the simulator's own poses; a run in which student code moved the
+turtle without driving it (a teleport, a reset, a kill and spawn: :mod:`grader.analyze.provenance`)
+earns nothing in any of them: its path was not driven.
 """
 
 from __future__ import annotations
@@ -20,7 +29,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from grader.analyze import REQUIRED, Finding, register
+from grader.analyze import REQUIRED, Finding, provenance, register
+from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
 from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
                                     thin, times, topic)
@@ -28,6 +38,7 @@ from grader.analyze.rate import rate_stats
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    **provenance.EVIDENCE,
 
     "radius_m": ("fitted radius", "m"), "centre": ("circle centre (x, y)", "m"), "rms_m": ("RMS distance from the circle", "m"),
     "expected_m": ("expected radius", "m"), "rel_error": ("relative error", SHARE), "poses": ("poses used", ""),
@@ -43,6 +54,9 @@ EVIDENCE = {
     "contacts": ("poses touching a wall", ""), "world_max": ("world size", "m"), "min_clearance": ("clearance required", "m"),
     "pose_topic": ("pose topic", ""), "cmd_topic": ("command topic", ""), "sim_logger": ("the simulator's logger", ""),
     "world_max_m": ("world size", "m"), "contact_points": None,
+    "approach_m": ("must come this close to a wall", "m"),
+    "turn": ("turning", ""), "drive": ("driving", ""), "forward_share": ("share of the path driven nose first", SHARE),
+    "direction_credit": ("credit for the right radius the wrong way round", SHARE),
 }
 
 _POSE = {"pose_topic": "/turtle1/pose", "min_speed": 0.05}
@@ -50,6 +64,9 @@ _POSE = {"pose_topic": "/turtle1/pose", "min_speed": 0.05}
 
 def _moving_pose(frames: Frames, p: dict) -> tuple[pd.DataFrame | None, Finding | None]:
     """The poses from the moment the turtle first moved (plus ``skip_s``)."""
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return None, provenance.moved_finding(frames, moved, "the circle")
     df = sim_pose(frames, p["pose_topic"])
     if df is None or not {"x", "y", "theta", "linear_velocity"} <= set(df.columns):
         return None, Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
@@ -85,8 +102,14 @@ def _within(value: float, expected: float, rel_tol: float) -> bool:
     "expected_m": REQUIRED,      # required: v / w of the commanded Twist, e.g. 2.0
     "rel_tol": 0.05,         # |radius / expected - 1| <= rel_tol passes
     "skip_s": 0.5,           # s after the turtle started moving left out
+    "turn": None,            # "left" (angular.z > 0) or "right"; None: either
+    "drive": None,           # "forward" (linear.x > 0) or "backward"; None: either
+    "direction_credit": 0.5,  # credit for the right radius driven the wrong way round
 })
 def circle_radius(frames: Frames, p: dict) -> Finding:
+    for key, allowed in (("turn", ("left", "right")), ("drive", ("forward", "backward"))):
+        if p[key] not in (None, *allowed):
+            raise GraderError(f"circle_radius: {key} must be {' or '.join(allowed)} (or absent), got {p[key]!r}")
     df, problem = _moving_pose(frames, p)
     if problem:
         return problem
@@ -100,11 +123,46 @@ def circle_radius(frames: Frames, p: dict) -> Finding:
     if rms > 0.1 * max(r, 0.1):
         return Finding(value, 0.0, "fail", f"The path is not a circle (points deviate {rms:.2f} m on average "
                        f"from the best circle, r = {r:.2f} m): the velocity command must stay constant.", ev)
-    if _within(r, p["expected_m"], p["rel_tol"]):
-        return Finding(value, 1.0, "pass", f"Circle of radius {r:.3f} m around ({cx:.2f}, {cy:.2f}) "
-                       f"(expected {p['expected_m']:g} m ± {p['rel_tol']:.0%}).", ev)
-    return Finding(value, 0.0, "fail", f"The circle's radius is {r:.2f} m, expected {p['expected_m']:g} m "
-                   f"± {p['rel_tol']:.0%} (radius = linear.x / angular.z).", ev)
+    wrong_way = _wrong_way(df, p, ev)
+    if wrong_way:
+        value += f", {ev['drive']} turning {ev['turn']}"
+    if not _within(r, p["expected_m"], p["rel_tol"]):
+        return Finding(value, 0.0, "fail", f"The circle's radius is {r:.2f} m, expected {p['expected_m']:g} m "
+                       f"± {p['rel_tol']:.0%} (radius = linear.x / angular.z)." + (f" {wrong_way}" if wrong_way else ""), ev)
+    if wrong_way:
+        return Finding(value, float(p["direction_credit"]), "partial", f"Circle of radius {r:.3f} m around "
+                       f"({cx:.2f}, {cy:.2f}), but {wrong_way}", ev)
+    return Finding(value, 1.0, "pass", f"Circle of radius {r:.3f} m around ({cx:.2f}, {cy:.2f}) "
+                   f"(expected {p['expected_m']:g} m ± {p['rel_tol']:.0%}).", ev)
+
+
+def _wrong_way(df: pd.DataFrame, p: dict, ev: dict) -> str:
+    """What is wrong with the way round (``turn``, ``drive``), in words; "" when nothing is (or
+    nothing was asked). Fills ``ev`` with the turn, the drive and the forward share."""
+    t = times(df)
+    theta = np.unwrap(df["theta"].to_numpy(float))
+    slope = float(np.polyfit(t - t[0], theta, 1)[0])
+    heading = df["theta"].to_numpy(float)[:-1]
+    step = np.diff(df["x"].to_numpy(float)) * np.cos(heading) + np.diff(df["y"].to_numpy(float)) * np.sin(heading)
+    moved = np.abs(step) > 1e-6
+    forward = float(np.mean(step[moved] > 0)) if moved.any() else 1.0
+    ev.update(turn="left" if slope > 0 else "right", drive="forward" if forward >= 0.5 else "backward",
+              forward_share=forward)
+    wrong = []
+    if p.get("drive") and ev["drive"] != p["drive"]:
+        wrong.append(f"the turtle drove {ev['drive']} (linear.x {'<' if ev['drive'] == 'backward' else '>'} 0)")
+    if p.get("turn") and ev["turn"] != p["turn"]:
+        wrong.append(f"{'it' if wrong else 'the turtle'} turned {ev['turn']} (angular.z {'<' if ev['turn'] == 'right' else '>'} 0)")
+    if not wrong:
+        return ""
+    asked, signs = [], []
+    if p.get("drive"):
+        asked.append(f"driving {p['drive']}")
+        signs.append(f"linear.x {'>' if p['drive'] == 'forward' else '<'} 0")
+    if p.get("turn"):
+        asked.append(f"turning {p['turn']}")
+        signs.append(f"angular.z {'>' if p['turn'] == 'left' else '<'} 0")
+    return "; ".join(wrong) + f": the lab asks for {' while '.join(asked)} ({', '.join(signs)})."
 
 
 @register("circle_period", evidence={**EVIDENCE, "value": ('time for one circle', '')},
@@ -146,6 +204,9 @@ def circle_period(frames: Frames, p: dict) -> Finding:
 })
 def keeps_moving(frames: Frames, p: dict) -> Finding:
     """Commands arrive before the simulator's command timeout and the turtle never stalls."""
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return provenance.moved_finding(frames, moved, "its motion")
     pose = sim_pose(frames, p["pose_topic"])
     cmd = topic(frames, p["cmd_topic"])
     if pose is None or "linear_velocity" not in pose.columns:
@@ -204,8 +265,12 @@ def _stalls(t: np.ndarray, moving: np.ndarray) -> list[dict]:
     "sim_logger": "turtlesim",        # the simulator's logger (its "hit the wall" warning)
     "world_max": WORLD_MAX,           # m: the world is [0, world_max] in x and y
     "min_clearance": 0.0,             # m: closer than this to a wall also counts as contact
+    "approach_m": None,               # m: the path must come at least this close to a wall (None: any)
 })
 def no_wall_contact(frames: Frames, p: dict) -> Finding:
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return provenance.moved_finding(frames, moved, "staying clear of the walls")
     pose = sim_pose(frames, p["pose_topic"])
     if pose is None or not {"x", "y"} <= set(pose.columns):
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
@@ -227,5 +292,9 @@ def no_wall_contact(frames: Frames, p: dict) -> Finding:
         where = f"({x[touched[0]]:.2f}, {y[touched[0]]:.2f})" if len(touched) else f"({x[i]:.2f}, {y[i]:.2f})"
         return Finding(value, 0.0, "fail", f"The turtle hit the wall at {where} "
                        f"({len(hits)} 'hit the wall' warning(s) from the simulator): turn away earlier.", ev)
+    if p["approach_m"] is not None and clearance[i] > p["approach_m"]:
+        return Finding(value, 0.0, "fail", f"The turtle never came within {p['approach_m']:g} m of a wall (closest "
+                       f"{clearance[i]:.2f} m, at ({x[i]:.2f}, {y[i]:.2f})): it stayed in the middle, so there was "
+                       "no wall to avoid. Drive out towards the walls and turn away before you reach them.", ev)
     return Finding(value, 1.0, "pass", f"No wall contact; the closest approach was {clearance[i]:.2f} m at "
                    f"({x[i]:.2f}, {y[i]:.2f}).", ev)

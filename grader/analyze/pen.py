@@ -4,7 +4,16 @@
   ``/turtle1/set_pen`` request is in the bag (``_service_event``). Crossings of ``x = split_x``
   are read off the simulator's poses; each crossing must be followed, within ``max_delay_s`` (a
   few 16 ms pose periods), by exactly one call with that direction's colour, and there must be
-  no other calls.
+  no other calls, but one: before the first crossing, a node may set the pen to the colour of
+  the side the turtle is on (``start_calls``). The lab text's own node does this (its
+  ``previous_x_`` starts at 0, so the first pose, at x = 5.54, reads as a rightward crossing and
+  sets blue), and so does a node that sets its initial state on purpose; either way the trail is
+  the right colour from the start, which is what the lab asks for. Only the side the turtle is on
+  when the call reaches the simulator counts (the latest simulator pose before the call, or the
+  first pose when the call comes earlier), so a wrong start colour is still a call not at a
+  crossing.
+  A run in which student code moved the turtle without driving it (:mod:`grader.analyze.provenance`)
+  earns nothing: its crossings were not driven.
 * ``canvas_colours``: the canvas the simulator saved at the end (``canvas.png`` beside the bag,
   loaded as the ``__canvas__`` frame: one row per drawn pixel) shows each colour on its side.
 """
@@ -16,13 +25,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from grader.analyze import Finding, graded, register
+from grader.analyze import Finding, graded, provenance, register
 from grader.analyze.evidence import SHARE, SINCE_START
 from grader.analyze._common import (sim_pose, Frames, missing_topic_feedback, scenario_end_time, service_calls,
                                     thin, times, topic)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
+    **provenance.EVIDENCE,
     "crossings": ("crossings of the line", ""), "direction": ("direction", ""), "wanted": ("colour wanted (r, g, b)", ""),
     "ok": ("as expected", ""), "why": ("problem", ""), "delay_s": ("call after the crossing", "s"),
     "color": ("colour set (r, g, b)", ""), "width": ("pen width", ""), "extra_calls": ("calls not at a crossing", ""),
@@ -33,6 +43,9 @@ EVIDENCE = {
     "min_pixels": ("pixels needed per colour", ""), "min_share": ("share needed on its side", SHARE),
     "t": ("time", SINCE_START), "service": ("service", ""), "pose_topic": ("pose topic", ""),
     "y": ("at y", "m"), "path": None,
+    "start_calls": ("calls before the first crossing that may set the colour of the side the turtle is on", ""),
+    "start_call": ("call before the first crossing, with the colour of the side the turtle was on", ""),
+    "side": ("side of the line", ""),
 }
 
 CANVAS = "__canvas__"
@@ -62,14 +75,43 @@ def _color(request: dict) -> list[int] | None:
         return None
 
 
+def _start_calls(calls: list[dict], used: list[bool], t_pose: np.ndarray, x_pose: np.ndarray,
+                 cross: list[dict], want: dict[str, list[int]], p: dict) -> list[dict]:
+    """The first ``start_calls`` calls before the first crossing's window that set the pen as
+    wanted for the side the turtle was on when the call arrived (marked used, so they are not
+    extra). Setting the right colour for where the turtle is, is what the lab asks for at every
+    moment, including before the turtle has crossed anything."""
+    if not cross or not len(t_pose):
+        return []
+    before = cross[0]["t"] - 0.05            # the first crossing's window opens here (see the matcher)
+    out = []
+    for i, call in enumerate(calls):
+        if len(out) >= int(p.get("start_calls") or 0) or call["t"] >= before:
+            break
+        k = max(int(np.searchsorted(t_pose, call["t"], side="right")) - 1, 0)
+        side = "right" if x_pose[k] > p["split_x"] else "left"
+        if call["color"] != want[side] or (p["width"] is not None and call["width"] != p["width"]) or call["off"]:
+            break                            # a wrong first call: it stays a call not at a crossing
+        used[i] = True
+        out.append({"t": call["t"], "color": call["color"], "side": side})
+    return out
+
+
 @register("pen_on_crossings", evidence={**EVIDENCE, "value": ('crossings with the right call', '')},
-          expect="one set_pen call per crossing of x = {split_x:g}, with that side's colour, and no other", defaults={
+          expect="one set_pen call per crossing of x = {split_x:g}, with that side's colour, and no other "
+                 "(up to {start_calls} before the first crossing may set the colour of the side the turtle is on)",
+          defaults={
     **_PEN,
     "service": "/turtle1/set_pen",
     "width": 3,                      # pen width the calls must set (None: any)
     "max_delay_s": 0.1,              # s from the crossing pose to the call reaching the simulator
+    "start_calls": 1,                # calls before the first crossing accepted when they set the colour of
+                                     # the side the turtle is on (the initial state; see the module docstring)
 })
 def pen_on_crossings(frames: Frames, p: dict) -> Finding:
+    moved = provenance.moves(frames, p["pose_topic"])
+    if moved:
+        return provenance.moved_finding(frames, moved, "each crossing")
     pose = sim_pose(frames, p["pose_topic"])
     if pose is None or "x" not in pose.columns:
         return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator"))
@@ -86,6 +128,7 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
               "off": c["request"].get("off")} for c in (service_calls(df) if df is not None else [])]
     want = {"right": list(p["right_color"]), "left": list(p["left_color"])}
     used = [False] * len(calls)
+    starts = _start_calls(calls, used, times(pose), x_all, cross, want, p)
     rows = []
     for c in cross:
         k = next((i for i, call in enumerate(calls) if not used[i]
@@ -104,9 +147,15 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
                        why=None if good else f"set {call['color']} width {call['width']}")
         rows.append(row)
     extra = [{"t": call["t"] - t0, "color": call["color"]} for i, call in enumerate(calls) if not used[i]]
+    # nor can the calls that answer those crossings be judged (grader rubric audit: a crossing
+    # 0.03 s before the end, left out above, and its call 5 ms later counted as a stray call)
+    if end == end:
+        extra = [e for e in extra if e["t"] + t0 < end - p["max_delay_s"] - 0.05]
     matched = sum(1 for r in rows if r["ok"])
     denominator = len(rows) + len(extra)
     ev = {"crossings": rows[:40], "extra_calls": extra[:20], "calls": len(calls), "split_x": p["split_x"]}
+    if starts:
+        ev["start_call"] = [{**c, "t": c["t"] - t0} for c in starts]
     if y_all is not None:
         keep = thin(len(x_all), 600)
         ev["path"] = {"x": np.round(x_all[keep], 3).tolist(), "y": np.round(y_all[keep], 3).tolist()}
@@ -116,8 +165,11 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
     frac = matched / denominator if denominator else 0.0
     value = f"{matched}/{len(rows)} crossings" + (f", {len(extra)} extra call(s)" if extra else "")
     if frac >= 1.0:
+        times_ = "once" if len(starts) == 1 else f"{len(starts)} times"
+        start = f" (and {times_} before the first crossing, with the colour of the side the turtle was on)" \
+            if starts else ""
         return Finding(value, 1.0, "pass", f"set_pen was called with the right colour at each of the "
-                       f"{len(rows)} crossings of x = {p['split_x']:g}, and only then.", ev)
+                       f"{len(rows)} crossings of x = {p['split_x']:g}, and only then{start}.", ev)
     problems = []
     bad = [r for r in rows if not r["ok"]]
     if bad:

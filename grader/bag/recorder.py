@@ -36,6 +36,11 @@ runs on simulated time (``--time-scale``, unlike ``ros2 bag record --use-sim-tim
 stamps and the ``/rosout`` stamps inside messages can only be wall clock, so the bag keeps one
 time base and the recorded ``/clock`` maps all of them to simulated time when it is read
 (:mod:`grader.bag.timebase`).
+
+Topics under ``/grader/sim_record/`` are never taken from DDS: the prefix holds the simulator's
+own record of its poses (:mod:`grader.sim.record`), which the scenario's recorder writes from the
+simulator's file (:mod:`grader.bag.recorder_thread`), so whatever a node publishes under that name
+stays out of the bag.
 """
 
 from __future__ import annotations
@@ -49,6 +54,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
+
+from grader.sim.record import is_record_topic
 
 READY_LINE = "READY"
 #: messages drained in one wake above which the recorder does not wait for the next batch
@@ -154,6 +161,8 @@ class Recorder:
 
     # -- selection and discovery ---------------------------------------------------------
     def wanted(self, topic: str) -> bool:
+        if is_record_topic(topic):     # never from DDS (module docstring)
+            return False
         if topic in self.topics:
             return True
         if self.exclude and self.exclude.search(topic):
@@ -435,6 +444,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from grader.rosenv import add_student_paths
+
+    add_student_paths()     # started with a trusted env: the students' types, after our own modules
     return run(build_parser().parse_args(argv))
 
 

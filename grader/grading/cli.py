@@ -243,6 +243,9 @@ def run_check(args: argparse.Namespace) -> int:
     if args.rubric is None and args.lab is None:
         raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
     rubric = load_rubric(args.rubric or rubric_for_lab(args.lab))
+    from grader.grading.outputs import print_contract
+
+    print_contract(rubric)
     ws = args.workspace.resolve()
     out = (args.out or ws / ".grader-check").resolve()
     from grader.grading.schedule import Slots, default_jobs

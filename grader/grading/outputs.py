@@ -17,7 +17,11 @@ def versions() -> dict[str, str]:
 
 
 def _canvases(sub_out: Path) -> dict[str, str]:
-    return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
+    """Each scenario's canvas (of its first run when it ran more than once)."""
+    from grader.grading.repeat import scenario_of
+
+    return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))
+            if scenario_of(p.parent.name) == p.parent.name}
 
 
 def effective_params(rubric) -> dict[str, dict]:
@@ -87,6 +91,12 @@ def print_check_table(graded, rubric) -> bool:
     rows = [i for i in result.items if i.kind != "manual"]
     width = max((len(i.id) for i in rows), default=10)
     print(f"\n{rubric.title}: self-check ({result.auto_score:g}/{result.auto_max:g} points on public items)\n")
+    for m in result.contract:
+        blocks = f" Blocks: {', '.join(m.blocks)}." if m.blocks else ""
+        for k, line in enumerate(_wrap(m.feedback + blocks, 92)):
+            print(f"  {'NAME' if k == 0 else '    '}  {line}")
+    if result.contract:
+        print()
     ok = True
     marks = {"pass": "PASS", "partial": "PART", "fail": "FAIL", "error": "ERR "}
     from grader.report.readable import item_params, measured_sentence
@@ -116,6 +126,19 @@ def print_check_table(graded, rubric) -> bool:
         print(f"\n  problem: {err.splitlines()[0]}")
     print("\nAll public checks pass." if ok else "\nSome checks do not pass yet (see above).")
     return ok
+
+
+def print_contract(rubric) -> None:
+    """What the lab fixes, before a self-check runs: the names to use exactly."""
+    lines = rubric.contract.lines()
+    if not lines:
+        return
+    print(f"{rubric.title}\nNames this lab fixes (use them exactly; everything else is found by what it does):")
+    width = max(len(what) for what, _, _, _ in lines)
+    names = max(len(name) for _, name, _, _ in lines)
+    for what, name, use, _why in lines:
+        print(f"  {what:<{width}}  {name:<{names}}  {use}".rstrip())
+    print()
 
 
 def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:

@@ -17,6 +17,7 @@ from typing import Any, Callable, Iterable
 
 from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
+from grader.grading.repeat import median_finding, run_folders, run_until_settled, settles_check
 from grader.scenario.events import Event
 
 SCENARIOS_DIR = "scenarios"
@@ -115,7 +116,8 @@ def _unavailable_nodes(frames: dict) -> list[str]:
 
 
 def _crashed_nodes(frames: dict) -> list[str]:
-    """Student processes that exited on their own, with the last line of what they printed."""
+    """Student processes that exited on their own, with the last line of what they printed: a
+    non-zero exit is a crash; exit code 0 means its main returned (it stopped spinning)."""
     lines = stdout_lines(frames)
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
@@ -125,7 +127,10 @@ def _crashed_nodes(frames: dict) -> list[str]:
         if not e.get("stopped_by_grader"):
             name = e.get("process", "?")
             tail = last_line.get(name, "")
-            out.append(f"{name} exited with code {e.get('returncode')}" + (f" ({tail[:160]})" if tail else ""))
+            code = e.get("returncode")
+            what = (f"{name} returned on its own (exit code 0) while the scenario ran: does it keep spinning?"
+                    if code == 0 else f"{name} crashed (exit code {code})")
+            out.append(what + (f" ({tail[:160]})" if tail else ""))
     if out and limits:
         out.append("limit reached: " + "; ".join(dict.fromkeys(m for m in limits if m)))
     return out
@@ -147,8 +152,8 @@ def analyze_item(item, frames: dict):
     missing = _unavailable_nodes(frames)
     crashed = _crashed_nodes(frames)
     if missing or crashed:
-        why = (["Could not run " + "; ".join(missing)] if missing else []) + \
-              (["Node crashed: " + "; ".join(crashed)] if crashed else [])
+        why = (["Could not run " + "; ".join(missing).rstrip(".") + "."] if missing else []) + \
+              (["Node stopped: " + "; ".join(crashed).rstrip(".") + "."] if crashed else [])
         finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
         finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
         if finding.status == "error" and item.kind != "integrity":
@@ -172,18 +177,28 @@ def combine_findings(item, per_scenario: list):
     return worst_finding(per_scenario) if per_scenario else None
 
 
+class Findings(dict):
+    """Item id -> finding, plus ``contract``: the contract names each scenario's recording shows
+    under another name (``grader.rubric.contract.Mismatch``; scoring blocks the items that
+    depend on them). A dict, so callers that only want the findings need not change."""
+
+    contract: tuple = ()
+
+
 def analyze_bags(rubric, items: list, sub_out: Path,
-                 unusable: dict[str, str] | None = None) -> tuple[dict[str, Any], list[str]]:
+                 unusable: dict[str, str] | None = None) -> tuple[Findings, list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems.
     ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
     finalised): its items become errors saying so."""
     from grader.analyze import Finding
+    from grader.analyze.contract import check_contract
+    from grader.rubric.contract import merge_mismatches
 
     frames_cache: dict[str, dict | Exception] = {}
     problems: list[str] = []
     unusable = unusable or {}
 
-    def frames_for(sc: str):
+    def frames_for(sc: str):          # sc: a run's folder name (the scenario id for its first run)
         if sc not in frames_cache:
             if sc in unusable:
                 frames_cache[sc] = GraderError(unusable[sc])
@@ -196,18 +211,27 @@ def analyze_bags(rubric, items: list, sub_out: Path,
                 problems.append(f"scenario {sc}: {exc}")
         return frames_cache[sc]
 
-    findings: dict[str, Any] = {}
+    findings = Findings()
     for item in items:
         per_scenario = []
         for sc in item.scenario:
-            frames = frames_for(sc)
-            if isinstance(frames, Exception):
-                per_scenario.append(Finding(value=None, fraction=0.0, status="error",
-                                            feedback=f"The recording of scenario {sc} could not be read: {frames}",
-                                            evidence={}))
-                continue
-            per_scenario.append(analyze_item(item, frames))
+            per_run = []
+            for folder in run_folders(sub_out / SCENARIOS_DIR, sc):      # one, or a repeated scenario's runs
+                frames = frames_for(folder.name)
+                if isinstance(frames, Exception):
+                    per_run.append(Finding(value=None, fraction=0.0, status="error",
+                                           feedback=f"The recording of scenario {sc} could not be read: {frames}",
+                                           evidence={}))
+                else:
+                    per_run.append(analyze_item(item, frames))
+            planned = rubric.scenarios[sc].repeat if sc in rubric.scenarios else 1
+            per_scenario.append(median_finding(per_run, planned))
         findings[item.id] = combine_findings(item, per_scenario)
+    mismatches = {}
+    for sc, frames in frames_cache.items():
+        if not isinstance(frames, Exception):
+            mismatches[sc] = check_contract(rubric.contract, rubric.scenario_roles(sc), frames)
+    findings.contract = merge_mismatches(mismatches)
     _fingerprint(sub_out, frames_cache, problems)
     return findings, problems
 
@@ -290,7 +314,8 @@ def grade_submission(path: Path, rubric, out_root: Path, *, cache_dir: Path | No
     longest_first = sorted(scenario_ids, key=lambda sc: -rubric.scenarios[sc].budget_s)
     with ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
         runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings,
-                                   time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else ())
+                                   time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else (),
+                                   settles_check([i for i in items if sc_id in i.scenario], rubric.scenarios[sc_id].repeat))
                 for sc_id in longest_first}
         for sc_id in scenario_ids:
             record = runs[sc_id].result()
@@ -331,18 +356,33 @@ def recording_settings(time_scale: float = 1.0) -> str:
 
 
 def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings: Path | None,
-             time_scale: float = 1.0, rates: tuple = ()) -> dict:
-    """One scenario: copied from an identical earlier recording, or run (within a slot)."""
+             time_scale: float = 1.0, rates: tuple = (), settles: Callable[[list[Path]], bool] | None = None) -> dict:
+    """One scenario; a repeated one (``repeat: N``) run by run until its median is settled."""
+    return run_until_settled(
+        lambda k, folder: _record_one(sid, sc_id, scenario, build, folder, slots, recordings, time_scale, rates, run=k),
+        out / SCENARIOS_DIR, sc_id, scenario.repeat, settles)
+
+
+def _record_one(sid: str, sc_id: str, scenario, build, folder: Path, slots, recordings: Path | None,
+                time_scale: float = 1.0, rates: tuple = (), run: int = 1) -> dict:
+    """One recording of a scenario: copied from an identical earlier recording, or run (within
+    a slot). Run ``run`` > 1 of a repeated scenario is a recording of its own (its own key)."""
     from grader.grading.reuse import RecordingCache, reusable, scenario_key
+    from grader.grading.starvation import record_unstarved
     from grader.grading.timescale import run_at_scale
     from grader.scenario import resolve
 
-    folder = out / SCENARIOS_DIR / sc_id
-    key = (scenario_key(sc_id, scenario, build, settings=recording_settings(time_scale))
+    settings = recording_settings(time_scale) + (f";run={run}" if run > 1 else "")
+    key = (scenario_key(sc_id, scenario, build, settings=settings)
            if recordings is not None else None)
+
+    def make() -> dict:              # made again while the machine starves it (grader.grading.starvation)
+        return record_unstarved(lambda: run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build,
+                                                     rates), folder)
+
     if key is None:
         with slots.taken():
-            return run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
+            return make()
     cache = RecordingCache(recordings)
     with cache.locked(key):
         t0 = time.monotonic()
@@ -355,10 +395,10 @@ def _run_one(sid: str, sc_id: str, scenario, build, out: Path, slots, recordings
             (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
             return record
         with slots.taken():
-            record = run_at_scale(resolve(sc_id, scenario, build), folder, time_scale, build, rates)
-        if reusable(record):
+            made = make()
+        if reusable(made):
             cache.put(key, folder, sid)
-        return record
+        return made
 
 
 def regrade_submission(sub_out: Path, rubric, *, public_only: bool = False) -> GradedSubmission:

@@ -30,8 +30,10 @@ from grader.scenario.model import Scenario
 
 #: files of a scenario folder that make up its recording
 RECORDING = ("bag", "logs", "canvas.png", "scenario.json", "run.json", "scenario.log")
-#: bump when the scenario runtime changes what it records for the same inputs
-RECORDING_FORMAT = 2        # 2: executables found and started as `ros2 run` does (install(PROGRAMS) nodes run)
+#: bump when the scenario runtime changes what it records for the same inputs (2: executables
+#: found and started as `ros2 run` does; 3: the driver's client ids in its service_call events,
+#: the simulator's record of its poses, events in process)
+RECORDING_FORMAT = 3
 _DEPEND = re.compile(r"<(?:depend|exec_depend|build_depend|buildtool_depend)[^>]*>\s*([A-Za-z0-9_]+)\s*<")
 _NAME = re.compile(r"<name>\s*([A-Za-z0-9_]+)\s*</name>")
 
@@ -91,6 +93,11 @@ def scenario_key(scenario_id: str, scenario: Scenario, build: Any, settings: str
     for step in scenario.steps:
         if step.replay is not None:
             h.update(_tree_digest(step.replay.bag).encode())
+    if any(proc.package and proc.package not in packages for proc in scenario.processes):
+        # a package it runs is missing: the recording's `packages` event (the contract's names,
+        # grader.analyze.contract) then speaks of the others, which differ from student to student
+        for name, pkg in sorted(build.packages.items()):
+            h.update(f"{name}:{pkg.status}:{','.join(sorted(pkg.executables))}".encode())
     return h.hexdigest()[:24]
 
 

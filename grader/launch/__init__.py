@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -38,32 +39,78 @@ class LaunchResolution:
     sim_node: str | None = None          # the node name the launch file gives turtlesim
     notes: list[str] = field(default_factory=list)
     installed: bool = False              # found where `ros2 launch <package> <file>` looks
+    file: str = ""                       # the launch file's name (``launch:`` may be a pattern)
+
+
+#: what a launch file is called (``app.launch.py``, ``app_launch.py``, ``app.launch.xml`` ...)
+LAUNCH_FILE = re.compile(r"(^|[._])launch\.(py|xml|ya?ml)$")
+
+
+def launch_files(build: Any, package: str) -> list[str]:
+    """Names of ``package``'s launch files: installed in its share folder or in its sources."""
+    found: set[str] = set()
+    share = build.install / package / "share" / package
+    if share.is_dir():
+        found |= {p.name for p in share.rglob("*") if p.is_file() and LAUNCH_FILE.search(p.name)}
+    source = _package_source(build, package)
+    if source is not None:
+        found |= {p.name for p in source.rglob("*") if p.is_file() and LAUNCH_FILE.search(p.name)}
+    return sorted(found)
+
+
+def _package_source(build: Any, package: str) -> Path | None:
+    for manifest in sorted((build.root / "src").rglob("package.xml")):
+        text = manifest.read_text(errors="replace")
+        if f"<name>{package}</name>" in text.replace(" ", ""):
+            return manifest.parent
+    return None
+
+
+def _matches(folder: Path, name: str) -> list[Path]:
+    """Files under ``folder`` called ``name``, or matching it when it is a pattern (``*launch.py``):
+    one per file name (the first found)."""
+    hits = sorted(p for p in folder.rglob(name) if p.is_file())
+    if not any(c in name for c in "*?["):
+        return hits
+    first: dict[str, Path] = {}
+    for hit in hits:
+        if LAUNCH_FILE.search(hit.name):
+            first.setdefault(hit.name, hit)
+    return sorted(first.values(), key=lambda p: p.name)
 
 
 def find_launch_file(build: Any, package: str, name: str) -> tuple[Path | None, str]:
     """The launch file as ``ros2 launch`` finds it (in the package's installed share folder),
-    else in the package's sources (with a note: setup.py does not install it)."""
+    else in the package's sources (with a note: setup.py does not install it). ``name`` may be
+    a pattern (``*launch.py``: the lab does not name the file): the one launch file matching it;
+    several are an error naming them."""
+    def one(hits: list[Path]) -> Path | None:
+        if len(hits) > 1 and any(c in name for c in "*?["):
+            raise GraderError(f"package '{package}' has {len(hits)} launch files ({', '.join(h.name for h in hits)}) "
+                              "and the lab does not name the one that starts the application: keep only that one")
+        return hits[0] if hits else None
+
     share = build.install / package / "share" / package
-    hits = sorted(share.rglob(name)) if share.is_dir() else []
-    if hits:
-        return hits[0], ""
-    for manifest in sorted((build.root / "src").rglob("package.xml")):
-        text = manifest.read_text(errors="replace")
-        if f"<name>{package}</name>" in text.replace(" ", ""):
-            found = sorted(manifest.parent.rglob(name))
-            if found:
-                rel = found[0].relative_to(build.root)
-                pkg = build.packages.get(package)
-                if pkg is not None and pkg.status != "built":
-                    return found[0], (f"package '{package}' was not built, so {name} is not installed; "
-                                      f"the grader read {rel}.")
-                if pkg is not None and pkg.build_type.startswith("ament_cmake"):
-                    how = (f"is not installed by {package}'s CMakeLists.txt (add install(DIRECTORY launch "
-                           "DESTINATION share/${PROJECT_NAME}))")
-                else:
-                    how = (f"is not installed by {package}'s setup.py (add it to data_files, "
-                           f"e.g. share/{package}/launch)")
-                return found[0], f"{name} {how}; `ros2 launch` would not find it. The grader used {rel}."
+    hit = one(_matches(share, name)) if share.is_dir() else None
+    if hit is not None:
+        return hit, ""
+    source = _package_source(build, package)
+    if source is not None:
+        found = one(_matches(source, name))
+        if found is not None:
+            rel = found.relative_to(build.root)
+            shown = found.name
+            pkg = build.packages.get(package)
+            if pkg is not None and pkg.status != "built":
+                return found, (f"package '{package}' was not built, so {shown} is not installed; "
+                               f"the grader read {rel}.")
+            if pkg is not None and pkg.build_type.startswith("ament_cmake"):
+                how = (f"is not installed by {package}'s CMakeLists.txt (add install(DIRECTORY launch "
+                       "DESTINATION share/${PROJECT_NAME}))")
+            else:
+                how = (f"is not installed by {package}'s setup.py (add it to data_files, "
+                       f"e.g. share/{package}/launch)")
+            return found, f"{shown} {how}; `ros2 launch` would not find it. The grader used {rel}."
     return None, ""
 
 
@@ -117,21 +164,25 @@ def node_ros_args(entity: dict[str, Any]) -> list[str]:
 def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> LaunchResolution:
     """The processes ``proc``'s launch file starts (errors become a process with ``error``)."""
     assert proc.launch and proc.package
-    path, note = find_launch_file(build, proc.package, proc.launch)
+    try:
+        path, note = find_launch_file(build, proc.package, proc.launch)
+    except GraderError as exc:
+        return LaunchResolution([LaunchedProcess(name=proc.name, process=proc.name, error=str(exc))])
     if path is None:
+        what = (f"no launch file ({proc.launch})" if any(c in proc.launch for c in "*?[")
+                else f"launch file {proc.launch} not found")
         return LaunchResolution([LaunchedProcess(name=proc.name, process=proc.name, error=(
-            f"launch file {proc.launch} not found in package '{proc.package}' "
-            f"(installed share/{proc.package} or its sources)"))])
+            f"{what} in package '{proc.package}' (installed share/{proc.package} or its sources)"))])
     notes = [note] if note else []
     installed = not note
     try:
         entities = describe_launch(path, dict(proc.launch_arguments), build.env())
     except GraderError as exc:
         return LaunchResolution([LaunchedProcess(name=proc.name, process=proc.name, error=str(exc))],
-                                notes=notes, installed=installed)
+                                notes=notes, installed=installed, file=path.name)
     if system_ros_launch_available():
         resolution = _real_ros2_launch(proc, build, path, entities, sim_in_scenario, notes)
-        resolution.installed = installed
+        resolution.installed, resolution.file = installed, path.name
         return resolution
     out: list[LaunchedProcess] = []
     sim_node = None
@@ -174,7 +225,7 @@ def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> Launc
     if not any(not lp.stand_in for lp in out):
         out.append(LaunchedProcess(name=proc.name, process=proc.name,
                                    error=f"{path.name} starts no node besides turtlesim"))
-    return LaunchResolution(out, sim_node, notes, installed)
+    return LaunchResolution(out, sim_node, notes, installed, path.name)
 
 
 def _unique(name: str, used: set[str]) -> str:

@@ -15,6 +15,14 @@ keeps grader's own result.json and report.html next to it, and converts the Resu
 
 A submission that cannot be graded at all (empty, no ROS package) still gets a valid results.json
 with score 0 and the reason, instead of Gradescope's "The autograder failed to execute correctly".
+
+Student code runs in the same sandbox as in ``grader grade`` (``grader.sandbox``): ``setup.sh``
+installs bubblewrap, and :func:`prepare_image` (``grader gradescope-setup``, run by ``setup.sh``
+when the image is built) builds the rubric's support packages into ``ROOT/grader-cache`` and lists
+the protections active in the image. In the jail, a student process runs as an unprivileged user
+and sees none of ``ROOT/source`` (the rubric, hidden items and thresholds), ``ROOT/results``,
+``ROOT/grader-out`` or the grader package; the grader's venv is read-only. Only this process,
+outside the jail, writes ``results.json``.
 """
 
 from __future__ import annotations
@@ -31,6 +39,8 @@ from grader.errors import GraderError
 SCHEMA = Path(__file__).resolve().parent / "gradescope.schema.json"
 #: the folder under the autograder root where grader keeps its own outputs (result.json, bags)
 WORK_DIR = "grader-out"
+#: the build cache made when the image is built (the rubric's support packages, compiled once)
+CACHE_DIR = "grader-cache"
 SUBMISSION_ID = "submission"
 
 
@@ -150,13 +160,34 @@ def write_json(path: Path, doc: Mapping[str, Any]) -> None:
     atomic_write(path, json.dumps(doc, indent=1, allow_nan=False, ensure_ascii=False) + "\n")
 
 
+def prepare_image(root: Path, rubric_path: Path, *, cache_dir: Path | None = None) -> dict[str, Any]:
+    """At image build: compile the rubric's support packages into the image's build cache (so no
+    submission compiles them again) and say which sandbox protections the image gives student
+    code. Raises GraderError when a support package does not build (the instructor's files)."""
+    from grader.rubric.load import load_rubric
+    from grader.sandbox import protections
+    from grader.workspace.build import build_support
+
+    rubric = load_rubric(rubric_path)
+    cache = Path(cache_dir or Path(root) / CACHE_DIR)
+    cache.mkdir(parents=True, exist_ok=True)
+    built = build_support(dict(rubric.support), cache) if rubric.support else None
+    if built is not None and not built.ok:
+        raise GraderError("the rubric's support packages did not build: " + "; ".join(
+            f"{n}: {built.packages[n].reason}" for n in built.failed))
+    return {"cache": cache, "support": sorted(built.packages) if built else [],
+            "cached": bool(built and built.cached), "protections": protections()}
+
+
 def run(root: Path, rubric_path: Path, *, cache_dir: Path | None = None) -> dict[str, Any]:
-    """Grade ``root/submission`` and write ``root/results/results.json``; returns the document."""
+    """Grade ``root/submission`` and write ``root/results/results.json``; returns the document.
+    ``cache_dir`` defaults to the image's ``root/grader-cache`` (support packages pre-built)."""
     from grader.grading.pipeline import grade_submission
     from grader.rubric.load import load_rubric
 
     t0 = time.monotonic()
     root = Path(root)
+    cache_dir = cache_dir or root / CACHE_DIR
     rubric = load_rubric(rubric_path)      # a broken bundle is the instructor's error: no results
     try:
         graded = grade_submission(find_submission(root / "submission"), rubric, root / WORK_DIR,

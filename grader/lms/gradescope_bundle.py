@@ -5,6 +5,12 @@ Gradescope builds the image), ``run_autograder`` (run per submission), the grade
 ``rubric/`` (the rubric with the support packages and bags it references, see
 ``grader.rubric.stage``). Everything ``setup.sh`` installs comes from Ubuntu's archive and PyPI.
 
+``setup.sh`` also installs what the sandbox of student code needs (bubblewrap; util-linux's
+``setpriv`` and ``unshare`` are in the base image), builds the rubric's support packages into the
+image (``grader gradescope-setup``) and ends with ``grader doctor``, whose log lists each
+protection as active or not in Gradescope's container. ``--sandbox require`` makes a missing
+protection fail the image build and every run instead of a warning in each result.
+
 Assumed image: Gradescope's default base image, Ubuntu 22.04 ("Base" variant). The ROS 2 Jazzy
 wheels are built for CPython 3.11 only; Ubuntu 22.04 has ``python3.11`` in its own archive
 (universe), so no PPA or downloaded interpreter is needed. Ubuntu 24.04's archive has no 3.11:
@@ -40,6 +46,7 @@ ROOT="${{GRADER_AUTOGRADER_ROOT:-/autograder}}"
 SOURCE="$(cd "$(dirname "${{BASH_SOURCE[0]}}")" && pwd)"
 VENV="$ROOT/{venv}"
 PY=python3.11
+export GRADER_SANDBOX={sandbox}
 
 need=()
 if command -v "$PY" >/dev/null; then
@@ -49,6 +56,8 @@ if command -v "$PY" >/dev/null; then
 else
   need+=(python3.11 python3.11-venv python3.11-dev)
 fi
+command -v bwrap >/dev/null || need+=(bubblewrap)      # the sandbox of student code
+command -v setpriv >/dev/null || need+=(util-linux)
 command -v cmake >/dev/null || need+=(cmake)
 command -v ninja >/dev/null || need+=(ninja-build)
 {{ command -v cc && command -v c++; }} >/dev/null || need+=(build-essential)
@@ -66,19 +75,27 @@ if [ ${{#need[@]}} -gt 0 ]; then
   fi
 fi
 
-"$PY" -m venv "$VENV"
+[ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"      # run again (a rebuilt image): keep the venv
 "$VENV/bin/python" -m pip install -q --disable-pip-version-check "pip=={pip}"
 "$VENV/bin/python" -m pip install -q --disable-pip-version-check "$SOURCE/{wheel}"
 "$VENV/bin/grader" setup --wheels
-"$VENV/bin/grader" doctor          # a live two-process ROS self-test: fail the image build, not a submission
+# the rubric's support packages, compiled once into the image instead of once per submission
+"$VENV/bin/grader" gradescope-setup --root "$ROOT" --rubric "$SOURCE/{rubric}"
+# a live two-process ROS self-test and a sandboxed node: fail the image build, not a submission;
+# its log lists which protections of student code work in this container
+"$VENV/bin/grader" doctor
 """
 
 RUN_AUTOGRADER = r"""#!/usr/bin/env bash
 # Gradescope runs this for every submission: grade $ROOT/submission with the rubric below and
 # write $ROOT/results/results.json (grader keeps result.json, report.html and bags in $ROOT/{work}).
+# Student code runs in grader's sandbox (as in `grader grade`): it sees nothing of $ROOT/source,
+# $ROOT/results or grader's outputs, and only this process writes results.json.
 ROOT="${{GRADER_AUTOGRADER_ROOT:-/autograder}}"
+export GRADER_SANDBOX={sandbox}
 mkdir -p "$ROOT/results"
-exec "$ROOT/{venv}/bin/grader" gradescope-run --root "$ROOT" --rubric "$ROOT/source/{rubric}"
+exec "$ROOT/{venv}/bin/grader" gradescope-run --root "$ROOT" --rubric "$ROOT/source/{rubric}" \
+    --cache-dir "$ROOT/{cache}"
 """
 
 
@@ -112,12 +129,16 @@ def _add(zf: zipfile.ZipFile, path: Path, arcname: str) -> None:
         zf.writestr(info, fh.read())
 
 
-def write_bundle(rubric_path: Path, out: Path, *, wheel: Path | None = None) -> dict:
+def write_bundle(rubric_path: Path, out: Path, *, wheel: Path | None = None, sandbox: str = "auto") -> dict:
     """Write the autograder zip; returns a summary (files, lab, items) for the CLI."""
     from grader.rubric.load import load_rubric
     from grader.rubric.stage import stage_rubrics
 
+    from grader.lms.gradescope import CACHE_DIR
+
     rubric = load_rubric(rubric_path)
+    if sandbox not in ("auto", "require"):
+        raise GraderError(f"--sandbox {sandbox}: use auto or require.")
     if wheel is not None and not (wheel.is_file() and wheel.name.endswith(".whl")):
         raise GraderError(f"--wheel {wheel}: not a .whl file.")
     out = Path(out)
@@ -132,7 +153,7 @@ def write_bundle(rubric_path: Path, out: Path, *, wheel: Path | None = None) -> 
         rubric_rel = staged.relative_to(stage).as_posix()
         fields = dict(lab=rubric.lab, title=rubric.title, version=__version__, base_image=BASE_IMAGE,
                       venv=VENV_DIR, pip=PIP_VERSION, wheel=wheel_file.name, rubric=rubric_rel,
-                      work="grader-out")
+                      work="grader-out", cache=CACHE_DIR, sandbox=sandbox)
         (stage / "setup.sh").write_text(SETUP_SH.format(**fields))
         (stage / "run_autograder").write_text(RUN_AUTOGRADER.format(**fields))
         for script in ("setup.sh", "run_autograder"):

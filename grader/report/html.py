@@ -107,7 +107,8 @@ class _Page:
         if item.kind == "manual":
             return ""
         text = readable.measured_sentence(item, self._visible_params(item), student_view=self.student)
-        return f'<p class="measured">{escape(text)}</p>'
+        runs = readable.spread_text(item.decided)       # a repeated scenario: how its runs came out
+        return f'<p class="measured">{escape(text)}</p>' + (f'<p class="runs">{escape(runs)}</p>' if runs else "")
 
     def card(self, item: ItemResult) -> str:
         """A failing item in full: measured vs expected, feedback, hint, figure, details."""
@@ -155,6 +156,22 @@ def _notices(title: str, css: str, notices: tuple[Notice, ...]) -> str:
     items = "".join(f'<li>{_badge(n.status)} <b>{escape(n.title)}</b> <span class="id">{escape(n.item_id)}</span>'
                     f': {escape(n.feedback)} <a href="#item-{escape(n.item_id)}">details</a></li>' for n in notices)
     return f'<section class="box {css}" aria-label="{escape(title)}"><h2>{escape(title)}</h2><ul>{items}</ul></section>'
+
+
+def _contract_html(result: Result) -> str:
+    """Names the lab fixes that the submission spells differently: one line each, before the
+    items, with the items each one blocks (their own cards say the same in one sentence)."""
+    if not result.contract:
+        return ""
+    titles = {i.id: i.title for i in result.items}
+    rows = []
+    for m in result.contract:
+        blocked = ", ".join(f'<a href="#item-{escape(b)}">{escape(titles.get(b, b))}</a>' for b in m.blocks)
+        rows.append(f'<li data-role="{escape(m.role)}"><b>{escape(m.feedback)}</b>'
+                    + (f" It blocks: {blocked}." if blocked else "") + "</li>")
+    return (f'<section class="box flags" id="contract" aria-label="Names this lab fixes"><h2>Names this lab '
+            f'fixes</h2><p class="sub">Use these names exactly: the items that depend on a name are checked '
+            f'once it is right.</p><ul>{"".join(rows)}</ul></section>')
 
 
 def _canvas_html(canvas_png: Any) -> str:
@@ -308,6 +325,7 @@ def render_html(result: Result, submission: str, *, versions: Mapping[str, str] 
 {_who_html(intake)}
 <div class="scores" id="scores">{_scores(result)}</div>{_late_html(result)}{hidden}</header>
 {_problems_html(problems)}
+{_contract_html(result)}
 {_notes_html(notes)}
 {flags}
 {summary}

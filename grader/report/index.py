@@ -1,5 +1,6 @@
 """The class view ``OUT/index.html``: score distribution, what the class got wrong (per item,
-most failed first, with links to the students who failed), a sortable and filterable table of
+most failed first, with links to the students who failed), items whose repeated runs disagreed
+(``repeat:`` scenarios, graded by the median run), a sortable and filterable table of
 submissions (build failures, crashes, flags, time taken) and, after ``grader regrade``, who
 changed and by how much.
 
@@ -160,6 +161,30 @@ def _item_table(subs: Sequence[Submission]) -> str:
             f'</table></div></section>')
 
 
+def _unstable(subs: Sequence[Submission]) -> str:
+    """Items graded by the median of repeated runs (``repeat:`` in the rubric) whose runs
+    disagreed: the grades a student may question first, with how each run came out."""
+    from grader.report.readable import spread_text
+
+    repeated = [(s, i) for s in subs for i in s.result.items if int((i.decided or {}).get("runs") or 1) > 1]
+    if not repeated:
+        return ""
+    unstable = [(s, i) for s, i in repeated if (i.decided or {}).get("stable") is False]
+    lead = (f"{len(repeated)} item result(s) were graded by the median of repeated runs; "
+            f"{len(unstable)} of them came out differently from run to run.")
+    if not unstable:
+        return (f'<section aria-labelledby="unstable-h"><h2 id="unstable-h">Unstable items</h2>'
+                f'<p class="sub" id="unstable-none">{escape(lead)}</p></section>')
+    rows = "".join(f'<tr data-submission="{escape(s.id)}" data-item="{escape(i.id)}"><th scope="row">{_link(s.id)}</th>'
+                   f'<td>{_link(s.id, i.id, i.id)}</td><td class="num">{_num(i.points)} / {_num(i.max_points)}</td>'
+                   f'<td>{escape(spread_text(i.decided))}</td></tr>' for s, i in sorted(unstable, key=lambda si: (si[1].id, si[0].id)))
+    return (f'<section aria-labelledby="unstable-h"><h2 id="unstable-h">Unstable items</h2>'
+            f'<p class="sub">{escape(lead)} Each is graded by its median run; read the report before a '
+            f'student asks.</p><div class="scroll"><table class="unstable"><thead><tr>'
+            f'<th scope="col">Submission</th><th scope="col">Item</th><th scope="col" class="num">Points</th>'
+            f'<th scope="col">Runs</th></tr></thead><tbody>{rows}</tbody></table></div></section>')
+
+
 def _regrade(subs: Sequence[Submission]) -> str:
     regraded = [s for s in subs if s.previous is not None]
     if not regraded:
@@ -267,7 +292,8 @@ def render_index(results: Mapping[str, Result], *, title: str | None = None,
         lead = (f"{len(subs)} submission(s). Automatic score out of {first.auto_max:g}: median "
                 f"{statistics.median(scores):g}, mean {statistics.mean(scores):.1f}, lowest {min(scores):g}, "
                 f"highest {max(scores):g}. Totals stay empty (—) until manual items are graded.")
-        body = _distribution(subs) + _item_table(subs) + _regrade(subs) + _sub_table(subs) + _similar(similarity)
+        body = (_distribution(subs) + _item_table(subs) + _unstable(subs) + _regrade(subs) + _sub_table(subs)
+                + _similar(similarity))
         script = f"<script>{INDEX_JS}</script>"
     else:
         lead, body, script = "No graded submissions yet.", "", ""

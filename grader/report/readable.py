@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import string
+from collections import Counter
 from html import escape
 from typing import Any, Iterable, Mapping
 
@@ -232,3 +233,20 @@ def raw_json(evidence: Mapping[str, Any], hidden: set[str] | None = None, max_li
 
     return compact_number_lists(json.dumps(cut(strip_hidden(dict(evidence), hidden or set())), indent=1,
                                            ensure_ascii=False, default=str))
+
+
+def spread_text(decided: dict[str, Any] | None) -> str:
+    """The report's sentence: "Graded by the median of 3 runs: 2 of 3 runs partial (1.5 points),
+    1 of 3 pass (3 points)." Empty for an item decided by one run."""
+    if not decided or int(decided.get("runs") or 1) <= 1:
+        return ""
+    runs = int(decided["runs"])
+    counts: Counter = Counter((o.get("status"), o.get("points")) for o in decided.get("outcomes") or ())
+    parts = []
+    for (status, points), n in counts.most_common():
+        amount = f" ({points:g} points)" if isinstance(points, (int, float)) else ""
+        parts.append(f"{n} of {runs} runs {status}{amount}")
+    planned = int(decided.get("planned") or runs)
+    extra = (f"; a further {planned - runs} run(s) could not have changed the median"
+             if planned > runs else "")
+    return f"Graded by the median of {runs} runs: " + ", ".join(parts) + extra + "."

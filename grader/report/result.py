@@ -76,6 +76,7 @@ def item_to_dict(item: ItemResult) -> dict[str, Any]:
         "hidden_params": list(item.hidden_params),
         "requires": list(item.requires),
         "analyzer": item.analyzer,
+        "decided": jsonable(item.decided),
     }
 
 
@@ -110,6 +111,7 @@ def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, st
             for s in result.sections],
         "items": [item_to_dict(i) for i in result.items],
         **late_fields(result),
+        "contract": [m.to_dict() for m in result.contract],
         "integrity_flags": [_notice_to_dict(n) for n in result.integrity_flags],
         "warnings": [_notice_to_dict(n) for n in result.warnings],
         "versions": dict(versions or {}),
@@ -146,14 +148,17 @@ def result_from_dict(doc: Mapping[str, Any]) -> Result:
         feedback=i["feedback"], hint=i.get("hint"), value=i.get("value"),
         fraction=i.get("fraction"), evidence=i.get("evidence") or {}, params=i.get("params") or {},
         hidden_params=tuple(i.get("hidden_params") or ()), requires=tuple(i.get("requires") or ()),
-        analyzer=i.get("analyzer")) for i in doc["items"])
+        analyzer=i.get("analyzer"), decided=i.get("decided") or {}) for i in doc["items"])
     specs = tuple(SectionSpec(section=section(s["section"]), title=s.get("name")) for s in doc.get("sections", []))
     hidden = doc.get("hidden") or {}
     late = None
     if isinstance(doc.get("late"), Mapping):
         from grader.intake.late import LatePenalty
         late = LatePenalty.from_dict(doc["late"])
+    from grader.rubric.contract import Mismatch
+
     return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
+                  contract=tuple(Mismatch.from_dict(m) for m in doc.get("contract") or () if isinstance(m, Mapping)),
                   student_view=doc.get("view") == "student",
                   hidden_items=int(hidden.get("items", 0)), hidden_points=float(hidden.get("points", 0)),
                   late=late)

@@ -36,6 +36,7 @@ padding:.7rem .9rem;margin:.8rem 0;color:var(--fail)}
 .card.s-partial{color:var(--partial)}.card.s-error{color:var(--error)}.card.advisory{color:var(--muted)}
 .card>*{color:var(--ink)}.card h3 .badge{color:inherit}
 .card .measured{font-weight:600;margin:.2rem 0}
+.runs{font-style:italic;margin:.2rem 0}
 .card .feedback{margin:.2rem 0}
 .hint{margin:.3rem 0;padding:.3rem .6rem;background:var(--bg2);border-radius:4px}
 ul.items,ul.manual{list-style:none;padding:0;margin:.2rem 0}ul.manual>li{margin:.4rem 0}

@@ -57,9 +57,35 @@ def json_schema() -> dict[str, Any]:
     until = defs["Step"]["properties"]["until"]
     conditions = sorted(until["anyOf"][0]["discriminator"]["mapping"])
     until["anyOf"].insert(0, {"enum": conditions, "description": "a condition without parameters"})
+    for field in ("publishes", "subscribes", "serves"):     # one name or a list
+        prop = defs["NodeEntry"]["properties"][field]
+        items = prop.pop("items", {"type": "string"})
+        prop.pop("type", None)
+        prop["anyOf"] = [items, {"type": "array", "items": items}]
+    for key in ("PackageEntry", "ExecutableEntry", "NodeEntry", "TopicEntry", "ServiceEntry", "ActionEntry",
+                "LaunchEntry"):        # `news: /robot_news` is `news: {name: /robot_news}`
+        defs[key] = {"description": defs[key].get("description", ""),
+                     "anyOf": [defs[key], {"type": "string", "description": "the name alone"}]}
+    for key in ("ActionGoal", "Publish"):  # a contract name's type is filled in: `name: $turtle_goal`
+        defs[key]["required"] = [r for r in defs[key].get("required", []) if r != "type"]
+    schema = _with_references(schema)
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     schema["title"] = "grader rubric"
     return schema
+
+
+_REFERENCE = {"type": "string", "pattern": r"^\$[a-z][a-z0-9_]*$", "description": "a contract name: $role"}
+
+
+def _with_references(node: Any) -> Any:
+    """Every name-like text may also be a ``$role`` reference to the contract."""
+    if isinstance(node, dict):
+        if node.get("type") == "string" and "pattern" in node:
+            return {"anyOf": [node, _REFERENCE]}
+        return {k: _with_references(v) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_with_references(v) for v in node]
+    return node
 
 
 # ------------------------------------------------------------------------------ Markdown tables
@@ -150,7 +176,32 @@ def scenario_reference() -> str:
     return "\n".join(out)
 
 
-GENERATED = {"analyzers": analyzer_reference, "scenario": scenario_reference}
+def contract_reference() -> str:
+    """The contract's kinds and their keys, then the contract of every rubric in ``rubrics/``."""
+    from grader.labs import CHECKOUT
+    from grader.rubric import contract as c
+    from grader.rubric.load import load_rubric
+
+    out = ["#### Kinds of names\n"]
+    for kind, cls in (("packages", c.PackageEntry), ("executables", c.ExecutableEntry), ("nodes", c.NodeEntry),
+                      ("topics", c.TopicEntry), ("services", c.ServiceEntry), ("actions", c.ActionEntry),
+                      ("launch_files", c.LaunchEntry)):
+        doc = " ".join((cls.__doc__ or "").split())
+        out.append(f"**`{kind}:`** {doc}\n")
+        out.append(_fields_table(cls) + "\n")
+    out.append("#### The labs' contracts\n")
+    for path in sorted((CHECKOUT / "rubrics").glob("*.yaml")):
+        rubric = load_rubric(path)
+        lines = rubric.contract.lines()
+        out.append(f"**`{path.name}`** ({rubric.lab})" + ("" if lines else ": no contract") + "\n")
+        if lines:
+            out.append("| name | kind | used as | where it is fixed |\n|---|---|---|---|")
+            out += [f"| `{name}` | {what} | {use} | {why} |" for what, name, use, why in lines]
+            out.append("")
+    return "\n".join(out)
+
+
+GENERATED = {"analyzers": analyzer_reference, "scenario": scenario_reference, "contract": contract_reference}
 
 
 def refresh(readme: Path, check: bool = False) -> list[str]:
@@ -173,7 +224,7 @@ def refresh(readme: Path, check: bool = False) -> list[str]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    r = sub.add_parser("rubric", help="rubric tools: JSON Schema for editors, the guide's generated tables")
+    r = sub.add_parser("rubric", help="rubric tools: check, audit (mutation testing), JSON Schema, the guide's tables")
     rsub = r.add_subparsers(dest="rubric_command", metavar="ACTION", required=True)
     s = rsub.add_parser("schema", help="print (or write) the rubric JSON Schema")
     s.add_argument("-o", "--out", type=Path, default=None)
@@ -185,6 +236,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     c = rsub.add_parser("check", help="validate a rubric and list what it grades")
     c.add_argument("rubric", type=Path)
     c.set_defaults(func=_run_check)
+    from grader.audit.cli import register_audit
+
+    register_audit(rsub)
 
 
 def _run_schema(args: argparse.Namespace) -> int:
@@ -218,4 +272,9 @@ def _run_check(args: argparse.Namespace) -> int:
     for sid, sc in rubric.scenarios.items():
         print(f"  scenario {sid}: {len(sc.steps)} steps, up to {sc.budget_s:g} s; processes: "
               + (", ".join(p.name for p in sc.processes) or "none"))
+    if rubric.equivalent_mutants:
+        print(f"  {len(rubric.equivalent_mutants)} equivalent mutant(s) of the reference recorded (grader rubric audit)")
+    for what, name, use, why in rubric.contract.lines():
+        note = "; ".join(x for x in (use, why) if x)
+        print(f"  contract {what}: {name}" + (f" ({note})" if note else ""))
     return 0

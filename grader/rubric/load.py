@@ -10,7 +10,8 @@ from typing import Collection, Mapping
 from pydantic import ValidationError
 
 from grader.errors import GraderError
-from grader.rubric.located import Problem, load_located, problems_from
+from grader.rubric.contract import resolve_references
+from grader.rubric.located import Problem, dotted, load_located, problems_from
 from grader.rubric.schema import Rubric
 
 
@@ -81,11 +82,17 @@ def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
     if not isinstance(data, dict):
         raise RubricError(shown, [Problem(shown, 1, "", "expected a mapping, got a list" if isinstance(data, list)
                                              else f"expected a mapping, got {data!r}")])
+    data, unresolved = resolve_references(data)      # $role -> the contract's name
+    refs = sorted({Problem(shown, located.line(p), dotted(p), m) for p, m in unresolved})
     try:
         rubric = Rubric.model_validate_json(json.dumps(data, default=str),
                                             context={"base_dir": path.resolve().parent})
     except ValidationError as exc:
-        raise RubricError(shown, problems_from(exc.errors(), data, located, Rubric)) from None
+        at_refs = {p.path for p in refs}
+        found = [p for p in problems_from(exc.errors(), data, located, Rubric) if p.path not in at_refs]
+        raise RubricError(shown, sorted(set(refs + found))) from None
+    if refs:
+        raise RubricError(shown, refs)
     cross = rubric.problems(analyzers, check_files)
     if cross:
         raise RubricError(shown, sorted({Problem(shown, located.line(_split(p)), p, m) for p, m in cross}))

@@ -18,6 +18,7 @@ from typing import Annotated, Any, Collection, Literal, Mapping, Union
 from pydantic import BeforeValidator, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from grader.rubric.intake_fields import LatePolicy, LooseFiles, intake_problems
+from grader.rubric.contract import Contract, item_roles, resolve_references, scenario_roles
 from grader.scenario.fields import Model, PackageName, _named, with_rules
 from grader.scenario.model import Scenario
 
@@ -35,6 +36,7 @@ SectionKind = _named(r"^[a-z][a-z_0-9]*$", "a lower-case section kind like exerc
 SectionNumber = Union[Annotated[int, Field(ge=0)],
                       _named(r"^[A-Za-z0-9._-]+$", "a section number like 1 or '2b'")]
 Text = Annotated[str, Field(min_length=1, pattern=r"\S")]
+MutantId = _named(r"^[a-z][a-z_]*-[0-9a-f]{8}$", "a mutant id like 'flip_sign-1a2b3c4d' (grader rubric audit)")
 Points = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 
@@ -279,6 +281,14 @@ class Item(Model):
         return float(self.points)
 
 
+class EquivalentMutant(Model):
+    """A mutant of the reference solution (``grader rubric audit``) that keeps full marks
+    because it is still a correct solution, not because the rubric cannot see the bug."""
+
+    mutant: MutantId
+    reason: Text = Field(description="why the mutated code is still correct (what it changes and why that is fine)")
+
+
 class Rubric(Model):
     """A lab's whole grading scheme. ``source`` is the file it was loaded from."""
 
@@ -291,15 +301,42 @@ class Rubric(Model):
                                        "submission folder); it must earn no points")
     support: dict[PackageName, RubricPath] = Field(
         {}, description="packages supplied when a submission lacks them (e.g. given interfaces)")
+    contract: Contract = Field(Contract(), description="the names students must use exactly (package, "
+                               "executable, node, topic, service, action, launch file), each under a role; "
+                               "the rest of the rubric refers to them as $role")
     sections: Annotated[tuple[SectionSpec, ...], Field(strict=False)] = ()
     scenarios: dict[ScenarioId, Scenario] = {}
     items: Annotated[tuple[Item, ...], Field(min_length=1, strict=False)]
     # how submissions arrive (grader.intake): the late policy and bare-file submissions
     late: LatePolicy | None = Field(None, description="due date and late policy (grader.intake)")
     loose_files: LooseFiles | None = Field(None, description="how bare .py files become a package")
+    equivalent_mutants: Annotated[tuple[EquivalentMutant, ...], Field(strict=False)] = Field(
+        (), description="mutants of the reference that keep full marks and are correct (grader rubric audit)")
 
     model_config = {**Model.model_config, "populate_by_name": True}
     _source: Path = PrivateAttr(default=Path("rubric.yaml"))
+
+    @model_validator(mode="before")
+    @classmethod
+    def _references(cls, value: Any) -> Any:
+        """``$role`` and ``${role}`` become the contract's names (the loader reports the ones it
+        cannot resolve, with their lines; here they are left to fail their field's check)."""
+        return resolve_references(value)[0]
+
+    def item_roles(self, item: Item, scenario_id: str) -> set[str]:
+        """Contract roles ``item`` depends on in ``scenario_id``: those its parameters name and
+        those its scenario runs or drives."""
+        scenario = self.scenarios.get(scenario_id)
+        return item_roles(self.contract, item) | (scenario_roles(self.contract, scenario) if scenario else set())
+
+    def scenario_roles(self, scenario_id: str) -> set[str]:
+        """Contract roles to look for in ``scenario_id``'s recording: what it runs and drives, and
+        what the parameters of the items graded on it name."""
+        out = scenario_roles(self.contract, self.scenarios[scenario_id]) if scenario_id in self.scenarios else set()
+        for item in self.items:
+            if scenario_id in item.scenario:
+                out |= item_roles(self.contract, item)
+        return out
 
     @property
     def source(self) -> Path:
@@ -411,6 +448,24 @@ class Rubric(Model):
         out += self._cycles()
         out += self._sums()
         out += intake_problems(self)
+        out += self._equivalents()
+        return out
+
+    def _equivalents(self) -> list[tuple[str, str]]:
+        from grader.audit.mutate import OPERATORS
+
+        out: list[tuple[str, str]] = []
+        first: dict[str, int] = {}
+        for index, entry in enumerate(self.equivalent_mutants):
+            at = f"equivalent_mutants[{index}].mutant"
+            operator = entry.mutant.rsplit("-", 1)[0]
+            if operator not in OPERATORS:
+                out.append((at, f"unknown mutation operator {operator!r} in {entry.mutant!r} "
+                                f"(known: {', '.join(OPERATORS)}); copy the id from grader rubric audit's report"))
+            if entry.mutant in first:
+                out.append((at, f"mutant {entry.mutant!r} is listed twice (first at "
+                                f"equivalent_mutants[{first[entry.mutant]}])"))
+            first.setdefault(entry.mutant, index)
         return out
 
     def _cycles(self) -> list[tuple[str, str]]:

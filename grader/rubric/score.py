@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Iterable, Mapping, Protocol
 
 from grader.errors import GraderError
+from grader.rubric.contract import Mismatch
 from grader.rubric.schema import STATUSES, Item, Rubric, Section, SectionSpec
 
 if TYPE_CHECKING:
@@ -49,6 +50,9 @@ class ItemResult:
     fraction: float | None = None
     evidence: Mapping[str, Any] = field(default_factory=dict)
     params: Mapping[str, Any] = field(default_factory=dict)       # thresholds that decided it
+    #: how it was decided (grader.grading.repeat): {"by": "one run", "runs": 1}, or the median of
+    #: repeated runs with how many agreed and each run's outcome and points; {} for manual items
+    decided: Mapping[str, Any] = field(default_factory=dict)
     hidden_params: tuple[str, ...] = ()                           # not shown to students
     requires: tuple[str, ...] = ()                                # items gating its points
     analyzer: str | None = None  # the report looks up evidence labels and figures by analyzer
@@ -90,6 +94,7 @@ class Result:
     hidden_items: int = 0          # removed by for_student()
     hidden_points: float = 0.0
     late: "LatePenalty | None" = None   # the late policy's verdict (grader.intake.late), if any
+    contract: tuple[Mismatch, ...] = ()   # contract names the student spelt differently
 
     def item(self, item_id: str) -> ItemResult:
         for item in self.items:
@@ -190,7 +195,9 @@ class Result:
         and evidence."""
         visible = tuple(_without_hidden(i) for i in self.items if i.public)
         hidden = [i for i in self.items if not i.public]
-        return replace(self, items=visible, student_view=True,
+        shown = {i.id for i in visible}
+        contract = tuple(replace(m, blocks=tuple(b for b in m.blocks if b in shown)) for m in self.contract)
+        return replace(self, items=visible, student_view=True, contract=contract,
                        hidden_items=self.hidden_items + len(hidden),
                        hidden_points=_sum([self.hidden_points, *(i.max_points for i in hidden)]))
 
@@ -225,13 +232,15 @@ def _notice(item: ItemResult) -> Notice:
 # ----------------------------------------------------------------------------------------------
 
 def score(rubric: Rubric, findings: Mapping[str, FindingLike | None], *,
-          manual: Mapping[str, float] | None = None) -> Result:
+          manual: Mapping[str, float] | None = None, contract: Iterable[Mismatch] | None = None) -> Result:
     """Score every rubric item.
 
     ``findings``: item id -> Finding, or None when the analysis could not run (scenario crashed,
     bag missing); absent ids count as None. ``manual``: points a person gave to manual items.
-    Unknown ids in ``findings`` are a programming error (ValueError); bad manual points are a
-    user error (GraderError).
+    ``contract``: the contract names the recordings show under another name (default: the
+    ``contract`` of ``findings``, as ``grader.grading.pipeline.analyze_bags`` returns them);
+    each blocks the items that depend on it and did not pass. Unknown ids in ``findings`` are a
+    programming error (ValueError); bad manual points are a user error (GraderError).
     """
     ids = set(rubric.item_ids)
     stray = sorted(set(findings) - ids)
@@ -245,9 +254,40 @@ def score(rubric: Rubric, findings: Mapping[str, FindingLike | None], *,
             items.append(_score_manual(item, manual.get(item.id)))
         else:
             items.append(_score_auto(item, findings.get(item.id)))
+    mismatches = tuple(contract if contract is not None else getattr(findings, "contract", ()) or ())
+    items, mismatches = _block(rubric, items, mismatches)
     items = _gate(items)
     return Result(lab=rubric.lab, title=rubric.title, items=tuple(items),
-                  section_specs=tuple(rubric.sections))
+                  section_specs=tuple(rubric.sections), contract=mismatches)
+
+
+def _block(rubric: Rubric, items: list[ItemResult], mismatches: tuple[Mismatch, ...]
+           ) -> tuple[list[ItemResult], tuple[Mismatch, ...]]:
+    """A contract name spelt differently is one finding; the items that depend on it (their
+    parameters name it, or their scenario runs or drives it) and failed are blocked by it: 0
+    points, its sentence as their feedback, their own verdict kept in the evidence. An item that
+    passed or partly passed anyway keeps its result; integrity flags keep theirs."""
+    if not mismatches:
+        return items, mismatches
+    blocks: dict[int, list[str]] = {i: [] for i in range(len(mismatches))}
+    out = []
+    for result in items:
+        item = rubric.item(result.id)
+        if item.kind not in ("auto", "advisory") or result.status not in ("fail", "error"):
+            out.append(result)
+            continue
+        by = [k for k, m in enumerate(mismatches)
+              if any(sc in m.scenarios and m.role in rubric.item_roles(item, sc) for sc in item.scenario)]
+        if not by:
+            out.append(result)
+            continue
+        for k in by:
+            blocks[k].append(result.id)
+        text = " ".join(dict.fromkeys(mismatches[k].feedback for k in by))
+        out.append(replace(result, points=0.0 if item.kind == "auto" else result.points, status="fail",
+                           feedback=text, evidence={**result.evidence, "blocked_by": [mismatches[k].role for k in by],
+                                                    "own_status": result.status, "own_feedback": result.feedback}))
+    return out, tuple(replace(m, blocks=tuple(blocks[k])) for k, m in enumerate(mismatches))
 
 
 def _gate(items: list[ItemResult]) -> list[ItemResult]:
@@ -319,8 +359,22 @@ def _score_auto(item: Item, finding: FindingLike | None) -> ItemResult:
         points = 0.0
     evidence = getattr(finding, "evidence", None) or {}
     text = _feedback(item, status, finding, fraction, points, evidence)
-    return _result(item, points, status, text, fraction, value=getattr(finding, "value", None),
-                   evidence=evidence, params=getattr(finding, "params", None) or None)
+    decided = dict(getattr(finding, "decided", None) or {"by": "one run", "runs": 1})
+    if decided.get("outcomes"):           # each run's points and status under this item's rule
+        decided["outcomes"] = [{**o, **_scored(item, o.get("status"), o.get("fraction"))}
+                               for o in decided["outcomes"]]
+    return replace(_result(item, points, status, text, fraction, value=getattr(finding, "value", None),
+                           evidence=evidence, params=getattr(finding, "params", None) or None),
+                   decided=decided)
+
+
+def _scored(item: Item, status: Any, fraction: Any) -> dict[str, Any]:
+    """One run's points and status as this item scores them (as in :func:`_score_auto`)."""
+    if item.kind != "auto" or status == "error":
+        return {"points": 0.0, "status": status}
+    points = round(item.partial.credit(_fraction(fraction)) * item.points, 2)
+    return {"points": points,
+            "status": "pass" if points >= item.points - 1e-9 else "fail" if points <= 1e-9 else "partial"}
 
 
 def _fraction(value: Any) -> float:
@@ -344,8 +398,14 @@ def _result(item: Item, points: float | None, status: str, feedback: str, fracti
 
 def _feedback(item: Item, status: str, finding: FindingLike, fraction: float,
               points: float, evidence: Mapping[str, Any]) -> str:
-    """The rubric's text for this status (partial falls back to fail), else the analyzer's."""
+    """The rubric's text for this status (partial falls back to fail), else the analyzer's.
+
+    A finding whose evidence lists ``student_moves`` (student code moved the turtle without
+    driving it: grader.analyze.provenance) keeps the analyzer's words: a rubric's advice is
+    written for a solution that is wrong, and would tell a cheat to check its signs."""
     own = str(getattr(finding, "feedback", "") or "")
+    if evidence.get("student_moves"):
+        return own
     template = item.feedback.get(status)
     if template is None and status == "partial":
         template = item.feedback.get("fail")

@@ -56,6 +56,7 @@ class Jail:
     ro: tuple[str, ...] = ()              # read-only
     rw: tuple[str, ...] = ()              # writable (a build area)
     scratch_mb: int = 256
+    scratch_cap: bool = True              # bubblewrap has --size (>= 0.7): cap the scratch tmpfs
     own_network: bool = False             # True: a loopback of its own (builds, launch files)
     uid: int | None = None                # switch to this uid (when the grader is root)
     signal_reset: bool = True             # `env --default-signal` is available
@@ -176,12 +177,13 @@ def bwrap_argv(jail: Jail, argv: Sequence[str], *, cwd: str, files: Mapping[str,
             out += ["--symlink", os.readlink(link), link]
         elif os.path.isdir(link):
             out += ["--ro-bind", link, link]
+    size = ["--size", str(jail.scratch_mb * 2**20)] if jail.scratch_cap else []
     out += ["--proc", "/proc", "--dev", "/dev",
-            "--perms", "01777", "--size", str(jail.scratch_mb * 2**20), "--tmpfs", SCRATCH,
+            "--perms", "01777", *size, "--tmpfs", SCRATCH,
             "--perms", "01777", "--dir", f"{SCRATCH}/tmp", "--perms", "01777", "--dir", f"{SCRATCH}/ros_log",
             # /tmp: a tmpfs of its own (not a link into the scratch), so host paths under /tmp can
             # still be bound (a build area in a temporary cache)
-            "--perms", "01777", "--size", str(jail.scratch_mb * 2**20), "--tmpfs", "/tmp"]
+            "--perms", "01777", *size, "--tmpfs", "/tmp"]
     ro = [p for p in _dedupe(visible_roots(jail)) if p not in SYSTEM_DIRS and p not in jail.rw
           and not _under(p, SYSTEM_DIRS) and os.path.exists(p)]
     rw = [p for p in _dedupe(jail.rw) if os.path.exists(p)]
@@ -196,7 +198,7 @@ def bwrap_argv(jail: Jail, argv: Sequence[str], *, cwd: str, files: Mapping[str,
     for dest, src in files.items():
         out += ["--ro-bind", src, dest]
     if PACKAGE_DIR not in jail.ro and _under(PACKAGE_DIR, [*SYSTEM_DIRS, *ro, *rw]):
-        out += ["--perms", "0755", "--size", "4096", "--tmpfs", PACKAGE_DIR]
+        out += ["--perms", "0755", *(["--size", "4096"] if jail.scratch_cap else []), "--tmpfs", PACKAGE_DIR]
     out += ["--chdir", cwd]
     if jail.uid is not None:
         out += ["--cap-add", "CAP_SETUID", "--cap-add", "CAP_SETGID", "--",

@@ -30,6 +30,7 @@ class Capabilities:
     root: bool
     bwrap: str | None = None                 # path of a working bubblewrap
     bwrap_version: str = ""
+    bwrap_size: bool = False                 # bubblewrap >= 0.7 caps a tmpfs (--size); Ubuntu 22.04 has 0.6
     uid_drop: bool = False                   # root: setpriv inside bwrap switches to an unprivileged uid
     signal_reset: bool = False               # `env --default-signal` (bwrap ignores Ctrl-C, the payload not)
     netns: bool = False                      # `unshare --net --pid --fork` for a scenario
@@ -54,23 +55,34 @@ def sandbox_uid() -> int:
     return int(os.environ.get("GRADER_SANDBOX_UID") or DEFAULT_UID)
 
 
-def _probe_bwrap(root: bool, why: dict[str, str]) -> tuple[str | None, str, bool, bool]:
+def _bwrap_base(bwrap: str, size: bool) -> list[str]:
+    """Every option the jail uses, on a trivial view (``--size`` only where it exists)."""
+    return [bwrap, "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--unshare-pid",
+            "--unshare-ipc", "--unshare-net", "--unshare-uts", "--hostname", "sandbox", "--unshare-cgroup-try",
+            "--die-with-parent", "--perms", "01777", *(["--size", "1048576"] if size else []), "--tmpfs", "/tmp",
+            "--perms", "0755", "--dir", "/tmp/probe", "--symlink", "/tmp/probe", "/tmp/link", "--chdir", "/tmp"]
+
+
+def _probe_bwrap(root: bool, why: dict[str, str]) -> tuple[str | None, str, bool, bool, bool]:
     bwrap = shutil.which(os.environ.get("GRADER_BWRAP") or "bwrap")
     if bwrap is None:
         why["filesystem"] = "bubblewrap is not installed (Debian/Ubuntu package `bubblewrap`)"
         why["unprivileged user"] = why["graceful stop"] = "needs bubblewrap"
-        return None, "", False, False
+        return None, "", False, False, False
     version = subprocess.run([bwrap, "--version"], capture_output=True, text=True).stdout.strip()
-    # every option the jail uses (bubblewrap < 0.8 lacks --size)
-    base = [bwrap, "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--unshare-pid",
-            "--unshare-ipc", "--unshare-net", "--unshare-uts", "--hostname", "sandbox", "--unshare-cgroup-try",
-            "--die-with-parent", "--perms", "01777", "--size", "1048576", "--tmpfs", "/tmp",
-            "--perms", "0755", "--dir", "/tmp/probe", "--symlink", "/tmp/probe", "/tmp/link", "--chdir", "/tmp"]
+    size = True
+    base = _bwrap_base(bwrap, size)
     ok, err = _try(base + ["--", "true"])
+    if not ok and "--size" in err:
+        # bubblewrap < 0.7 (Ubuntu 22.04, Gradescope's base image, has 0.6.1) has no --size: the
+        # jail still works, its scratch tmpfs is bounded by the memory limit instead of a size
+        size = False
+        base = _bwrap_base(bwrap, size)
+        ok, err = _try(base + ["--", "true"])
     if not ok:
         why["filesystem"] = f"bubblewrap cannot create namespaces here: {err}"
         why["unprivileged user"] = why["graceful stop"] = "needs bubblewrap"
-        return None, version, False, False
+        return None, version, False, False, False
     signal_reset, err = _try(base + ["--", "env", "--default-signal=INT,TERM", "true"])
     if not signal_reset:
         why["graceful stop"] = f"`env --default-signal` is missing (coreutils >= 8.31): {err}"
@@ -86,7 +98,7 @@ def _probe_bwrap(root: bool, why: dict[str, str]) -> tuple[str | None, str, bool
                                          "--", "true"])
             if not uid_drop:
                 why["unprivileged user"] = f"cannot switch to uid {uid} inside bubblewrap: {err}"
-    return bwrap, version, uid_drop, signal_reset
+    return bwrap, version, uid_drop, signal_reset, size
 
 
 def _probe_netns(root: bool, why: dict[str, str]) -> bool:
@@ -106,14 +118,14 @@ def probe() -> Capabilities:
     """Try every tool once (cached for the life of the process)."""
     root = os.geteuid() == 0
     why: dict[str, str] = {}
-    bwrap, version, uid_drop, signal_reset = _probe_bwrap(root, why)
+    bwrap, version, uid_drop, signal_reset, size = _probe_bwrap(root, why)
     if not root:
         why.setdefault("unprivileged user", "the grader itself runs unprivileged")
     netns = _probe_netns(root, why)
     cgroups = find_cgroup_support()
     if cgroups.problem:
         why["limits"] = cgroups.problem
-    return Capabilities(root=root, bwrap=bwrap, bwrap_version=version, uid_drop=uid_drop,
+    return Capabilities(root=root, bwrap=bwrap, bwrap_version=version, bwrap_size=size, uid_drop=uid_drop,
                         signal_reset=signal_reset, netns=netns, cgroups=cgroups, why=why)
 
 
@@ -135,8 +147,9 @@ def protections(caps: Capabilities | None = None, *, enabled: bool = True) -> li
     cg = caps.cgroups
     rows = [
         Protection("filesystem", fs, off or caps.why.get("filesystem") or
-                   f"{caps.bwrap_version}: read-only system, own scratch tmpfs; no outputs, "
-                   "rubric, fixtures, other submissions or grader sources"),
+                   f"{caps.bwrap_version}: read-only system, own scratch tmpfs"
+                   f"{'' if caps.bwrap_size else ' (not size-capped: this bubblewrap has no --size; the memory limit bounds it)'}"
+                   "; no outputs, rubric, fixtures, other submissions or grader sources"),
         Protection("network", enabled and caps.netns, off or caps.why.get("network") or
                    "a network namespace per scenario (loopback shared with its sim, recorder, driver)"),
         Protection("processes", enabled and (caps.netns or fs), off or

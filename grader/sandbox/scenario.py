@@ -105,7 +105,7 @@ def student_jail(caps: Capabilities, policy: SandboxPolicy, *, ro: Sequence[str]
                  cgroup: cgroups.CgroupSet | None = None) -> Jail:
     """The jail of student code on this machine (bubblewrap when it works, else the fallback)."""
     return Jail(bwrap=caps.bwrap, ro=tuple(ro), rw=tuple(rw), scratch_mb=policy.scratch_mb,
-                own_network=own_network, uid=sandbox_uid() if caps.uid_drop else None,
+                scratch_cap=caps.bwrap_size, own_network=own_network, uid=sandbox_uid() if caps.uid_drop else None,
                 signal_reset=caps.signal_reset,
                 cgroup_procs=tuple(cgroup.procs_files()) if cgroup is not None else ())
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from grader.errors import GraderError
-from grader.scenario.model import LaunchedProcess, Scenario, ScenarioRun
+from grader.scenario.model import LaunchedProcess, PackageFacts, Scenario, ScenarioRun
 
 __all__ = ["Scenario", "ScenarioRun", "resolve", "run_scenario", "cancel_all", "CANCELLED"]
 
@@ -51,12 +51,13 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
     broken launch file) keeps an ``error`` instead: the scenario still runs, and the items that
     need that process fail with that explanation.
     """
-    from grader.launch import resolve_launch
+    from grader.launch import launch_files, resolve_launch
 
     launched: dict[str, tuple[LaunchedProcess, ...]] = {}
     sim_node = "turtlesim"
     notes: dict[str, tuple[str, ...]] = {}
     installed: dict[str, bool] = {}
+    files: dict[str, str] = {}
     for proc in scenario.processes:
         if build is None:
             launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error="no build available"),)
@@ -67,6 +68,8 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
             sim_node = result.sim_node or sim_node
             notes[proc.name] = tuple(result.notes)
             installed[proc.name] = result.installed
+            if result.file:
+                files[proc.name] = result.file
             continue
         try:
             argv = build.argv(proc.package, proc.executable, proc.module) + proc.ros_args()
@@ -74,8 +77,12 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
         except GraderError as exc:
             launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error=str(exc)),)
     prefixes = tuple(str(p) for p in build.prefixes()) if build is not None else ()
+    packages = {name: PackageFacts(status=pkg.status, executables=tuple(sorted(pkg.executables)),
+                                   launch_files=tuple(launch_files(build, name)))
+                for name, pkg in (build.packages.items() if build is not None else ())}
     return ScenarioRun(id=scenario_id, scenario=scenario, launched=launched, prefixes=prefixes,
-                       sim_node=sim_node, notes=notes, launch_installed=installed)
+                       sim_node=sim_node, notes=notes, launch_installed=installed, packages=packages,
+                       launch_files=files)
 
 
 #: how long a scenario child stopped by SIGTERM gets to stop its processes and finalize its bag
@@ -99,6 +106,9 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
 
     sandbox = ScenarioSandbox(prefixes=run.prefixes, env=env, memory_mb=run.scenario.limits.memory_mb,
                               name=run.id)
+    from grader.rosenv import trusted_env     # the students' Python trees: imported last, never run at start-up
+
+    env = trusted_env(env, [Path(p) for p in run.prefixes])
     with sandbox, open(out / "scenario.log", "wb") as log:
         argv = sandbox.argv([sys.executable, "-m", "grader.scenario.run", str(run_file), str(out)])
         proc = subprocess.Popen(argv, env=sandbox.env(env), stdout=log, stderr=subprocess.STDOUT,

@@ -2,7 +2,9 @@
 
 Everything it sends and everything it learns (goals, stdin lines, action responses and results,
 process exits) is also published on ``/grader/events``, and student stdout/stderr lines on
-``/grader/stdout``, so the bag alone is enough to recompute a grade.
+``/grader/stdout``, so the bag alone is enough to recompute a grade. With a ``sink`` (the
+scenario's recorder, in this process) they go into the bag from here, not through DDS, where any
+node could publish an "event" of its own (:mod:`grader.bag.recorder`).
 """
 
 from __future__ import annotations
@@ -76,7 +78,8 @@ class Driver:
     """
 
     def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim",
-                 *, time_scale: float = 1.0, clock_node: str | None = None) -> None:
+                 *, time_scale: float = 1.0, clock_node: str | None = None,
+                 sink: Callable[[str, bytes], None] | None = None) -> None:
         import rclpy
         from rclpy.clock import Clock, ClockType
         from rclpy.parameter import Parameter
@@ -96,6 +99,10 @@ class Driver:
                                    f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
                                    paused=self.executor_paused)
         self.String = String
+        #: writes a serialized message of EVENTS_TOPIC / STDOUT_TOPIC straight into the bag
+        self.sink = sink
+        from rclpy.serialization import serialize_message
+        self._serialize = serialize_message
         latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.events_pub = self.node.create_publisher(String, EVENTS_TOPIC, latched)
@@ -120,6 +127,10 @@ class Driver:
         self.lines: dict[str, list[str]] = {}      # process -> output lines seen so far
         self._watch: set[str] = set()              # topics to count once they appear
         self.watchdog: Any = None                  # a RateWatchdog on simulated time (run.py)
+        self._hold_client: Any = None              # the simulator's hold_turtles (placements)
+        self._held_since: float | None = None
+        self.turtle_hold_requests = 0
+        self.commands: dict[str, list] = {}       # topic -> [count, last (linear.x, linear.y, angular.z)]
         self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
                                       self._on_rosout, QoSProfile(depth=1000))
         if time_scale > 1:   # output lines reach the bag as often, in scenario time, as at 1x
@@ -130,6 +141,7 @@ class Driver:
         self.executor = make_executor(self.ctx)   # EventsExecutor: the CPU goes to student nodes
         self.executor.add_node(self.node)
         self._spin_lock = threading.Lock()
+        self._stopping = False
         self._paused_waiters = 0
         self._spin = threading.Thread(target=self._spin_forever, name="driver-spin", daemon=True)
         self._spin.start()
@@ -162,6 +174,8 @@ class Driver:
                 time.sleep(0.001)          # let a caller of executor_paused() in
             try:
                 with self._spin_lock:
+                    if self._stopping:
+                        break
                     self.executor.spin_once(timeout_sec=0.05)
             except Exception:  # noqa: BLE001 - shutdown races end the loop
                 if not self.rclpy.ok(context=self.ctx):
@@ -171,7 +185,14 @@ class Driver:
         record = {"event": str(event), "wall": time.time(), **fields}
         with self.lock:
             self.events.append(record)
-        self.events_pub.publish(self.String(data=json.dumps(record, default=str)))
+        self._emit(self.events_pub, EVENTS_TOPIC, json.dumps(record, default=str))
+
+    def _emit(self, pub: Any, topic: str, text: str) -> None:
+        msg = self.String(data=text)
+        if self.sink is not None:     # the bag only: one serialization, no DDS round trip per line
+            self.sink(topic, self._serialize(msg))
+        else:
+            pub.publish(msg)
 
     def _on_rosout(self, msg: Any) -> None:
         if not msg.name.startswith(GRADER_NODE_PREFIX) and msg.name != self.sim_node:
@@ -204,8 +225,8 @@ class Driver:
                 for raw in lines:
                     line = raw.decode(errors="replace").rstrip("\r")
                     self.lines.setdefault(name, []).append(line)
-                    self.stdout_pub.publish(self.String(data=json.dumps(
-                        {"process": name, "stream": stream, "line": line})))
+                    self._emit(self.stdout_pub, STDOUT_TOPIC,
+                               json.dumps({"process": name, "stream": stream, "line": line}))
                     if stream == "stdout" or not line.startswith("["):
                         self.last_output = time.monotonic()
                         self.counts["stdout:student"] = self.counts.get("stdout:student", 0) + 1
@@ -219,8 +240,8 @@ class Driver:
         for path, rest in list(self._tail_rest.items()):
             name = next((n for n, p in self.processes.items() if path in (p.stdout_path, p.stderr_path)), "?")
             stream = "stdout" if path.name.endswith("stdout.log") else "stderr"
-            self.stdout_pub.publish(self.String(data=json.dumps(
-                {"process": name, "stream": stream, "line": rest.decode(errors="replace")})))
+            self._emit(self.stdout_pub, STDOUT_TOPIC,
+                       json.dumps({"process": name, "stream": stream, "line": rest.decode(errors="replace")}))
             del self._tail_rest[path]
 
     def pose_mark(self, topic: str) -> int:
@@ -285,10 +306,61 @@ class Driver:
                 return None
             time.sleep(0.1)
 
+    def watch_commands(self, topic: str) -> None:
+        """Keep the velocity commands on ``topic`` (a Twist topic) in ``commands[topic]``: how
+        many so far and the last one (linear.x, linear.y, angular.z), so a hand-over can tell
+        when a controller's commands change with its new goal."""
+        if topic in self._subs:
+            return
+        self.commands[topic] = [0, None]
+
+        def on_cmd(msg: Any) -> None:
+            entry = self.commands[topic]
+            entry[0] += 1
+            entry[1] = (msg.linear.x, msg.linear.y, msg.angular.z)
+
+        self._subs[topic] = self.node.create_subscription(self._import("geometry_msgs/msg/Twist"), topic, on_cmd, 100)
+
     def publisher(self, topic: str, type_name: str):
         if topic not in self._pubs:
             self._pubs[topic] = self.node.create_publisher(self._import(type_name), topic, 10)
         return self._pubs[topic]
+
+    # -- holding the turtles still (grader.sim: ~/hold_turtles) --------------------------------
+    def prepare_turtle_hold(self) -> None:
+        """Create the client of the simulator's ``hold_turtles`` service before the scenario
+        starts (only scenarios that place the turtle use it), so it is discovered in time."""
+        if self._hold_client is None:
+            from std_srvs.srv import SetBool
+
+            from grader.sim import HOLD_TURTLES_SERVICE
+
+            self._hold_client = self.node.create_client(SetBool, f"/{self.sim_node}/{HOLD_TURTLES_SERVICE}")
+
+    def hold_turtles(self, on: bool, step: str | None = None, wait_s: float = 5.0) -> bool:
+        """Hold every turtle still (``on``) or let them move again; True when the simulator
+        answered. Counted in ``turtle_hold_requests`` (the simulator counts what it serves)."""
+        from std_srvs.srv import SetBool
+
+        self.prepare_turtle_hold()
+        ok = False
+        if self._hold_client.wait_for_service(timeout_sec=wait_s):
+            self.turtle_hold_requests += 1
+            with self.executor_paused():
+                future = self._hold_client.call_async(SetBool.Request(data=on))
+            end = time.monotonic() + wait_s
+            while not future.done() and time.monotonic() < end:
+                time.sleep(0.001)
+            ok = future.done() and future.result() is not None
+        if on:
+            self._held_since = time.monotonic()
+            self.event(Event.TURTLES_HELD, step=step, ok=ok)
+        else:
+            held_s = time.monotonic() - self._held_since if self._held_since is not None else None
+            self._held_since = None
+            self.event(Event.TURTLES_RELEASED, step=step, ok=ok,
+                       held_s=None if held_s is None else round(held_s, 3))
+        return ok
 
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float, poll: float = 0.02,
                    *, wall: bool = False) -> bool:
@@ -296,19 +368,35 @@ class Driver:
         return self.clock.wait_until(predicate, timeout_s, poll, wall=wall)
 
     def graph_snapshot(self) -> None:
-        """Publish the nodes, and who publishes and subscribes what: integrity checks and
-        "the launch file starts these nodes" need it."""
+        """Publish the nodes, and who publishes, subscribes and serves what (with the types):
+        integrity checks, "the launch file starts these nodes" and the contract's names found by
+        behaviour (the node that serves /set_goal, whatever it is called) need it."""
         pubs: dict[str, list[str]] = {}
         subs: dict[str, list[str]] = {}
-        nodes = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in self.node.get_node_names_and_namespaces())
+        names = self.node.get_node_names_and_namespaces()
+        nodes = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in names)
         services = sorted(n for n, _ in self.node.get_service_names_and_types())
-        for topic, _types in self.node.get_topic_names_and_types():
+        topic_types: dict[str, list[str]] = {}
+        for topic, types in self.node.get_topic_names_and_types():
             try:
                 pubs[topic] = sorted({i.node_name for i in self.node.get_publishers_info_by_topic(topic)})
                 subs[topic] = sorted({i.node_name for i in self.node.get_subscriptions_info_by_topic(topic)})
+                topic_types[topic] = list(types)
             except Exception:  # noqa: BLE001 - a topic vanishing mid-query is fine
                 continue
-        self.event(Event.GRAPH, nodes=nodes, publishers=pubs, subscribers=subs, services=services)
+        servers: dict[str, list[str]] = {}
+        service_types: dict[str, list[str]] = {}
+        for name, ns in names:
+            try:
+                offered = self.node.get_service_names_and_types_by_node(name, ns)
+            except Exception:  # noqa: BLE001 - the node went away meanwhile
+                continue
+            for service, types in offered:
+                servers.setdefault(service, []).append(name)
+                service_types[service] = list(types)
+        self.event(Event.GRAPH, nodes=nodes, publishers=pubs, subscribers=subs, services=services,
+                   topic_types=topic_types, servers={k: sorted(set(v)) for k, v in servers.items()},
+                   service_types=service_types)
 
     # -- readiness -------------------------------------------------------------------------
     def _student_endpoint(self, topic: str, publisher: bool) -> bool:
@@ -387,7 +475,12 @@ class Driver:
             self.flush_outputs()
             time.sleep(0.2)
         finally:
+            # the spin thread ends between two spins before the node goes away: destroying it
+            # under a running spin crashed a scenario process (SIGSEGV in destroy_node, once, while
+            # the fixture bags were recorded again on a loaded machine)
+            with self._spin_lock:
+                self._stopping = True
+            self._spin.join(timeout=2.0)
             self.executor.shutdown(timeout_sec=1.0)
             self.node.destroy_node()
             self.rclpy.try_shutdown(context=self.ctx)
-            self._spin.join(timeout=2.0)

@@ -26,7 +26,10 @@ class Event(StrEnum):
     STEP_SKIPPED = "step_skipped"            # step, reason, exited
     GOAL_SENT = "goal_sent"                  # step, goal [x, y], topic (None: set by a service)
     MESSAGE_SENT = "message_sent"            # step, topic, type, msg, count
-    SERVICE_CALL = "service_call"            # step, service, type, request
+    SERVICE_CALL = "service_call"            # step, service, type, request, client_gid (the rmw GID
+    #   of the calling client, 16 ints: a service event whose info.client_gid has its first 12
+    #   bytes, the DDS participant, is the driver's call; None + client_gid_error when the rmw
+    #   could not say; absent in recordings made before it was recorded)
     SERVICE_RESPONSE = "service_response"    # step, service, response (None: no response in time)
     SERVICE_MISSING = "service_missing"      # step, service
     ACTION_SERVER_FOUND = "action_server_found"      # step, action
@@ -36,16 +39,20 @@ class Event(StrEnum):
     ACTION_GOAL_UNANSWERED = "action_goal_unanswered"  # step, action, waited_s (no response, no status)
     ACTION_RESULT = "action_result"          # step, action, status, result
     ACTION_CANCEL_SENT = "action_cancel_sent"        # step
+    TURTLES_HELD = "turtles_held"            # step, ok (the simulator holds every turtle still)
+    TURTLES_RELEASED = "turtles_released"    # step, ok, held_s (the turtles move again)
     REPLAY_START = "replay_start"            # step, topics, count, rate_hz, bag
     REPLAY_END = "replay_end"                # step, count, outputs, paced, duration_s
     # processes
     NODE_STARTED = "node_started"            # process, of (rubric process), argv (whole), node_name
-    NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started)
+    NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started), node_name
     NODE_STOPPED = "node_stopped"            # process, returncode
     PROCESS_EXIT = "process_exit"            # process, returncode, stopped_by_grader, timed_out
     STDIN_READY = "stdin_ready"              # process, nodes
     STDIN_LINE = "stdin_line"                # process, line, delivered
-    LAUNCH_RESOLVED = "launch_resolved"      # process, launch, installed, nodes (declared), notes
+    LAUNCH_RESOLVED = "launch_resolved"      # process, launch (the file found), installed, nodes (declared), notes
+    PACKAGES = "packages"                    # packages {name: {status, executables, launch_files}} of the build
     LIMIT_HIT = "limit_hit"                  # limit (memory|processes|cpu|output), detail; process, stream (output)
     # the ROS graph
-    GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services
+    GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services,
+    #                                          topic_types {topic: [type]}, servers {service: [node]}, service_types

@@ -27,7 +27,8 @@ PackageName = _named(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digi
 ExecutableName = _named(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "an executable name")
 EntryPoint = _named(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*(:[A-Za-z_]\w*)?$",
                     "a Python entry point 'package.module:function'")
-LaunchFile = _named(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", "a launch file name like app.launch.py")
+LaunchFile = _named(r"^[A-Za-z0-9_*?][A-Za-z0-9_.*?-]*$",
+                    "a launch file name like app.launch.py, or a pattern like *launch.py")
 LocalId = _named(r"^[A-Za-z][A-Za-z0-9_-]*$", "an id (letters, digits, _ or -)")
 EnvName = _named(r"^[A-Za-z_][A-Za-z0-9_]*$", "an environment variable name")
 MsgType = _named(r"^[A-Za-z][A-Za-z0-9_]*/msg/[A-Z][A-Za-z0-9]*$", "a message type like std_msgs/msg/String")

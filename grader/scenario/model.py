@@ -84,7 +84,8 @@ class Process(Model):
     package: PackageName | None = Field(None, description="the ROS package")
     executable: ExecutableName | None = Field(None, description="an executable of the package, found as `ros2 run` finds it")
     module: EntryPoint | None = Field(None, description="pkg.module:function, when the script's name varies")
-    launch: LaunchFile | None = Field(None, description="a launch file of the package: starts its nodes")
+    launch: LaunchFile | None = Field(None, description="a launch file of the package: starts its nodes (a "
+                                      "pattern such as '*launch.py': the one launch file the package has)")
     launch_arguments: dict[str, str] = Field({}, description="name: value arguments of the launch file")
     args: Annotated[tuple[str, ...], Field(strict=False, description="extra command-line arguments")] = ()
     parameters: dict[str, ParamValue] = Field({}, description="ROS parameters, typed as written (30.0 is a double)")
@@ -326,6 +327,15 @@ class Scenario(Model):
     limits: Limits = Limits()
     real_time: bool = Field(False, description="run at 1x even with --time-scale (the scenario judges "
                             "wall-clock behaviour; say why in a comment)")
+    repeat: int = Field(1, ge=1, le=9, description="run it this many times (odd) and grade each of its items "
+                        "by the median run (an item that stays timing-sensitive; say why in a comment)")
+
+    @field_validator("repeat")
+    @classmethod
+    def _odd_repeat(cls, value: int) -> int:
+        if value % 2 == 0:
+            raise ValueError(f"must be odd (1, 3, 5...): the median of {value} runs would not be one run's result")
+        return value
 
     @model_validator(mode="after")
     def _goal_publishing(self) -> "Scenario":
@@ -420,6 +430,14 @@ class RateExpectation(Model):
     rel_tol: PositiveFloat = 0.3
 
 
+class PackageFacts(Model):
+    """What the build made of one package of the submission: the names a contract may fix."""
+
+    status: str                        # built | failed | skipped
+    executables: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    launch_files: Annotated[tuple[str, ...], Field(strict=False)] = ()
+
+
 class ScenarioRun(Model):
     """What crosses to the scenario child: the rubric's scenario as it is, plus what the parent
     resolved against the build (argv of every process, install prefixes, the simulator's name)
@@ -434,3 +452,5 @@ class ScenarioRun(Model):
     launch_installed: dict[str, bool] = {}   # process -> its launch file is in the package's share
     time_scale: Annotated[float, Field(ge=1.0, le=16.0, strict=False)] = 1.0   # 1: the wall clock
     expected_rates: Annotated[tuple[RateExpectation, ...], Field(strict=False)] = ()   # watchdog
+    packages: dict[str, PackageFacts] = {}   # the build's packages (``packages`` event: contract names)
+    launch_files: dict[str, str] = {}        # process -> the launch file found for its ``launch:``

@@ -29,7 +29,8 @@ from typing import Any, Iterator
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
-from grader.scenario.events import Event
+from grader.scenario.cpuwait import cpu_wait
+from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
 from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
@@ -39,13 +40,16 @@ SIM_READY_S = 15.0
 #: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
 #: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario
 STUDENT_STOP_GRACE_S = 2.0
-#: on simulated time: wall seconds a starting process may hold the clock until its node is up
+#: wall seconds a starting process may hold the clock until its node is up (at 1x: scenario time
+#: stands still meanwhile, so a step's limit never pays for a start-up; see ScenarioClock.held)
 NODE_UP_S = 15.0
 #: then wall seconds until the clock owner has matched the new nodes' /clock readers
 CLOCK_MATCH_S = 5.0
 #: and for the new nodes to take the held /clock (and the recorder to match their publishers:
 #: DDS matching lags the graph) before the clock runs again
 FIRST_CLOCK_S = 0.3
+#: the simulator's own record of its poses, beside the bag until the recorder takes it in
+SIM_RECORD = "sim_poses.record"
 
 
 class _FallBack(Exception):
@@ -144,12 +148,12 @@ class Launcher:
                 self._wait_up(before, [lp.name])
 
     def _wait_up(self, before: tuple[set, int | None], names: list[str]) -> None:
-        """On simulated time, while the clock is held: wait (wall time) until the started
-        processes' nodes are in the graph with their topics recorded and the clock owner has
-        matched their ``/clock`` readers (or the processes ended), then a moment for their first
-        ``/clock``. ``before``: the student nodes and matched readers before they started."""
+        """While the clock is held: wait (wall time) until the started processes' nodes are in
+        the graph with their topics recorded (or the processes ended); on simulated time also
+        until the clock owner has matched their ``/clock`` readers, then a moment for their
+        first ``/clock``. ``before``: the student nodes and matched readers before they started."""
         clock = self.driver.clock
-        if not clock.simulated or not names:
+        if not names:
             return
         driver = self.driver
         before, readers = before
@@ -166,7 +170,7 @@ class Launcher:
             return not alive() or readers is None or now is None or \
                 now >= readers + len(driver.student_nodes() - before)
 
-        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and \
+        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and clock.simulated and \
                 driver.wait_until(clocked, CLOCK_MATCH_S, poll=0.02, wall=True):
             time.sleep(FIRST_CLOCK_S)
 
@@ -174,7 +178,8 @@ class Launcher:
         driver = self.driver
         if not lp.argv:
             driver.event(Event.NODE_UNAVAILABLE, process=lp.name, of=proc.name, package=proc.package,
-                         executable=proc.executable, module=proc.module, launch=proc.launch, error=lp.error)
+                         executable=proc.executable, module=proc.module, launch=proc.launch, error=lp.error,
+                         node_name=lp.node_name)
             return False
         script = list(proc.stdin or ()) if proc.launch is None else []
         gate = threading.Event() if script else None
@@ -214,7 +219,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
         record["time_scale"] = {"used": scale}
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
-    driver = recorder = None
+    driver = recorder = sim = None
     with RosGraph(out) as graph:
         record["domain_id"] = graph.domain_id
         _discover_like(graph)
@@ -223,8 +228,11 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if topics is not None and scale:
                 topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
             with _interrupt_after():
+                # the driver's events and output lines go into the bag in process (local topics):
+                # a student node publishing "/grader/events" adds nothing to the recording
                 recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id,
-                                          extra=["--time-scale", repr(scale)] if scale else ())
+                                          extra=["--time-scale", repr(scale)] if scale else (),
+                                          local=(EVENTS_TOPIC, STDOUT_TOPIC))
             # on simulated time the clock owner starts alongside the recorder: the clock is held
             # below until the recorder records it, so nothing is missed
             sim = _start_clock_owner(graph, run, out, record, scale) if scale else None
@@ -235,7 +243,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if not scale:
                 sim = _start_clock_owner(graph, run, out, record, scale)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
-                            clock_node=clock_node)
+                            clock_node=clock_node, sink=recorder.post)
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
             if scale:
                 if not driver.clock.wait_for_clock(SIM_READY_S):
@@ -248,6 +256,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
+                _wait_recorded(driver, recorder, record)
             start_hold = contextlib.ExitStack()
             if scale:
                 # the clock is held from here until the autostarted processes are up: a recorder
@@ -259,13 +268,14 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             launcher = Launcher(run, graph, driver, students)
             rt = Runtime(driver, run, launcher.start, launcher.members)
             prepare(rt)
-            # give the recorder a moment to discover the driver's topics before anything is sent
-            driver.wait_until(lambda: driver.node.count_subscribers("/grader/events") >= 1, 5.0)
             driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=graph.domain_id,
                          sim_node=run.sim_node)
+            if run.packages:         # the names the build made: a contract's names are looked up in them
+                driver.event(Event.PACKAGES, packages={n: f.model_dump(mode="json") for n, f in run.packages.items()})
             for proc in spec.processes:
                 if proc.launch:
-                    driver.event(Event.LAUNCH_RESOLVED, process=proc.name, launch=proc.launch,
+                    driver.event(Event.LAUNCH_RESOLVED, process=proc.name,
+                                 launch=run.launch_files.get(proc.name, proc.launch),
                                  installed=run.launch_installed.get(proc.name, False),
                                  notes=list(run.notes.get(proc.name, ())),
                                  nodes=[lp.model_dump(include={"name", "node_name", "package", "executable",
@@ -309,6 +319,9 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 driver.event(Event.SCENARIO_ERROR, error=f"{type(exc).__name__}: {exc}")
         finally:
             record["output_cut"] = graph.output_cuts()
+            # how starved the run was (before anything is stopped): see grader.scenario.cpuwait
+            record["cpu_wait"] = cpu_wait({"scenario": os.getpid(), "turtlesim": sim.pid if sim is not None else None,
+                                           **{n: p.pid for n, p in students.items() if p.alive()}})
             # on simulated time the shutdown's wall time must not run the simulation on
             if scale and driver is not None and not driver.clock.stop():
                 record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "
@@ -326,11 +339,36 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 driver.shutdown()
             graph.stop_all()
             if recorder is not None:
-                recorder.stop()
+                # the simulator has stopped and closed its record: the recorder writes it into
+                # the bag (grader.sim.record: the only poses a grade rests on)
+                recorder.stop(records=[out / SIM_RECORD] if (out / SIM_RECORD).exists() else [])
+                (out / SIM_RECORD).unlink(missing_ok=True)
     record["active_s"] = round(sum(s["duration_s"] for s in record["steps"]), 3)
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
+
+
+def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[str, Any]) -> None:
+    """Go on only once the recorder has recorded the simulator's poses (both topics).
+
+    The driver hearing the simulator says nothing about the recorder: it is another DDS
+    participant, and discovery between two participants takes up to ~1 s on a loaded machine
+    (grader/dds/fastdds_profile.xml). A scenario whose student code cannot start ends ~0.5 s
+    after this point; ``make demo`` recorded such a scenario (goal_setter's handout, graded
+    while other submissions were built) with no pose at all, and its pose integrity check
+    became "could not check" instead of "pass" (a test reproduces it with a recorder that
+    discovers the simulator late)."""
+    from grader.sim import truth_pose_topic
+
+    if recorder is None:
+        return
+    wanted = [driver.pose_topic or "/turtle1/pose"]
+    wanted.append(truth_pose_topic(wanted[0]))
+    if not driver.wait_until(lambda: all(recorder.recorded(t) for t in wanted), RECORDER_READY_S, wall=True):
+        missing = [t for t in wanted if not recorder.recorded(t)]
+        record["errors"].append(f"the recorder recorded nothing on {', '.join(missing)} within "
+                                f"{RECORDER_READY_S:.0f} s of the simulator's first pose")
 
 
 def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dict[str, Any],
@@ -343,7 +381,8 @@ def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dic
         canvas = out / "canvas.png"
         record["canvas"] = str(canvas)
         return graph.start(ProcessSpec("turtlesim", sim_argv(
-            canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale)))
+            canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale,
+            pose_record=out / SIM_RECORD)))
     if scale:
         graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
     return None
@@ -390,6 +429,9 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m grader.scenario.run RUN.json OUT_DIR", file=sys.stderr)
         return 2
     run = ScenarioRun.model_validate_json(Path(argv[0]).read_text())
+    from grader.rosenv import add_student_paths
+
+    add_student_paths()        # the students' interface types, after the grader's own modules
     import faulthandler
     faulthandler.enable()      # a crash in rclpy leaves the Python stacks in scenario.log
     # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks

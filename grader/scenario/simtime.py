@@ -20,7 +20,7 @@ import threading
 import time
 from typing import Any, Callable, Iterator
 
-from grader.sim.clock import HOLD_NOW_SERVICE, HOLD_SERVICE, STOP_SERVICE
+from grader.sim.clock import HOLD_SERVICE, STOP_SERVICE
 
 #: wall seconds to wait for the clock owner's hold service and for the clock to reach the hold
 HOLD_WAIT_S = 10.0
@@ -49,7 +49,6 @@ class ScenarioClock:
         self._paused = paused or contextlib.nullcontext
         self._client: Any = None
         self._stop_client: Any = None
-        self._now_client: Any = None
         if self.simulated and hold_service is not None:
             from std_srvs.srv import SetBool, Trigger
 
@@ -64,10 +63,11 @@ class ScenarioClock:
         return self.node.get_clock().now().nanoseconds / 1e9
 
     def now(self) -> float:
-        """Scenario seconds: monotonic at 1x; simulated + held wall time when scaled."""
-        if not self.simulated:
-            return time.monotonic()
+        """Scenario seconds: at 1x the wall clock less the time held (student processes
+        starting); scaled, simulated time plus the wall time held."""
         since = self._held_since
+        if not self.simulated:
+            return time.monotonic() - self.held_s - (time.monotonic() - since if since is not None else 0.0)
         return self.sim_s() + self.held_s + (time.monotonic() - since if since is not None else 0.0)
 
     def _poll(self, poll: float) -> float:
@@ -107,7 +107,7 @@ class ScenarioClock:
     def sleep_until(self, t: float) -> None:
         """Sleep until scenario time ``t`` (returns at once when it has passed)."""
         if not self.simulated:
-            delay = t - time.monotonic()
+            delay = t - self.now()
             if delay > 0:
                 time.sleep(delay)
             return
@@ -121,17 +121,33 @@ class ScenarioClock:
 
     # -- holding the clock while student processes start ---------------------------------------
     @contextlib.contextmanager
-    def held(self, at_once: bool = False) -> Iterator[None]:
-        """Hold the clock for the block (nested holds share one; a no-op at 1x). The clock
-        holds at its next grid point (:func:`grader.sim.clock.hold_point`: a starting node's
-        timers keep their phase), or with ``at_once`` at the tick it is at."""
-        if not self.simulated or self.hold_service is None:
+    def held(self) -> Iterator[None]:
+        """Hold the clock for the block (nested holds share one). The clock holds at its next
+        grid point (:func:`grader.sim.clock.hold_point`: a starting node's timers keep their
+        phase). At 1x nothing stops, but scenario time does not count the block either: a
+        step's limit never pays for a process's start-up, which a loaded machine stretches
+        (measured at load 29: the Lab 3 client took 9.5 s to come up, its step allowed 10)."""
+        if not self.simulated:
+            with self._lock:
+                self._holds += 1
+                if self._holds == 1:
+                    self._held_since = time.monotonic()
+            try:
+                yield
+            finally:
+                with self._lock:
+                    self._holds -= 1
+                    if self._holds == 0 and self._held_since is not None:
+                        self.held_s += time.monotonic() - self._held_since
+                        self._held_since = None
+            return
+        if self.hold_service is None:
             yield
             return
         with self._lock:
             self._holds += 1
             if self._holds == 1:
-                self._hold_now() if at_once else self._hold()
+                self._hold()
         try:
             yield
         finally:
@@ -166,13 +182,11 @@ class ScenarioClock:
             time.sleep(0.002)
         return future.result().message if future.done() and future.result() is not None else None
 
-    def _call(self, on: bool | None) -> tuple[int, int] | None:
-        """Ask the clock owner to hold (or run; None: hold at once); its reply: (time in ns,
-        matched readers)."""
-        from std_srvs.srv import SetBool, Trigger
+    def _call(self, on: bool) -> tuple[int, int] | None:
+        """Ask the clock owner to hold (or run); its reply: (time in ns, matched readers)."""
+        from std_srvs.srv import SetBool
 
-        reply = (self._request(self._now_client, Trigger.Request()) if on is None
-                 else self._request(self._client, SetBool.Request(data=on)))
+        reply = self._request(self._client, SetBool.Request(data=on))
         try:
             at, readers = reply.split()
             return int(at), int(readers)
@@ -181,7 +195,7 @@ class ScenarioClock:
 
     def clock_readers(self) -> int | None:
         """While held: how many ``/clock`` readers the clock owner has matched (None otherwise)."""
-        if self._held_since is None:
+        if not self.simulated or self._held_since is None:
             return None
         reply = self._call(True)
         return reply[1] if reply else None
@@ -194,20 +208,6 @@ class ScenarioClock:
         while self.node.get_clock().now().nanoseconds < reply[0] and time.monotonic() < end:
             time.sleep(0.001)
         self._held_since = time.monotonic()
-
-    def prepare_hold_now(self) -> None:
-        """Create the client of the clock owner's ``hold_clock_now`` (only scenarios that
-        place the turtle use it; made before the scenario starts, so it is discovered in time)."""
-        if self.simulated and self.hold_service is not None and self._now_client is None:
-            from std_srvs.srv import Trigger
-
-            self._now_client = self.node.create_client(
-                Trigger, self.hold_service.replace(HOLD_SERVICE, HOLD_NOW_SERVICE))
-
-    def _hold_now(self) -> None:
-        self.prepare_hold_now()
-        if self._call(None) is not None:
-            self._held_since = time.monotonic()
 
     def _release(self) -> None:
         since = self._held_since

@@ -100,7 +100,7 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
             return out | {"available": False}
         request = fill(cls.Request(), spec.request)
         driver.event(Event.SERVICE_CALL, step=step.id, service=spec.name, type=type_name,
-                     request=to_plain(request))
+                     request=to_plain(request), **_client_id(client))
         future = client.call_async(request)
         driver.wait_until(future.done, spec.response_timeout)
         response = to_plain(future.result()) if future.done() else None
@@ -111,32 +111,53 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
         state.service_done = True
 
 
-#: a simulator pose this close to the placement shows the teleport done: turtlesim applies it at
-#: its next 16 ms tick together with one tick of the last command (it keeps one for 1 s), so the
-#: turtle may already have moved by v * 16 ms (up to 12 m/s) and turned by w * 16 ms (31 rad/s)
+def _client_id(client: Any) -> dict[str, Any]:
+    """The ``client_gid`` of a ``service_call`` event: whose call a service event is, read off
+    the event itself (see :mod:`grader.scenario.client_gid`); ``client_gid_error`` when the rmw
+    could not say."""
+    from grader.scenario.client_gid import client_gid
+
+    try:
+        return {"client_gid": client_gid(client)}
+    except (OSError, AttributeError) as exc:
+        return {"client_gid": None, "client_gid_error": f"{type(exc).__name__}: {exc}"}
+
+
+#: a simulator pose this close to the placement shows the teleport done (the turtle is held still,
+#: so it is the placement itself; the tolerance only absorbs float32 rounding)
 PLACE_TOL_M, PLACE_TOL_RAD = 0.2, 0.5
 #: seconds (scenario time) to wait for that pose (a loaded machine delays the simulator's tick)
 PLACE_WAIT_S = 2.0
-#: on simulated time, wall seconds the clock stays held (at once, at the tick the placement was
-#: seen) after a placed step's goal is sent, for the student's node to take it before the turtle
-#: moves on. Without the hold every wall millisecond the goal takes to arrive is K of simulated
-#: time in which the controller steers for the old goal: measured at 4x at load 5
-#: (bench_scale), wrong_sign turned the other way at one placed goal than at 1x
-#: (ex2.turn_direction partial instead of fail)
+#: seconds (of scenario time and at least as many of wall time) the turtle stays held after a
+#: placed step's action, for the student's node to take the new goal and compute its commands
+#: from the placed pose before the turtle moves. Without the hold, the controller steers for the
+#: old goal until the new one arrives, a different number of milliseconds in every run: at 4x
+#: (bench_scale, load 5) wrong_sign turned the other way at one placed goal than at 1x, and a
+#: controller that spins fast (theta_e in degrees, no wrap) faced a different heading at every
+#: hand-over (issue 22: ex2.turn_direction 0.75/3 in one run, 3/3 in the next)
 PLACE_HANDOFF_S = 0.15
+#: ... and longer on a loaded machine: until the turtle's controller has sent a command that differs
+#: from its last one before the goal (the held pose is constant, so a changed command is one
+#: computed with the new goal) and one more after that, at most HANDOFF_MAX_S of wall time. At
+#: load 29 a goal took over 0.1 s to reach a correct controller, whose last command before the
+#: release was then still for the old goal (turn_direction 3/4 in one run of three). (DDS's own
+#: acknowledgement, Publisher.wait_for_all_acked, never came within 2 s from a sandboxed reader.)
+HANDOFF_MAX_S = 2.0
+#: wall seconds a placement waits for the controller's commands from the placed pose (two of them)
+#: before the goal is sent, so that the command the hand-over compares with is already from there
+PLACE_SETTLE_S = 0.25
 
 
 def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> dict[str, Any]:
     """Teleport the turtle (the simulator's service, recorded like any driver call), then go on
     with the step's action as soon as the simulator's own pose topic shows the turtle there.
 
-    Not a moment later: until the action's new goal arrives, the student's controller steers for
-    the old one, and one that spins on the spot (placed on a goal it never settles on) would turn
-    the turtle a different amount each run. So every pose that arrived since the call counts,
-    not only the latest (the first one after the teleport may come before the service's answer,
-    and a fast turtle is out of the tolerance a tick later); it must match the placed heading
-    too. The subscription is made in :func:`prepare`, before the scenario starts (a new one would
-    take a discovery round)."""
+    The turtles are held still (:meth:`Driver.hold_turtles`, by :func:`run_step`) from before
+    the teleport until the action's goal has been handed over, so the student's controller,
+    still steering for the old goal, cannot move the turtle away from the placement. Every pose
+    that arrived since the call counts (the first one after the teleport may come before the
+    service's answer); it must match the placed heading too. The subscription is made in
+    :func:`prepare`, before the scenario starts (a new one would take a discovery round)."""
     driver = rt.driver
     topic = placement_topic(place)
     start = driver.pose_mark(topic)
@@ -158,6 +179,45 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> d
     pose = seen[0] if seen else driver.poses.get(topic)
     return {"pose": [place.x, place.y, place.theta], "shown": bool(shown),
             "seen": None if pose is None else [round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)]}
+
+
+def _hand_over(rt: Runtime, step: m.Step, state: StepState, before: tuple[int, Any]) -> None:
+    """Keep the placed turtle held until its controller has the step's goal: ``PLACE_HANDOFF_S``
+    of scenario time (and at least as much wall time: the goal's way takes wall time at any
+    speed), then until it has sent a command other than its last one before the goal (``before``:
+    the count and last command then, :func:`_command_at_placement`) and one more, at most
+    ``HANDOFF_MAX_S``. What happened goes into the step's record (``handoff``)."""
+    driver = rt.driver
+    t0 = time.monotonic()
+    driver.clock.sleep(PLACE_HANDOFF_S)
+    time.sleep(max(0.0, t0 + PLACE_HANDOFF_S - time.monotonic()))
+    entry = driver.commands.get(handoff_topic(step.place), [0, None])
+    seen: list[int] = []
+
+    def taken() -> bool:
+        if not seen and entry[0] > before[0] and entry[1] != before[1]:
+            seen.append(entry[0])           # the first command that differs (the new goal's)
+        return bool(seen) and entry[0] > seen[0]
+
+    ok = driver.wait_until(taken, HANDOFF_MAX_S, poll=0.002, wall=True)
+    state.detail["handoff"] = {"new_command": ok, "commands": entry[0] - before[0],
+                               "held_s": round(time.monotonic() - t0, 3)}
+
+
+def _command_at_placement(rt: Runtime, step: m.Step) -> tuple[int, Any]:
+    """The controller's command once it has seen the placement (still for the old goal): wait
+    until it has sent two commands since the placement showed (at most ``PLACE_SETTLE_S``; a
+    controller without a goal may send none), then note how many it sent and the last one."""
+    driver = rt.driver
+    entry = driver.commands.get(handoff_topic(step.place), [0, None])
+    start = entry[0]
+    driver.wait_until(lambda: entry[0] >= start + 2, PLACE_SETTLE_S, poll=0.002, wall=True)
+    return entry[0], entry[1]
+
+
+def handoff_topic(place: m.Placement) -> str:
+    """The placed turtle's command topic: its commands show the controller has the new goal."""
+    return f"/{place.turtle}/cmd_vel"
 
 
 def placement_topic(place: m.Placement) -> str:
@@ -317,7 +377,8 @@ def prepare(rt: Runtime) -> None:
             rt.driver.watch_pose(step.until.pose_topic)
         if step.place is not None:
             rt.driver.watch_pose(placement_topic(step.place))
-            rt.driver.clock.prepare_hold_now()      # its client discovered before it is needed
+            rt.driver.prepare_turtle_hold()      # its client discovered before it is needed
+            rt.driver.watch_commands(handoff_topic(step.place))
 
 
 # --------------------------------------------------------------------------------- conditions
@@ -415,11 +476,11 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
     action = step.do
     handoff = contextlib.ExitStack()
     if step.place is not None:
+        # held from before the teleport until the goal is handed over (callbacks run last first)
+        driver.hold_turtles(True, step.id)
+        handoff.callback(driver.hold_turtles, False, step.id)
         state.detail = {"placed": _place(rt, step, step.place, state)}
-        if driver.clock.simulated and isinstance(action, (m.Goal, m.Publish)):
-            # fire and forget: nothing in the action waits on the held clock
-            handoff.enter_context(driver.clock.held(at_once=True))
-            handoff.callback(time.sleep, PLACE_HANDOFF_S)       # runs before the release
+        handoff.callback(_hand_over, rt, step, state, _command_at_placement(rt, step))
     if step.target is not None and not isinstance(action, m.Goal):
         # a goal set some other way (e.g. a service call): it is active from before the action,
         # so whatever the student's nodes do in answer (even a teleport) falls inside its window

@@ -1,11 +1,13 @@
 """Reference headless turtlesim (node ``turtlesim``) for recording and grading.
 
 A faithful rclpy re-implementation of ROS 2 Jazzy's ``turtlesim_node`` (the behaviour it follows
-is written down in docs/turtlesim.md) plus three grader additions: service introspection on every
-simulator service, a PNG of the canvas, and a copy of each turtle's pose on a grader topic
-(``truth_pose_topic``) that only the simulator publishes, so a grade never rests on a pose some
-other node published on ``/turtle1/pose``.  Start it as its own process (``sim_argv``); this
-module only holds names and the argv helper, so importing it never imports rclpy.
+is written down in docs/turtlesim.md) plus four grader additions: service introspection on every
+simulator service, a PNG of the canvas, a copy of each turtle's pose on a grader topic
+(``truth_pose_topic``, which the driver watches live: any node could publish there too), and the
+simulator's own record of every pose it publishes (``--pose-record``, :mod:`grader.sim.record`),
+which the scenario writes into the bag: grades rest on that record only.  Start it as its own
+process (``sim_argv``); this module only holds names and the argv helper, so importing it never
+imports rclpy.
 
 Public API::
 
@@ -23,6 +25,9 @@ from typing import Iterable, Sequence
 NODE_NAME = "turtlesim"
 #: grader addition; only offered when the sim was started with a canvas path
 SAVE_CANVAS_SERVICE = "/turtlesim/save_canvas"
+#: grader addition, relative to the simulator's node (``/<node>/hold_turtles``, std_srvs/SetBool):
+#: true holds every turtle still (teleports and commands are taken, nothing moves), false releases
+HOLD_TURTLES_SERVICE = "hold_turtles"
 #: global services of the simulator (all with CONTENTS introspection)
 GLOBAL_SERVICES = ("/clear", "/reset", "/spawn", "/kill")
 #: per-turtle services, relative to ``/<turtle name>/`` (all with CONTENTS introspection)
@@ -40,7 +45,8 @@ TRUTH_PREFIX = "/grader/sim"
 
 
 def truth_pose_topic(pose_topic: str) -> str:
-    """``/turtle1/pose`` -> ``/grader/sim/turtle1/pose`` (published by the simulator only)."""
+    """``/turtle1/pose`` -> ``/grader/sim/turtle1/pose`` (the simulator's live copy for the driver;
+    not proof of origin: see :mod:`grader.sim.record`)."""
     return TRUTH_PREFIX + "/" + pose_topic.lstrip("/")
 
 
@@ -65,13 +71,16 @@ def all_service_event_topics(turtles: Iterable[str] = ("turtle1",)) -> list[str]
 def sim_args(canvas_out: str | Path | None = None, *, holonomic: bool = False,
              background: Sequence[int] | None = None,
              ros_args: Sequence[str] = (), time_scale: float | None = None,
-             clock_only: bool = False) -> list[str]:
+             clock_only: bool = False, pose_record: str | Path | None = None) -> list[str]:
     """Command-line arguments of ``python -m grader.sim`` (without the interpreter part).
 
     ``time_scale``: the simulator owns simulated time and publishes ``/clock`` (see
-    :mod:`grader.sim.clock`); ``clock_only``: only that clock, no turtles.
+    :mod:`grader.sim.clock`); ``clock_only``: only that clock, no turtles; ``pose_record``: where
+    the simulator writes its own record of the poses it publishes (:mod:`grader.sim.record`).
     """
     args: list[str] = []
+    if pose_record is not None:
+        args += ["--pose-record", str(pose_record)]
     if time_scale is not None:
         args += ["--time-scale", repr(float(time_scale))]
     if clock_only:
@@ -90,14 +99,14 @@ def sim_args(canvas_out: str | Path | None = None, *, holonomic: bool = False,
 def sim_argv(canvas_out: str | Path | None = None, extra: Sequence[str] = (), *,
              holonomic: bool = False, background: Sequence[int] | None = None,
              ros_args: Sequence[str] = (), time_scale: float | None = None,
-             clock_only: bool = False) -> list[str]:
+             clock_only: bool = False, pose_record: str | Path | None = None) -> list[str]:
     """argv that starts the simulator as a separate process with this interpreter.
 
     ``extra`` is appended verbatim (e.g. ``["--ros-args", "-r", "__ns:=/sim1"]``).
     """
     return [sys.executable, "-m", "grader.sim",
             *sim_args(canvas_out, holonomic=holonomic, background=background, ros_args=ros_args,
-                      time_scale=time_scale, clock_only=clock_only),
+                      time_scale=time_scale, clock_only=clock_only, pose_record=pose_record),
             *extra]
 
 

@@ -24,6 +24,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-scale", type=float, metavar="K", default=None,
                         help="own simulated time: publish /clock and step the physics on it, K times "
                              "faster than the wall clock (K >= 1; nodes need use_sim_time:=true)")
+    parser.add_argument("--pose-record", type=Path, metavar="FILE",
+                        help="also write every pose published to FILE (the simulator's own record, "
+                             "see grader.sim.record)")
     parser.add_argument("--clock-only", action="store_true",
                         help="with --time-scale: no turtles, only /clock (node grader_clock)")
     parser.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=[],
@@ -68,7 +71,7 @@ def run_from_args(args: argparse.Namespace) -> int:
     from grader.sim.node import run  # noqa: PLC0415 - rclpy only when actually running
 
     return run(ros_argv(args), canvas_out=args.canvas_out, time_scale=args.time_scale,
-               clock_only=args.clock_only)
+               clock_only=args.clock_only, pose_record=args.pose_record)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

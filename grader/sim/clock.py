@@ -35,10 +35,6 @@ CLOCK_TOPIC = "/clock"
 HOLD_SERVICE = "hold_clock"
 #: ``std_srvs/srv/Trigger``: stop the clock at once, for good (the scenario has ended)
 STOP_SERVICE = "stop_clock"
-#: ``std_srvs/srv/Trigger``: hold the clock at once, at the tick it is at (released like any
-#: hold): the driver's hand-over of a goal right after a placement, where every tick of delay is
-#: a tick the student's controller steers for the old goal
-HOLD_NOW_SERVICE = "hold_clock_now"
 #: node name of the clock publisher of scenarios without a simulator (``sim: false``)
 CLOCK_NODE = "grader_clock"
 TICK_NS = TICK_MS * 1_000_000
@@ -104,12 +100,6 @@ class SimClock:
             self.held = self.now_ns == self.hold_at
         return self.hold_at
 
-    def hold_now(self) -> int:
-        """Hold at once, at the current tick (no grid); returns that time."""
-        self.held = True
-        self.hold_at = self.now_ns
-        return self.now_ns
-
     # -- ROS wiring ---------------------------------------------------------------------------
     def attach(self, node: Any) -> None:
         """Create the ``/clock`` publisher (the ROS clock QoS: best effort, depth 1) and the
@@ -123,20 +113,12 @@ class SimClock:
                                           QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
         node.create_service(SetBool, f"~/{HOLD_SERVICE}", self._on_hold)
         node.create_service(Trigger, f"~/{STOP_SERVICE}", self._on_stop)
-        node.create_service(Trigger, f"~/{HOLD_NOW_SERVICE}", self._on_hold_now)
 
     def _on_hold(self, req: Any, res: Any) -> Any:
         """``message``: "<time it holds at (or runs from), ns> <matched /clock readers>": the
         driver asks again while holding until a starting node's reader is matched."""
         self.requests += 1
         res.message = f"{self.hold(bool(req.data))} {self._pub.get_subscription_count()}"
-        res.success = True
-        return res
-
-    def _on_hold_now(self, _req: Any, res: Any) -> Any:
-        """``message``: as for ``~/hold_clock``."""
-        self.requests += 1
-        res.message = f"{self.hold_now()} {self._pub.get_subscription_count()}"
         res.success = True
         return res
 

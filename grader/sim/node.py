@@ -7,7 +7,12 @@ in one executor thread (EventsExecutor by default), like the Qt main loop of the
 
 Grader additions (not in the real turtlesim): every simulator service has service introspection
 (CONTENTS) so calls land in bags as ``<service>/_service_event``; with a canvas path the node
-offers ``~/save_canvas`` (std_srvs/Empty) and writes the PNG again on shutdown. With a time
+offers ``~/save_canvas`` (std_srvs/Empty) and writes the PNG again on shutdown; ``~/hold_turtles``
+(std_srvs/SetBool, introspected like the others) holds every turtle still (teleports and commands
+are taken, nothing moves: :attr:`World.held`) while the scenario driver hands a placed turtle's
+goal over; with a record
+path it writes every pose it publishes to that file too (:mod:`grader.sim.record`: the poses a
+grade may rest on). With a time
 scale (:mod:`grader.sim.clock`) the node owns simulated time: every tick advances ``/clock`` by
 16 ms and the physics runs on that time instead of the wall clock.
 
@@ -38,19 +43,21 @@ from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_profile_sensor_data)
+from rclpy.serialization import serialize_message
 from rclpy.service_introspection import ServiceIntrospectionState
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.validate_full_topic_name import validate_full_topic_name
-from std_srvs.srv import Empty
+from std_srvs.srv import Empty, SetBool
 from turtlesim.action import RotateAbsolute
 from turtlesim.msg import Color, Pose
 from turtlesim.srv import Kill, SetPen, Spawn, TeleportAbsolute, TeleportRelative
 
 from grader.executors import make_executor as shared_make_executor
-from grader.sim import truth_pose_topic
+from grader.sim import HOLD_TURTLES_SERVICE, truth_pose_topic
 from grader.sim.canvas import Canvas
 from grader.sim.clock import SimClock, make_clock_node
+from grader.sim.record import PoseRecord, record_topic
 from grader.sim.physics import DEFAULT_BACKGROUND, METER, TICK_MS, RotateGoal, Turtle, World
 
 #: cmd_vel / pose / color_sensor profile of turtlesim/qos.hpp: KEEP_LAST 7, RELIABLE, VOLATILE
@@ -89,6 +96,7 @@ class _Endpoints:
     color_pub: Any
     services: list[Any]
     action: ActionServer
+    record_topic: str = ""  # where the simulator's record of this turtle's poses goes
     pose_msg: Pose = field(default_factory=Pose)
     color_msg: Color = field(default_factory=Color)
 
@@ -98,9 +106,11 @@ class TurtlesimNode(Node):
 
     def __init__(self, *, context: rclpy.context.Context | None = None,
                  canvas_out: str | Path | None = None, node_name: str = "turtlesim",
-                 time_scale: float | None = None) -> None:
+                 time_scale: float | None = None, pose_record: str | Path | None = None) -> None:
         super().__init__(node_name, context=context)
         self.canvas_out = Path(canvas_out) if canvas_out else None
+        #: the simulator's own record of every pose it publishes (None: no record)
+        self.pose_record = PoseRecord(pose_record) if pose_record else None
         #: simulated time (``--time-scale``), or None: the wall clock, as the real turtlesim
         self.sim_clock = SimClock(time_scale) if time_scale is not None else None
         self._declare_parameters()
@@ -121,6 +131,8 @@ class TurtlesimNode(Node):
                                  PARAM_EVENTS_QOS)
         if self.canvas_out is not None:
             self.create_service(Empty, "~/save_canvas", self._on_save_canvas)
+        self.hold_requests = 0     # served; the driver compares with the requests it made
+        self._sim_services.append(self._service(SetBool, f"~/{HOLD_TURTLES_SERVICE}", self._on_hold_turtles))
 
         self._log("info", f"Starting turtlesim with node name {self.get_fully_qualified_name()}")
         self.world.spawn_default(self._now_ns())
@@ -204,6 +216,9 @@ class TurtlesimNode(Node):
                               lambda req, res: self._on_teleport_absolute(turtle, req, res)),
             ],
             action=action)
+        turtle.endpoints.record_topic = record_topic(turtle.endpoints.pose_pub.topic_name)
+        if self.pose_record is not None:
+            self.pose_record.declare(turtle.endpoints.record_topic)
 
     def turtle_removed(self, turtle: Turtle) -> None:
         ep: _Endpoints | None = turtle.endpoints
@@ -266,6 +281,14 @@ class TurtlesimNode(Node):
 
     def _on_kill(self, req: Kill.Request, res: Kill.Response) -> Any:
         self.world.kill(req.name)
+        return res
+
+    def _on_hold_turtles(self, req: SetBool.Request, res: SetBool.Response) -> Any:
+        """``message``: the hold/release requests served, this one included."""
+        self.hold_requests += 1
+        self.world.held = bool(req.data)
+        res.success = True
+        res.message = str(self.hold_requests)
         return res
 
     def _on_save_canvas(self, _req: Empty.Request, res: Empty.Response) -> Any:
@@ -381,6 +404,8 @@ class TurtlesimNode(Node):
         pose.angular_velocity = turtle.pose_angular
         ep.pose_pub.publish(pose)
         ep.truth_pub.publish(pose)
+        if self.pose_record is not None:
+            self.pose_record.write(ep.record_topic, serialize_message(pose))
         color = ep.color_msg
         color.r, color.g, color.b = turtle.color
         ep.color_pub.publish(color)
@@ -434,12 +459,14 @@ def make_executor(context: rclpy.context.Context) -> Any:
 
 
 def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = None,
-        time_scale: float | None = None, clock_only: bool = False) -> int:
+        time_scale: float | None = None, clock_only: bool = False,
+        pose_record: str | Path | None = None) -> int:
     """Run the node until SIGINT/SIGTERM or ROS shutdown; save the canvas; return 0.
 
     ``args`` is the full argv for rclpy (ROS arguments after ``--ros-args``). ``time_scale``:
     simulated time K times faster than the wall clock, published on ``/clock``;
-    ``clock_only``: no turtles, only the clock (node ``grader_clock``).
+    ``clock_only``: no turtles, only the clock (node ``grader_clock``); ``pose_record``: the
+    file of :mod:`grader.sim.record`.
     """
     context = rclpy.Context()
     rclpy.init(args=list(args) if args is not None else None, context=context,
@@ -456,7 +483,8 @@ def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = No
         if clock_only:
             node = make_clock_node(context, time_scale or 1.0)
         else:
-            node = TurtlesimNode(context=context, canvas_out=canvas_out, time_scale=time_scale)
+            node = TurtlesimNode(context=context, canvas_out=canvas_out, time_scale=time_scale,
+                                 pose_record=pose_record)
         executor = make_executor(context)
         executor.add_node(node)
         while not stop["flag"] and context.ok():
@@ -474,6 +502,8 @@ def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = No
                 node.save_canvas()
             except OSError as exc:
                 print(f"turtlesim: could not save canvas: {exc}", file=sys.stderr)
+            if node.pose_record is not None:
+                node.pose_record.close()
         if executor is not None:
             executor.shutdown(timeout_sec=1.0)
         if node is not None:

@@ -198,9 +198,11 @@ class Turtle:
         return previous
 
     # -- the tick -------------------------------------------------------------------------
-    def update(self, now_ns: int, canvas: "Canvas | None") -> None:
+    def update(self, now_ns: int, canvas: "Canvas | None", held: bool = False) -> None:
         """One 16 ms step, in the C++ order: teleports, goal, timeout, integrate, clamp,
-        (publish pose + color: left in attributes), draw the trail segment."""
+        (publish pose + color: left in attributes), draw the trail segment. ``held`` (a grader
+        addition, :attr:`World.held`): teleports apply and commands are kept, but the turtle
+        does not move: the pose is published where it is, with zero velocities."""
         meter = METER
         pen_on = self.pen_on
         if self.stamp_pending:
@@ -224,6 +226,13 @@ class Turtle:
                     canvas.draw_line(self.x * meter, self.ys * meter, ox * meter, oys * meter,
                                      pen.r, pen.g, pen.b, pen.width)
             self.teleports.clear()
+        if held:
+            self.pose_x, self.pose_y, self.pose_theta = self.x, H - self.ys, self.orient
+            self.pose_linear = self.pose_angular = 0.0
+            self.feedback = self.finished = None
+            if canvas is not None:
+                self.color = canvas.pixel(qround(self.x * meter), qround(self.ys * meter))
+            return
 
         # 2. rotate_absolute goal
         self.feedback = None
@@ -326,6 +335,10 @@ class World:
     id_counter: int = 0
     started: bool = False
     ticks: int = 0
+    #: a grader addition: while held, turtles take teleports and commands but do not move (the
+    #: scenario driver holds them while it hands a placed turtle's new goal over, so a student's
+    #: controller cannot steer for the old goal in the meantime; see grader.scenario.steps)
+    held: bool = False
     _order: list[Turtle] = field(default_factory=list)
 
     def ordered(self) -> list[Turtle]:
@@ -410,7 +423,7 @@ class World:
             return False
         canvas = self.canvas
         for turtle in self._order:
-            turtle.update(now_ns, canvas)
+            turtle.update(now_ns, canvas, self.held)
             if on_updated is not None:
                 on_updated(turtle)
         self.ticks += 1

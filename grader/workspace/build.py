@@ -299,6 +299,19 @@ def _package_results(root: Path, staged: list[PackageSource], *, timed_out: bool
     return {p.name: out[p.name] for p in staged}
 
 
+def build_support(support: dict[str, Path], cache_dir: Path | None = None) -> BuildResult | None:
+    """Build a rubric's ``support`` packages on their own, as a trusted build whose packages
+    every later submission identical in them takes instead of compiling them again (a cache hit
+    when already built). ``grader gradescope-setup`` calls it when the image is made, so no
+    submission pays for it; ``build_workspace`` calls it first thing. None: nothing to build."""
+    cache_dir = Path(cache_dir or default_cache_dir())
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    with stage_support(support, cache_dir) as support_ws:
+        if support_ws is None:
+            return None
+        return build_workspace(support_ws, cache_dir=cache_dir, trusted=True)
+
+
 def build_workspace(submission: Path, *, cache_dir: Path | None = None,
                     support: dict[str, Path] | None = None, force: bool = False,
                     trusted: bool = False) -> BuildResult:
@@ -313,9 +326,7 @@ def build_workspace(submission: Path, *, cache_dir: Path | None = None,
     cache_dir.mkdir(parents=True, exist_ok=True)
     if support and not force:
         try:
-            with stage_support(support, cache_dir) as support_ws:
-                if support_ws is not None:
-                    build_workspace(support_ws, cache_dir=cache_dir, trusted=True)
+            build_support(support, cache_dir)
         except GraderError:
             pass                  # a support package that cannot be staged is built (and reported) below
     staging = cache_dir / f".staging-{os.getpid()}-{time.monotonic_ns()}"

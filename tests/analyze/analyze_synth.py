@@ -84,7 +84,8 @@ def wrap(a: float) -> float:
 
 
 def law(kind: str = "correct", k1: float = 0.5, k2: float = 1.0) -> Callable:
-    """Controllers of the lab: correct (eq. 1-3), wrong_sign (w = -K2 theta_e), no_wrap."""
+    """Controllers of the lab: correct (eq. 1-3), wrong_sign (w = -K2 theta_e), no_wrap,
+    degrees (w = K2 * theta_e in degrees: the right sign, ~57 times too much)."""
     def f(x, y, th, gx, gy):
         dx, dy = gx - x, gy - y
         d = math.hypot(dx, dy)
@@ -92,7 +93,7 @@ def law(kind: str = "correct", k1: float = 0.5, k2: float = 1.0) -> Callable:
             te = math.atan2(dy, dx) - th
         else:
             te = math.atan2(dy * math.cos(th) - dx * math.sin(th), dx * math.cos(th) + dy * math.sin(th))
-        w = k2 * te
+        w = k2 * (math.degrees(te) if kind == "degrees" else te)
         if kind == "wrong_sign":
             w = -w
         return k1 * d, w
@@ -100,9 +101,14 @@ def law(kind: str = "correct", k1: float = 0.5, k2: float = 1.0) -> Callable:
 
 
 def simulate(goal_list: list[tuple[float, float, float]], controller: Callable, duration: float,
-             start=START, ctrl_period: float = 0.03, events: bool = True) -> dict:
+             start=START, ctrl_period: float = 0.03, events: bool = True, ctrl_phase: float = 0.005,
+             hold_s: float = 0.0) -> dict:
     """Run sim (62.5 Hz) + controller (timer) from T0; goals are (t_rel, x, y) sent by the driver.
 
+    ``ctrl_phase``: when the controller's timer first fires after T0 (its phase against the
+    simulator's ticks, which differs from run to run in a real graph). ``hold_s``: the turtle is
+    held still from each goal until this long after it (as the driver does for a placed step),
+    with the ``turtles_released`` event the analyzers read.
     Returns frames with /turtle1/pose, /turtle1/cmd_vel (with pub_t), /grader/events (goal_sent)
     or /turtle1/goal, and __meta__.
     """
@@ -112,7 +118,7 @@ def simulate(goal_list: list[tuple[float, float, float]], controller: Callable, 
     pose_rows, cmd_rows = [], []
     n_ticks = int(duration / DT)
     tick_times = [T0 + (k + 1) * DT for k in range(n_ticks)]
-    ctrl_times = list(np.arange(T0 + 0.005, T0 + duration, ctrl_period))
+    ctrl_times = list(np.arange(T0 + ctrl_phase, T0 + duration, ctrl_period))
     goals_abs = [(T0 + g[0], g[1], g[2]) for g in goal_list]
     pending = []   # commands not yet consumed by a tick
     latest_pose = None
@@ -136,6 +142,11 @@ def simulate(goal_list: list[tuple[float, float, float]], controller: Callable, 
                 last_cmd_t = tk
             if tk - last_cmd_t > 1.0:
                 vx = w = 0.0
+            if any(g[0] <= tk < g[0] + hold_s for g in goals_abs):
+                xf, yf, tf = (float(np.float32(v)) for v in (x, y, th))
+                pose_rows.append((tk + 0.0005, xf, yf, tf, 0.0, 0.0))
+                latest_pose = (xf, yf, tf)
+                continue
             th = wrap(th + w * DT)
             x += vx * math.cos(th) * DT
             y += vx * math.sin(th) * DT
@@ -152,10 +163,12 @@ def simulate(goal_list: list[tuple[float, float, float]], controller: Callable, 
             "linear.z": 0.0, "angular.x": 0.0, "angular.y": 0.0, "angular.z": [r[3] for r in cmd_rows]}),
     }
     if events:
-        frames["/grader/events"] = events_frame(
+        frames["/grader/events"] = events_frame(sorted(
             [(T0, "scenario_start", {})]
-            + [(g[0], "goal_sent", {"goal": [g[1], g[2]]}) for g in goals_abs]
-            + [(T0 + duration, "scenario_end", {})])
+            + [(g[0], "goal_sent", {"goal": [g[1], g[2]], "step": f"goal{k}"}) for k, g in enumerate(goals_abs)]
+            + ([(g[0] + hold_s, "turtles_released", {"step": f"goal{k}", "ok": True})
+                for k, g in enumerate(goals_abs)] if hold_s else [])
+            + [(T0 + duration, "scenario_end", {})], key=lambda r: r[0]))
     else:
         frames["/turtle1/goal"] = frame([g[0] + 0.001 for g in goals_abs], **{
             "data[0]": [g[1] for g in goals_abs], "data[1]": [g[2] for g in goals_abs], "data.len": 2})

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pandas as pd
+import numpy as np
 import pytest
 
 from analyze_synth import T0, check, events_frame, law, simulate
@@ -73,6 +74,38 @@ def test_missing_wrap_turns_the_long_way() -> None:
     bad = check(get("turn_direction")(simulate([(0.2, 1.0, 4.0)], law("no_wrap"), 15.0, start=start), {}))
     assert bad.status == "fail" and "wrapped" in bad.feedback
     assert bad.evidence["goals"][0]["initial_turn"] == "right (CW)"
+
+
+def test_turn_direction_does_not_depend_on_the_controllers_timer_phase() -> None:
+    """Issue 22: a controller whose heading error is in degrees spins up to 3 rad per tick, so
+    which way its heading seems to move from pose to pose depends on its timer's phase (0.75/3
+    in one run, 3/3 in the next). Held at each hand-over (as a placed step is), the command it
+    computes from the held pose has the right sign in every phase: judged on it, every phase
+    gives one verdict, and wrong_sign's and no_wrap's too. (Judged from the poses, the degrees
+    controller got all three answers here.)"""
+    start = (5.5, 5.5, 2.8)            # goal (1, 4): 38 deg left, 322 deg right unwrapped; then (9, 9.5)
+    for kind, want in (("degrees", {"pass"}), ("correct", {"pass"}), ("wrong_sign", {"fail", "partial"}),
+                       ("no_wrap", {"fail", "partial"})):
+        verdicts = set()
+        for phase in np.arange(0.0005, 0.03, 0.0025):
+            frames = simulate([(0.2, 1.0, 4.0), (6.0, 9.0, 9.5)], law(kind), 12.0, start=start,
+                              ctrl_phase=phase, hold_s=0.15)
+            f = check(get("turn_direction")(frames, {"min_turn_deg": 30.0}))
+            verdicts.add((f.status, f.value))
+        assert len(verdicts) == 1 and next(iter(verdicts))[0] in want, (kind, verdicts)
+
+
+def test_a_turn_of_more_than_half_a_circle_per_tick_is_judged_by_its_command() -> None:
+    """theta_e in degrees with K_2 = 2: 270 rad/s for a 135 degree left turn, 4.3 rad per 16 ms
+    tick, which the poses show as a 2 rad turn to the right. The command says left: the short
+    way. (Judged from the poses, it failed in every phase.)"""
+    for phase in np.arange(0.0005, 0.03, 0.005):
+        frames = simulate([(0.2, 3.0, 8.0)], law("degrees", k2=2.0), 4.0, start=(5.5, 5.5, 0.0),
+                          ctrl_phase=phase, hold_s=0.15)
+        f = check(get("turn_direction")(frames, {}))
+        row = f.evidence["goals"][0]
+        assert f.status == "pass" and row["basis"] == "command", row
+        assert row["commanded_turn"] == "left (CCW)" and row["first_cmd_angular_z"] > 200
 
 
 def test_large_right_turn_and_goal_behind() -> None:

@@ -39,9 +39,32 @@ def test_spoofed_pose_jump_without_publisher_info() -> None:
     assert f.evidence["basis"].startswith("pose stream")
 
 
-def _service(t, x, seq) -> object:
+def test_poses_bunched_and_dropped_by_a_loaded_machine_are_no_flag() -> None:
+    """At --jobs 8 on 2 cores the poses reached the recorder in bursts, a few dropped from the
+    keep-last-7 queue: receive times 0.1 ms apart ("11,000 Hz") and steps of several ticks.
+    Correct code was flagged. With the simulator's own copy of every pose recorded, only a pose
+    it never published counts. (Fails without: flagged for the rate and for jumps.)"""
+    fr = _sim()
+    pose = fr["/turtle1/pose"]
+    t = pose.index.to_numpy().copy()
+    t[100:400] = t[100] + np.arange(300) * 1e-4        # 300 poses delivered at once
+    bunched = pose.set_axis(t).drop(pose.index[[500, 501, 502, 503, 504]])      # and five dropped
+    fr = with_meta({**{k: v for k, v in fr.items() if k != "__meta__"}, "/turtle1/pose": bunched,
+                    "/grader/sim/turtle1/pose": pose}, publishers={"/turtle1/pose": ["/turtlesim"]})
+    f = check(get("integrity_pose_publisher")(fr, {}))
+    assert f.status == "pass", f.feedback
+    assert f.evidence["foreign_poses"] == 0 and "own copy" in f.evidence["basis"]
+    spoofed = bunched.copy()
+    spoofed.iloc[200, spoofed.columns.get_loc("x")] = 1.0           # one pose the simulator never sent
+    fr["/turtle1/pose"] = spoofed
+    f = check(get("integrity_pose_publisher")(fr, {}))
+    assert f.status == "fail" and f.evidence["foreign_poses"] == 1
+
+
+def _service(t, x, seq, gid=7) -> object:
     return frame(t, **{"info.event_type": 1, "info.sequence_number": seq,
-                       "info.client_gid[0]": 7, "request[0].x": x, "request[0].y": 5.0, "request[0].theta": 0.0})
+                       **{f"info.client_gid[{i}]": gid for i in range(16)},
+                       "request[0].x": x, "request[0].y": 5.0, "request[0].theta": 0.0})
 
 
 def test_teleport_is_flagged_unless_the_driver_made_it() -> None:
@@ -54,10 +77,17 @@ def test_teleport_is_flagged_unless_the_driver_made_it() -> None:
     assert f.status == "fail" and f.value == "2 call(s)" and "teleport_absolute" in f.feedback
     assert f.evidence["flagged_calls"][0]["request"]["x"] == 9.0
     assert len(f.evidence["set_pen_calls"]) == 1
-    # the driver placed the turtle itself at t=3: only the second call is the student's
-    fr["/grader/events"] = events_frame([(T0 + 2.9, "service_call", {"service": "/turtle1/teleport_absolute"})])
+    # the driver placed the turtle itself at t=3 with a client of another participant (gid 8...):
+    # both calls are still the student's, whatever their timing
+    fr["/grader/events"] = events_frame([(T0 + 2.9, "service_call", {"service": "/turtle1/teleport_absolute",
+                                                                      "client_gid": [8] * 16})])
     f = check(get("integrity_no_teleport")(with_meta(fr), {}))
-    assert f.status == "fail" and f.value == "1 call(s)" and len(f.evidence["driver_calls"]) == 1
+    assert f.status == "fail" and f.value == "2 call(s)" and not f.evidence["driver_calls"]
+    # with its own participant's id (gid 7...): they are the grader's
+    fr["/grader/events"] = events_frame([(T0 + 2.9, "service_call", {"service": "/turtle1/teleport_absolute",
+                                                                      "client_gid": [7] * 16})])
+    f = check(get("integrity_no_teleport")(with_meta(fr), {}))
+    assert f.status == "pass" and len(f.evidence["driver_calls"]) == 2
 
 
 def test_no_pose_is_error() -> None:

@@ -40,3 +40,40 @@ def test_in_process_recorder_keeps_every_message_with_dds_receive_times(graph, t
     intervals = np.diff(slow_f.index.to_numpy())
     assert np.median(intervals) == pytest.approx(1 / 40, abs=0.004)
     assert check_bag(bag) == []
+
+
+def test_the_simulators_record_goes_in_and_nothing_from_dds_under_its_name(graph, tmp_path: Path) -> None:
+    """grader.sim.record: the record's poses are written into the bag at their own times, and a
+    node publishing under /grader/sim_record/ is never recorded (fails without the exclusion:
+    its poses would share the record's topic)."""
+    import time
+
+    from rclpy.serialization import serialize_message
+    from turtlesim.msg import Pose
+
+    from grader.sim.record import PoseRecord, record_topic
+
+    bag = tmp_path / "bag"
+    topic = record_topic("/turtle1/pose")
+    rec = RecorderThread(bag, None, domain_id=graph.domain_id)        # every topic, as `record: all`
+    rec.start(30)
+    # the recorder never subscribes to the record's topic: no waiting for subscribers there; a
+    # publisher beside it shows the recorder was listening meanwhile
+    fake = loadgen(graph, "fake", "turtlesim/msg/Pose", [topic], rate=50, count=200,
+                   extra=["--wait-subscribers", "0"])
+    seen = loadgen(graph, "seen", "turtlesim/msg/Pose", ["/seen"], rate=50, count=100)
+    finish(seen)
+    finish(fake)
+    record = PoseRecord(tmp_path / "sim.record")
+    record.declare(topic)
+    t0 = time.time_ns()
+    for i in range(10):
+        record.write(topic, serialize_message(Pose(x=i + 0.5)), t_ns=t0 + i * 16_000_000)
+    record.close()
+    rec.stop(records=[tmp_path / "sim.record"])
+    frames = load_frames(bag)
+    assert len(frames["/seen"]) == 100
+    got = frames[topic]
+    assert got["x"].tolist() == [i + 0.5 for i in range(10)]
+    assert np.allclose(got.index.to_numpy() - t0 / 1e9, np.arange(10) * 0.016)
+    assert check_bag(bag) == []

@@ -22,6 +22,10 @@ def test_check_on_a_buggy_workspace(tmp_path: Path, capsys, monkeypatch) -> None
     rc = grader_main(["check", "--lab", "enee467-lab3", "--cache-dir", str(tmp_path / "cache")])
     out = capsys.readouterr().out
     assert rc == 1
+    # the names the lab fixes come first, before anything runs
+    assert out.index("Names this lab fixes") < out.index("self-check (")
+    assert "topic       /random_numbers" in out and "ros2 run random_numbers simple_publisher" in out
+    assert "NAME " not in out                   # bm_log10 spells every fixed name right
     assert "FAIL  ex1.boxmuller" in out and "log10" in out
     assert "PASS  ex2.goals_reached" in out
     assert "integrity." not in out              # hidden items are not shown to students

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -66,6 +67,7 @@ def test_every_lab_has_a_reference_and_buggy_variants() -> None:
         auto = {i.id for i in rubric.items if i.automatic}
         for name in names:      # expected.yaml lists exactly the rubric's automatic items
             assert set(expected(lab, name)["expected"]) == auto, (lab, name)
+            assert set(expected(lab, name).get("feedback") or {}) <= auto, (lab, name)
 
 
 @pytest.mark.parametrize("lab,submission", CASES)
@@ -82,6 +84,10 @@ def test_fixture_grades_as_expected(batches: dict[str, Path], lab: str, submissi
         status = got[item_id]["status"]
         if status not in allowed:
             mismatches.append(f"{item_id}: expected {want}, got {status} — {got[item_id]['feedback'][:200]}")
+    # where the fixture's cause has a sentence of its own, the student must read it
+    for item_id, pattern in (expected(lab, submission).get("feedback") or {}).items():
+        if not re.search(pattern, got[item_id]["feedback"]):
+            mismatches.append(f"{item_id}: feedback {got[item_id]['feedback'][:300]!r} does not match /{pattern}/")
     assert not mismatches, f"{lab}/{submission}:\n" + "\n".join(mismatches)
 
 
@@ -94,11 +100,24 @@ def test_the_handout_earns_nothing(batches: dict[str, Path], lab: str) -> None:
     assert not earned, f"the handout of {lab} earns points for given code: {earned}"
 
 
-def test_reference_has_full_marks(batches: dict[str, Path]) -> None:
-    for lab, out in batches.items():
-        ref = json.loads((out / "reference" / "result.json").read_text())
-        assert ref["auto_score"] == ref["auto_max"], lab
-        assert ref["integrity_flags"] == [] and ref["warnings"] == [], lab
+#: correct solutions: each earns every automatic point, however it is written. The alternatives
+#: (``alt_*``) differ from the reference the ways students do; the wall-pen lab text gives its
+#: whole node, which is correct by definition
+CORRECT = [(lab, s) for lab, s in CASES if s == "reference" or s.startswith("alt_")] + [("wall_pen", "chapter")]
+
+
+def test_every_lab_has_three_alternative_correct_solutions() -> None:
+    for lab in LABS:
+        assert len([s for lab_, s in CORRECT if lab_ == lab and s.startswith("alt_")]) >= 3, lab
+
+
+@pytest.mark.parametrize("lab,submission", CORRECT)
+def test_correct_solutions_have_full_marks(batches: dict[str, Path], lab: str, submission: str) -> None:
+    result = json.loads((batches[lab] / submission / "result.json").read_text())
+    short = [f"{i['id']}: {i['points']}/{i['max_points']} {i['feedback'][:200]}" for i in result["items"]
+             if i["kind"] == "auto" and i["points"] != i["max_points"]]
+    assert result["auto_score"] == result["auto_max"], f"{lab}/{submission}:\n" + "\n".join(short)
+    assert result["integrity_flags"] == [] and result["warnings"] == [], (lab, submission)
 
 
 def test_batch_outputs(batches: dict[str, Path]) -> None:
@@ -138,3 +157,28 @@ def test_regrade_from_bags_reproduces_the_batch(batches: dict[str, Path], tmp_pa
             new = json.loads((tmp_path / lab / s / "result.json").read_text())
             assert [(i["id"], i["points"], i["status"]) for i in new["items"]] == \
                    [(i["id"], i["points"], i["status"]) for i in old["items"]]
+
+
+def test_chaotic_controllers_get_the_same_items_at_another_jobs_budget(batches: dict[str, Path],
+                                                                        tmp_path: Path) -> None:
+    """The same code, the same grade (issue 22): the two chaotic Lab 3 controllers (no_wrap
+    spins at the ±π seam, wrong_sign pins itself to a wall) graded again with a budget of 2
+    scenarios, alone, must get exactly the items the session batch gave them (4 scenarios of
+    four labs side by side). Their controller scenario only: the rest is not chaotic, and
+    bench_flake measures everything on a mutated class."""
+    from grader.grading.batch import grade_batch
+    from grader.grading.schedule import Slots
+
+    rubric = load_rubric(REPO / "rubrics" / LABS["enee467_lab3"])
+    mine = {i.id for i in rubric.items if i.automatic and tuple(i.scenario) == ("ex2_controller",)}
+    items = [i for i in rubric.items if not i.automatic or i.id in mine]
+    subs = [REPO / "fixtures" / "submissions" / "enee467_lab3" / s for s in ("no_wrap", "wrong_sign")]
+    failures = grade_batch(subs, rubric.model_copy(update={"items": items}), tmp_path / "again", slots=Slots(2),
+                           cache_dir=tmp_path / "cache")
+    assert not failures, failures
+    for sub in subs:
+        def outcome(out: Path) -> dict:
+            doc = json.loads((out / sub.name / "result.json").read_text())
+            return {i["id"]: (i["status"], i["points"]) for i in doc["items"] if i["id"] in mine}
+
+        assert outcome(tmp_path / "again") == outcome(batches["enee467_lab3"]), sub.name

@@ -71,7 +71,8 @@ def test_support_package_is_built_once_and_taken_by_each_submission(tmp_path: Pa
     assert second.ok and second.packages["demo_interfaces"].reused_from == shared_from
     # demo_nodes was built against the taken package, and its node uses the custom action type
     with RosGraph(tmp_path / "run", prefixes=second.prefixes()) as graph:
-        proc = graph.start(ProcessSpec("make_goal", second.argv("demo_nodes", "make_goal")))
+        proc = graph.start(ProcessSpec("make_goal", second.argv("demo_nodes", "make_goal"),
+                                       untrusted=True))
         assert proc.wait(30) == 0, proc.errors()
     assert "made goal 2.0,7.0" in proc.output()
 

@@ -39,7 +39,8 @@ def test_builds_python_and_interface_packages(built) -> None:
 def test_runs_executable_that_uses_custom_action_type(built, tmp_path: Path) -> None:
     with RosGraph(tmp_path, prefixes=built.prefixes()) as graph:
         proc = graph.start(ProcessSpec("make_goal", built.argv("demo_nodes", "make_goal",
-                                                               args=["--ros-args", "-p", "k:=1"])))
+                                                               args=["--ros-args", "-p", "k:=1"]),
+                                       untrusted=True))
         assert proc.wait(30) == 0, proc.errors()
     # started as `ros2 run` starts it: the installed console script, argv[0] its path
     assert f"made goal 2.0,7.0 tol=0.1 argv0={built.install}/demo_nodes/lib/demo_nodes/make_goal" in proc.output()
@@ -50,7 +51,7 @@ def test_runs_executable_that_uses_custom_action_type(built, tmp_path: Path) -> 
 def test_entry_point_found_by_module_whatever_its_script_name(built, tmp_path: Path) -> None:
     argv = built.argv("demo_nodes", module="demo_nodes.hello:run")
     with RosGraph(tmp_path, prefixes=built.prefixes()) as graph:
-        proc = graph.start(ProcessSpec("hello", argv))
+        proc = graph.start(ProcessSpec("hello", argv, untrusted=True))
         assert proc.wait(20) == 0
     assert proc.output().strip() == "hello"
 

@@ -1,8 +1,8 @@
 """The grader as students, TAs and Gradescope get it: a wheel built from a fresh clone, installed
 outside the repository.
 
-One module fixture does what an instructor and Gradescope do: `grader gradescope` in a fresh
-clone (it builds the wheel with pip), the zip unpacked into a temporary root laid out like
+One module fixture does what an instructor and Gradescope do: `grader gradescope` in a real
+`git clone` of the tree under test (it builds the wheel with pip; ``gitclone.py``), the zip unpacked into a temporary root laid out like
 ``/autograder``, and the bundle's ``setup.sh`` run there: it creates a clean python3.11 venv
 outside the repository, pip-installs the wheel and runs `grader setup` and `grader doctor`, the
 very steps the README gives students. Then:
@@ -21,8 +21,10 @@ PYTHONPATH removed and a working directory outside the checkout.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -34,12 +36,13 @@ from pathlib import Path
 import jsonschema
 import pytest
 import yaml
+from gitclone import git_clone
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures" / "submissions" / "enee467_lab3"
 SCHEMA = json.loads((REPO / "grader" / "lms" / "gradescope.schema.json").read_text())
 
-pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
+pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(3600)]
 
 
 def clean_env(**extra: str) -> dict[str, str]:
@@ -58,26 +61,13 @@ def sh(cmd: list[str], *, cwd: Path, env: dict[str, str], timeout: float = 900) 
     return proc
 
 
-def fresh_clone(dest: Path) -> Path:
-    """The tracked files of this checkout, as a clone has them (uncommitted edits included, so the
-    test checks the tree under test; untracked files left out, as a clone would)."""
-    files = subprocess.run(["git", "-C", str(REPO), "ls-files", "-z"], capture_output=True,
-                           check=True).stdout.decode().split("\0")
-    for name in filter(None, files):
-        src = REPO / name
-        if src.is_file():
-            (dest / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(src, dest / name)
-    return dest
-
-
 @pytest.fixture(scope="module")
 def autograder(tmp_path_factory) -> Path:
     """An /autograder-like root after Gradescope's image build: source/ + grader-venv/."""
     if shutil.which("python3.11") is None or not (REPO / ".git").exists():
         pytest.skip("needs python3.11 and a git checkout")
     tmp = tmp_path_factory.mktemp("installed")
-    clone = fresh_clone(tmp / "clone")
+    clone = git_clone(tmp / "clone")
     bundle = tmp / "autograder.zip"
     sh([sys.executable, "-m", "grader.cli", "gradescope", "--rubric", "rubrics/enee467_lab3.yaml",
         "-o", bundle], cwd=clone, env=clean_env(PYTHONPATH=str(clone)))
@@ -86,9 +76,11 @@ def autograder(tmp_path_factory) -> Path:
         zf.extractall(root / "source")
         for info in zf.infolist():      # zipfile does not restore the mode bits; Gradescope does
             (root / "source" / info.filename).chmod(info.external_attr >> 16 or 0o644)
+    # ~5 min on a quiet 2-core machine; the limit leaves room for one shared with other work
     setup = sh(["bash", root / "source" / "setup.sh"], cwd=root / "source",
-               env=clean_env(GRADER_AUTOGRADER_ROOT=str(root)), timeout=1200)
+               env=clean_env(GRADER_AUTOGRADER_ROOT=str(root)), timeout=2400)
     assert "doctor: everything works" in setup.stdout
+    assert "support packages built into" in setup.stdout and "turtle_control_interfaces" in setup.stdout
     return root
 
 
@@ -210,10 +202,10 @@ def _run_autograder(autograder: Path, tmp: Path, fixture: str, how: str) -> Path
     root.mkdir()
     (root / "source").symlink_to(autograder / "source")
     (root / "grader-venv").symlink_to(autograder / "grader-venv")
+    (root / "grader-cache").symlink_to(autograder / "grader-cache")     # made by setup.sh, in the image
     _submit(fixture, how, root / "submission")
     proc = subprocess.run([root / "source" / "run_autograder"], cwd=root, capture_output=True, text=True,
-                          env=clean_env(GRADER_AUTOGRADER_ROOT=str(root), GRADER_CACHE=str(root / "cache")),
-                          timeout=900)
+                          env=clean_env(GRADER_AUTOGRADER_ROOT=str(root)), timeout=900)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return root
 
@@ -221,7 +213,19 @@ def _run_autograder(autograder: Path, tmp: Path, fixture: str, how: str) -> Path
 CASES = [("reference", "zip"), ("bm_log10", "packages"), ("broken_build", "workspace")]
 
 
+def _compiled(cache: Path, package: str) -> list[str]:
+    """Build areas of ``cache`` that compiled ``package`` (not taken from the package cache)."""
+    out = []
+    for f in sorted(cache.glob("*/result.json")):
+        build = json.loads(f.read_text())["packages"].get(package)
+        if build and build["status"] == "built" and not build.get("reused_from"):
+            out.append(f.parent.name)
+    return out
+
+
 def test_gradescope_bundle_grades_like_grader_grade(autograder: Path, tmp_path: Path) -> None:
+    image_builds = _compiled(autograder / "grader-cache", "turtle_control_interfaces")
+    assert len(image_builds) == 1, image_builds         # setup.sh compiled the support package once
     with ThreadPoolExecutor(max_workers=len(CASES)) as pool:       # `grader grade --jobs 3` load
         roots = list(pool.map(lambda case: _run_autograder(autograder, tmp_path, *case), CASES))
     rubric = autograder / "source" / "rubric" / "rubrics" / "enee467_lab3.yaml"
@@ -250,4 +254,139 @@ def test_gradescope_bundle_grades_like_grader_grade(autograder: Path, tmp_path: 
     assert scores == {"reference": 50, "bm_log10": 42, "broken_build": 30}
     broken = json.loads((roots[2] / "results" / "results.json").read_text())
     assert "did not build" in broken["output"] and "turtle_control" in broken["output"]
+    # no submission compiled the lab's interface package again: each took the image's build
+    assert _compiled(autograder / "grader-cache", "turtle_control_interfaces") == image_builds
 
+
+
+# --- the sandbox on Gradescope: hostile submissions in a simulated /autograder, run as root ---
+
+FAULTS = REPO / "fixtures" / "faults"
+HOSTILE = ("autograder_tamper", "read_rubric", "write_outside")
+TAMPER = "grader-fault-tamper"
+
+
+@pytest.fixture(scope="module")
+def goal_setter_image(autograder: Path, tmp_path_factory) -> tuple[Path, str]:
+    """A second image, for the goal-setter rubric of the fault corpus: its bundle made by the
+    installed grader (``--wheel``), its ``setup.sh`` run as Gradescope runs it (as root) on the
+    first image's venv (already set up: the script's steps find everything in place)."""
+    tmp = tmp_path_factory.mktemp("gs-image")
+    wheel = next((autograder / "source").glob("grader-*.whl"))
+    bundle = tmp / "goal_setter.zip"
+    sh([venv_grader(autograder), "gradescope", "--rubric", REPO / "rubrics" / "goal_setter.yaml",
+        "--wheel", wheel, "-o", bundle], cwd=tmp, env=clean_env())
+    root = tmp / "autograder"
+    with zipfile.ZipFile(bundle) as zf:
+        zf.extractall(root / "source")
+        for info in zf.infolist():
+            (root / "source" / info.filename).chmod(info.external_attr >> 16 or 0o644)
+    (root / "grader-venv").symlink_to(autograder / "grader-venv")
+    setup = sh(["bash", root / "source" / "setup.sh"], cwd=root / "source",
+               env=clean_env(GRADER_AUTOGRADER_ROOT=str(root)), timeout=1200)
+    return root, setup.stdout
+
+
+def _files(top: Path, *, content: bool = True) -> dict[str, object]:
+    """Every file under ``top`` (links not followed): its hash, or its size and mtime."""
+    out: dict[str, object] = {}
+    for dirpath, dirs, names in os.walk(top):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]      # bytecode the grader's own runs may add
+        for name in names:
+            f = Path(dirpath, name)
+            st = f.lstat()
+            out[str(f.relative_to(top))] = (hashlib.sha256(f.read_bytes()).hexdigest()
+                                            if content and f.is_file() and not f.is_symlink()
+                                            else (st.st_size, st.st_mtime_ns))
+    return out
+
+
+def _gradescope_case(image: Path, tmp: Path, fault: str) -> Path:
+    """A fresh container of the image: ``source``, the venv and the build cache as the image
+    has them, the fault's workspace as the upload."""
+    root = tmp / fault
+    root.mkdir()
+    for part in ("source", "grader-venv", "grader-cache"):
+        (root / part).symlink_to(image / part)
+    shutil.copytree(FAULTS / fault / "src", root / "submission" / "src")
+    if fault == "autograder_tamper":     # it hard-codes /autograder; this root is elsewhere: tell it
+        pkg = root / "submission" / "src" / "turtle_goal" / "turtle_goal"
+        (pkg / "autograder_root.py").write_text(f"ROOT = '{root}'\n")
+    proc = subprocess.run([root / "source" / "run_autograder"], cwd=root, capture_output=True, text=True,
+                          env=clean_env(GRADER_AUTOGRADER_ROOT=str(root)), timeout=900)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return root
+
+
+def test_gradescope_grades_hostile_submissions_in_the_jail(goal_setter_image: tuple[Path, str],
+                                                          autograder: Path, tmp_path: Path) -> None:
+    """As root, like Gradescope: submissions that read the rubric in ``source/``, rewrite
+    ``results.json``, grader's result and the build cache, and plant code in the grader's venv
+    (at build and at run time) get the honest submission's grade and change nothing; the honest
+    submission's results.json is the one a local ``grader grade`` gives."""
+    image, setup_log = goal_setter_image
+    assert os.geteuid() == 0, "Gradescope runs the autograder as root; so must this test"
+    for protection in ("filesystem", "unprivileged user", "network", "processes"):  # doctor, at image build
+        assert re.search(rf"^\s*on\s+{protection}\s", setup_log, re.M), setup_log[-3000:]
+    site = Path(sysconfig_purelib(autograder / "grader-venv"))
+    before = {"source": _files(image / "source"), "cache": _files(image / "grader-cache"),
+              "venv": _files(autograder / "grader-venv", content=False),
+              "grader": _files(site / "grader")}
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        roots = dict(zip(("honest", *HOSTILE),
+                         pool.map(lambda f: _gradescope_case(image, tmp_path, f), ("honest", *HOSTILE))))
+    after = {"source": _files(image / "source"), "cache": _files(image / "grader-cache"),
+             "venv": _files(autograder / "grader-venv", content=False),
+             "grader": _files(site / "grader")}
+    assert before["source"] == after["source"] and before["grader"] == after["grader"]
+    assert before["venv"] == after["venv"], sorted(set(after["venv"].items()) ^ set(before["venv"].items()))[:10]
+    assert {k for k in after["cache"] if TAMPER in k} == set()
+
+    honest = json.loads((roots["honest"] / "results" / "results.json").read_text())
+    rubric = next((image / "source" / "rubric").rglob("goal_setter.yaml"))     # where the bundle staged it
+    rubric_text = rubric.read_text()
+    title = "Goal setter service, turtle controller and launch file"
+    assert title in rubric_text
+    for fault, root in roots.items():
+        doc = json.loads((root / "results" / "results.json").read_text())
+        jsonschema.validate(doc, SCHEMA)
+        assert doc["score"] == 20 and TAMPER not in json.dumps(doc), fault
+        assert [(t["name"], t["score"], t["status"]) for t in doc["tests"]] == \
+               [(t["name"], t["score"], t["status"]) for t in honest["tests"]], fault
+        graded = (root / "grader-out" / "submission" / "result.json").read_text()
+        assert TAMPER not in graded and json.loads(graded)["auto_score"] == 20, fault
+        sandbox = json.loads(graded)["sandbox"]
+        assert {"filesystem", "unprivileged user"} <= set(sandbox["active"]), sandbox
+        logs = "".join(f.read_text(errors="replace")
+                       for f in (root / "grader-out" / "submission").rglob("*.log"))
+        assert not re.search(r"SNOOPED /", logs) and title not in logs, fault      # nothing of source/ or the rubrics
+    tamper_logs = "".join(f.read_text(errors="replace")
+                          for f in (roots["autograder_tamper"] / "grader-out" / "submission").rglob("*.log"))
+    root = roots["autograder_tamper"]
+    # it aimed at this root's files, from inside the jail as an unprivileged user, and was refused
+    assert "TAMPER run start: uid 65534" in tamper_logs, tamper_logs[-3000:]
+    for target in (root / "results" / "results.json", site / "sitecustomize.py", site / f"{TAMPER}.pth",
+                   site / "grader" / "__init__.py"):
+        assert re.search(rf"TAMPER run \w+ {re.escape(str(target))}: \w+Error", tamper_logs), target
+    assert not re.search(r"TAMPER run .*: done", tamper_logs)
+    # its build planted sitecustomize.py and a .pth file in its own install tree, which grader's
+    # processes (root, outside the jail) must never run
+    assert re.search(r"TAMPER build write \S+/install/turtle_goal/\S+/sitecustomize.py: done", tamper_logs)
+    assert not list(Path("/tmp").glob(f"{TAMPER}*"))
+
+    # the honest submission graded by `grader grade` outside Gradescope: the same results
+    subs = tmp_path / "local-subs"
+    shutil.copytree(FAULTS / "honest", subs / "honest")
+    sh([venv_grader(autograder), "grade", subs, "--rubric", rubric,
+        "-o", tmp_path / "local", "--cache-dir", tmp_path / "local-cache", "--jobs", "2"], cwd=tmp_path, env=clean_env())
+    local = json.loads((tmp_path / "local" / "honest" / "result.json").read_text())
+    local_tests = {i["id"]: (float(i["points"] or 0), float(i["max_points"]), i["status"])
+                   for i in local["items"] if i["kind"] != "manual"}
+    assert honest["score"] == local["auto_score"]
+    assert {t["extra_data"]["item"]: (t["score"], t["max_score"], t["extra_data"]["status"]) for t in honest["tests"]} \
+        == local_tests
+
+
+def sysconfig_purelib(venv: Path) -> str:
+    return subprocess.run([venv / "bin" / "python", "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                          capture_output=True, text=True, check=True).stdout.strip()

@@ -30,7 +30,8 @@ def test_result_json_shape(tmp_path, lab3, lab3_result):
     assert set(item["ex1.pub_rate"]) == {"id", "title", "section", "kind", "public", "points",
                                          "max_points", "status", "feedback", "hint", "value",
                                          "fraction", "evidence", "params", "hidden_params", "requires",
-                                         "analyzer"}
+                                         "analyzer", "decided"}
+    assert item["ex1.pub_rate"]["decided"] == {"by": "one run", "runs": 1}       # no repeated scenario
     assert item["ex1.pub_rate"]["section"] == {"exercise": 1}
     assert (item["ex1.pub_rate"]["points"], item["ex1.pub_rate"]["max_points"]) == (1.5, 3)
     assert item["ex1.pub_rate"]["status"] == "partial"

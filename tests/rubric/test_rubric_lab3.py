@@ -79,7 +79,9 @@ def test_scenarios_and_their_inputs(lab3):
     assert (ex2.goal_topic, ex2.goal_type) == ("/turtle1/goal", "std_msgs/msg/Float32MultiArray")
     for step in ex2.steps[1:]:
         assert isinstance(step.until, GoalReached) and step.until.tolerance == 0.1
-        assert step.until.settle > 0 and step.timeout <= 30 and step.target == step.goal
+        # long enough for the lab's slowest suggested gains (K_1 = 0.1, K_2 = 0.5: up to ~40 s),
+        # short enough that a controller that never settles does not hold a slot for minutes
+        assert step.until.settle > 0 and 50 <= step.timeout <= 60 and step.target == step.goal
 
     gp = lab3.scenarios["ex2_goal_publisher"].processes[0]
     assert gp.module == "turtle_control.goal_publisher:main"
@@ -125,6 +127,34 @@ def test_geometry_of_ex2_goals():
     assert abs(wrap(bearing(b, c) - bearing(a, b))) > 165
     assert -150 < wrap(bearing(c, d) - bearing(b, c)) < -90
     assert all(0.5 < v < 10.5 for p in (a, b, c, d) for v in p)
+
+
+def test_ex2_goals_leave_time_for_the_labs_slowest_suggested_gains():
+    """The lab says to start with 0.1 <= K_1 <= 0.5 and 0.5 <= K_2 <= 1: a controller at the slow
+    corner (K_1 = 0.1, K_2 = 0.5) is correct, and each goal step must leave it time to settle,
+    with room for a loaded grading machine (a quarter of the step). Simulated on the unicycle of
+    tests/analyze/analyze_synth.py (turtlesim's 16 ms tick), from the rubric's own placements."""
+    import sys
+
+    import numpy as np
+
+    sys.path.insert(0, str(REPO / "tests" / "analyze"))
+    from analyze_synth import START, law, simulate
+
+    scenario = load_rubric(LAB3, check_files=False).scenarios["ex2_controller"]
+    start = START
+    for step in [s for s in scenario.steps if s.goal is not None]:
+        if step.place is not None:
+            start = (step.place.x, step.place.y, step.place.theta)
+        gx, gy = step.goal.xy
+        frames = simulate([(0.0, gx, gy)], law("correct", k1=0.1, k2=0.5), step.timeout, start=start)
+        pose = frames["/turtle1/pose"]
+        t = pose.index.to_numpy() - pose.index[0]
+        far = np.hypot(pose["x"].to_numpy() - gx, pose["y"].to_numpy() - gy) >= step.until.tolerance
+        assert not far[-1], f"{step.id}: not reached within {step.timeout:g} s"
+        settled = t[np.nonzero(far)[0][-1] + 1] + step.until.settle
+        assert settled <= 0.75 * step.timeout, f"{step.id}: settles after {settled:.1f} s of {step.timeout:g} s"
+        start = (gx, gy, float(pose["theta"].iloc[-1]))
 
 
 def test_params_fit_the_registered_analyzers():

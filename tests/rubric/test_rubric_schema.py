@@ -304,3 +304,30 @@ def test_check_files_for_support_and_bags(write_rubric, tmp_path):
     rubric = load_rubric(path)
     assert rubric.support_paths() == {"my_interfaces": pkg.resolve()}
     assert load_rubric(path, check_files=False).support["my_interfaces"] == pkg.resolve()
+
+
+def test_equivalent_mutants_are_validated_with_lines(problems, line_of, write_rubric):
+    good = BASE + ("equivalent_mutants:\n"
+                   "  - {mutant: swap_args-1a2b3c4d, reason: 'hypot(dy, dx) is hypot(dx, dy)'}\n")
+    rubric = load_rubric(write_rubric(good))
+    assert rubric.equivalent_mutants[0].mutant == "swap_args-1a2b3c4d"
+    shapes = BASE + ("equivalent_mutants:\n"
+                     "  - {mutant: flip_sign-xyz, reason: x}\n"
+                     "  - {mutant: drop_call-00000000, reason: '  '}\n"
+                     "  - {mutant: drop_call-00000001}\n")
+    out = problems(shapes)
+    assert out[0].startswith(f"{F}:{line_of(shapes, 'flip_sign-xyz')}: equivalent_mutants[0].mutant: expected "
+                             "a mutant id like 'flip_sign-1a2b3c4d'")
+    assert out[1].startswith(f"{F}:{line_of(shapes, 'drop_call-00000000')}: equivalent_mutants[1].reason: ")
+    assert out[2] == f"{F}:{line_of(shapes, 'drop_call-00000001')}: equivalent_mutants[2].reason: required key is missing"
+    assert len(out) == 3
+    cross = BASE + ("equivalent_mutants:\n"
+                    "  - {mutant: swap_args-1a2b3c4d, reason: same}\n"
+                    "  - {mutant: swap_args-1a2b3c4d, reason: same again}\n"
+                    "  - {mutant: flip-00000000, reason: x}\n")
+    assert problems(cross) == [
+        f"{F}:{line_of(cross, 'same again')}: equivalent_mutants[1].mutant: mutant 'swap_args-1a2b3c4d' is listed "
+        "twice (first at equivalent_mutants[0])",
+        f"{F}:{line_of(cross, 'flip-0')}: equivalent_mutants[2].mutant: unknown mutation operator 'flip' in "
+        "'flip-00000000' (known: flip_sign, scale_constant, swap_args, rename_topic, drop_call, remove_angle_wrap, "
+        "change_timer_period); copy the id from grader rubric audit's report"]

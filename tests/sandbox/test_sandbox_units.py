@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from grader.errors import GraderError
-from grader.sandbox import probe
+from grader.sandbox import probe, protections
 from grader.sandbox.capture import CappedLog
 from grader.sandbox.jail import SANDBOX_DDS_PROFILE, Jail, minimal_env, prepare
 from grader.sandbox.scenario import ScenarioSandbox, summary
@@ -161,3 +161,40 @@ def test_executables_start_in_the_jail_as_ros2_run_starts_them(tmp_path: Path) -
         done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
         out[name] = done.stdout.strip() or done.stderr
     assert out == {"py_node": f"py {lib / 'py_node'} a b", "sh_node": "sh a b", "bin_node": "a b"}, out
+
+
+def test_bubblewrap_without_size_still_jails(tmp_path: Path, monkeypatch) -> None:
+    """Ubuntu 22.04 (Gradescope's base image) has bubblewrap 0.6.1, which has no ``--size`` (added
+    in 0.7.0): the filesystem jail still works there, with an uncapped scratch, and says so. The
+    stand-in below is the real bubblewrap refusing ``--size`` the way 0.6.1 does."""
+    require_protections("filesystem")
+    real = probe().bwrap
+    old = tmp_path / "bwrap"
+    old.write_text("#!/bin/sh\n[ \"$1\" = --version ] && { echo 'bubblewrap 0.6.1'; exit 0; }\n"
+                   "for a in \"$@\"; do [ \"$a\" = --size ] && { echo 'bwrap: Unknown option --size' >&2; exit 1; }; done\n"
+                   f"exec {real} \"$@\"\n")
+    old.chmod(0o755)
+    monkeypatch.setenv("GRADER_BWRAP", str(old))
+    probe.cache_clear()
+    try:
+        caps = probe()
+        fs = next(p for p in protections(caps) if p.name == "filesystem")
+        assert caps.bwrap == str(old) and not caps.bwrap_size and fs.active, fs.detail
+        assert "bubblewrap 0.6.1" in fs.detail and "not size-capped" in fs.detail
+        from grader.sandbox.scenario import SandboxPolicy, student_jail
+
+        given = tmp_path / "given"
+        given.mkdir()
+        (given / "a.txt").write_text("ok")
+        jail = student_jail(caps, SandboxPolicy(), ro=[str(given)])
+        code = ("import os, sys; open('/sandbox/w', 'w').write('x'); print(open(sys.argv[1]).read(), "
+                "os.path.exists(sys.argv[2]), os.getuid())")
+        p = prepare(jail, [sys.executable, "-c", code, str(given / "a.txt"), str(REPO / "grader")], {})
+        assert "--size" not in p.argv
+        done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
+        assert done.stdout.split()[:2] == ["ok", "False"], done.stderr
+        if caps.root:
+            assert done.stdout.split()[2] == "65534"
+    finally:
+        monkeypatch.delenv("GRADER_BWRAP")
+        probe.cache_clear()

@@ -173,3 +173,70 @@ def test_classroom_workflow_runs_grader_check_and_keeps_the_report() -> None:
     assert any(c.endswith("grader setup") for c in commands)
     upload = next(s for s in steps if str(s.get("uses", "")).startswith("actions/upload-artifact@"))
     assert upload["if"] == "always()" and "grader-report/" in upload["with"]["path"]
+
+
+def _step_script(name: str) -> str:
+    return next(s for s in _workflow()["jobs"]["check"]["steps"] if s.get("name") == name)["run"]
+
+
+def test_classroom_runner_result_is_what_the_reporter_reads(tmp_path: Path) -> None:
+    """The runner document of a result.json: the fields GitHub Classroom's reporter reads, and
+    the points it reports (the sum of the tests' scores over max_score)."""
+    import base64
+
+    from grader.lms.classroom import points, step_output
+
+    doc = {"items": [
+        {"id": "ex1.a", "title": "A", "kind": "auto", "status": "pass", "points": 4, "max_points": 4, "feedback": "ok"},
+        {"id": "ex1.b", "title": "B", "kind": "auto", "status": "partial", "points": 2.5, "max_points": 6,
+         "feedback": "half", "hint": "use math.log"},
+        {"id": "ex1.c", "title": "C", "kind": "advisory", "status": "fail", "points": 0, "max_points": 0, "feedback": ""}]}
+    (tmp_path / "result.json").write_text(json.dumps(doc))
+    line, runner = step_output(tmp_path / "result.json")
+    assert line.startswith("result=")
+    decoded = json.loads(base64.b64decode(line.removeprefix("result=")))
+    assert decoded == runner and runner["status"] == "fail" and runner["max_score"] == 10
+    assert [(t["name"], t["status"], t["score"]) for t in runner["tests"]] == [("ex1.a: A", "pass", 4), ("ex1.b: B", "fail", 2.5)]
+    assert "Hint: use math.log" in runner["tests"][1]["message"]
+    assert points(runner) == (6.5, 10)
+    _, missing = step_output(tmp_path / "nothing.json")
+    assert missing["status"] == "error" and points(missing) == (0, 0)
+
+
+@pytest.mark.slow
+@pytest.mark.ros
+@pytest.mark.timeout(1200)
+def test_classroom_workflow_steps_report_the_points(tmp_path: Path) -> None:
+    """The workflow's own `grader` and Summary steps, run as GitHub runs a `run:` step (bash -eo
+    pipefail, GITHUB_OUTPUT and GITHUB_STEP_SUMMARY files), in a student repository holding a Lab 3
+    submission with a Box-Muller mistake: the step succeeds with a failing check, its output is
+    the runner the reporter reads, and the points it would send to Classroom are grader's. Not run
+    here: the checkout, setup-python, cache and install steps (GitHub's own actions; the install is
+    what tests/packaging tests) and the reporter action itself (JavaScript fetched from GitHub)."""
+    import base64
+
+    from grader.lms.classroom import points
+
+    repo = tmp_path / "student-repo"
+    shutil.copytree(REPO / "fixtures" / "submissions" / "enee467_lab3" / "bm_log10" / "src", repo / "src")
+    home = tmp_path / "home"
+    home.mkdir()
+    (home / "grader-venv").symlink_to(Path(sys.prefix))       # what the Install step leaves in ~/grader-venv
+    output, summary = tmp_path / "github_output", tmp_path / "step_summary"
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("GITHUB_")}, "HOME": str(home),
+           "GITHUB_OUTPUT": str(output), "GITHUB_STEP_SUMMARY": str(summary), **_workflow()["env"],
+           "GRADER_CACHE": str(tmp_path / "cache")}
+    for name in ("grader check", "Summary"):
+        script = tmp_path / f"{name.replace(' ', '_')}.sh"
+        script.write_text(_step_script(name))
+        done = subprocess.run(["bash", "--noprofile", "--norc", "-eo", "pipefail", str(script)], cwd=repo, env=env,
+                              capture_output=True, text=True, timeout=900)
+        assert done.returncode == 0, f"{name}: {done.stdout[-2000:]}\n{done.stderr[-2000:]}"
+    outputs = dict(line.split("=", 1) for line in output.read_text().splitlines())
+    runner = json.loads(base64.b64decode(outputs["result"]))
+    result = json.loads((repo / "grader-report" / "check" / "result.json").read_text())
+    assert runner["status"] == "fail"                      # the reporter fails the run
+    assert points(runner) == (result["auto_score"], result["auto_max"]) and 0 < result["auto_score"] < result["auto_max"]
+    boxmuller = next(t for t in runner["tests"] if t["name"].startswith("ex1.boxmuller"))
+    assert boxmuller["status"] == "fail" and "log10" in boxmuller["message"]
+    assert "ex1.boxmuller" in summary.read_text()

@@ -289,3 +289,25 @@ def test_a_node_using_the_clock_service_sends_the_run_back_to_1x(pacing_build, t
     assert record["errors"] == []
     ts = record["time_scale"]
     assert ts["used"] == 1.0 and "held or stopped the simulated clock" in ts["fallback"], ts
+
+
+def test_at_1x_a_step_limit_does_not_pay_for_a_process_start_up() -> None:
+    """At 1x the clock runs on, but scenario time (what step limits count) leaves out the time
+    held while a student process starts: at load 29 the Lab 3 client needed 9.5 s to come up
+    and its 10 s step timed out before its first stdin line (ex3.client_rejected "not checked"
+    in one run of three). Nested holds count once; sleep_until waits on scenario time."""
+    import time
+
+    from grader.scenario.simtime import ScenarioClock
+
+    clock = ScenarioClock(1.0)
+    t0 = clock.now()
+    with clock.held():
+        with clock.held():
+            time.sleep(0.3)
+        assert clock.now() - t0 < 0.05              # standing still while held
+    time.sleep(0.1)
+    assert 0.09 <= clock.now() - t0 < 0.2 and 0.3 <= clock.held_s < 0.4
+    start = time.monotonic()
+    clock.sleep_until(clock.now() + 0.2)
+    assert 0.18 <= time.monotonic() - start < 0.3

@@ -59,17 +59,6 @@ def pure_poses(ticks: int) -> list[tuple]:
     return out
 
 
-@pytest.mark.ros
-@pytest.mark.timeout(120)
-def test_sim_clock_holds_at_once_when_asked() -> None:
-    clock = SimClock(4.0)
-    for _ in range(10):
-        clock.tick()
-    assert clock.hold_now() == 160_000_000 and clock.held
-    assert clock.tick() is None and clock.now_ns == 160_000_000       # no grid: held where it is
-    assert clock.hold(False) == 160_000_000 and clock.tick() == 176_000_000
-
-
 def test_sim_at_4x_moves_exactly_as_at_1x_per_tick(ros_graph, tmp_path: Path) -> None:
     """One cmd_vel at 4x: the bag holds the spec's 63 moving ticks, each pose equal to the pure
     physics', one /clock 16 ms later per pose, and simulated time runs faster than wall time."""

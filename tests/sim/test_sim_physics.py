@@ -108,6 +108,27 @@ def test_cmd_vel_times_out_after_one_second(sim: Sim) -> None:
     assert sim.t1.pose() == after           # and it stays there, still publishing
 
 
+def test_held_turtles_take_teleports_and_commands_but_do_not_move(sim: Sim) -> None:
+    """The grader's hold (``World.held``, ``~/hold_turtles``): while held a teleport applies and
+    commands are kept, nothing moves, the pose shows zero velocities; released, the turtle drives
+    with the last command exactly as if it had just arrived."""
+    sim.world.held = True
+    sim.t1.teleport_absolute(2.0, 7.0, 2.1)
+    sim.tick(1)
+    placed = sim.t1.pose()
+    assert placed == (f32(2.0), f32(7.0), f32(2.1), 0.0, 0.0)
+    sim.t1.command_velocity(2.0, 0.0, 1.8, False)       # e.g. a controller for the old goal
+    sim.t1.command_velocity(1.0, 0.0, -0.5, False)      # ... then for the new one
+    sim.tick(20)
+    assert sim.t1.pose() == placed
+    sim.world.held = False
+    sim.tick(1)
+    x, y, theta, lin, ang = sim.t1.pose()
+    assert (lin, ang) == (1.0, f32(-0.5))
+    assert theta == pytest.approx(2.1 - 0.5 * 0.016, abs=1e-6)
+    assert math.hypot(x - 2.0, y - 7.0) == pytest.approx(0.016, abs=1e-6)
+
+
 def test_timeout_is_strictly_greater_than_one_second() -> None:
     world = World()
     world.spawn_default(0)

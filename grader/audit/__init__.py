@@ -1,0 +1,1 @@
+"""Rubric auditing: mutants of a reference solution (``mutate``) graded against a rubric (``audit``)."""

@@ -1,0 +1,96 @@
+"""``grader rubric audit RUBRIC``: the command line of ``grader.audit.run`` (registered by
+``grader.rubric.guide`` next to ``grader rubric check``)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from grader.errors import GraderError
+
+
+def register_audit(rsub: argparse._SubParsersAction) -> None:
+    from grader.audit.mutate import OPERATORS
+    from grader.grading.cli import _positive, _time_scale_option
+
+    a = rsub.add_parser(
+        "audit", help="mutation testing: grade mutants of the reference solution, list those that keep full marks",
+        description="Mutate the rubric's reference solution (flip a sign, scale a constant, swap arguments, rename a "
+                    "topic, drop a publish/log/call, remove an angle wrap, change a timer period), grade every "
+                    "mutant and report which keep full marks: a blind spot of the rubric, or an equivalent mutant "
+                    "recorded in the rubric's equivalent_mutants. Exit 0 when no mutant survives unrecorded.")
+    a.add_argument("rubric", type=Path)
+    a.add_argument("-o", "--out", type=Path, default=None,
+                   help="output folder (default: audit-<lab> in the current folder)")
+    a.add_argument("--reference", type=Path, default=None,
+                   help="the reference solution (default: reference/ beside the rubric's handout, or "
+                        "fixtures/submissions/<rubric name>/reference)")
+    a.add_argument("--sample", type=_positive, default=None, metavar="N", help="grade N mutants chosen at random")
+    a.add_argument("--seed", type=int, default=0, help="seed of --sample (default 0)")
+    a.add_argument("--operators", type=_operators, default=None, metavar="OP,OP",
+                   help=f"only these operators ({', '.join(OPERATORS)})")
+    a.add_argument("--only", nargs="+", metavar="ID", help="only these mutant ids (from an earlier report)")
+    a.add_argument("--list", action="store_true", help="list the mutants (id, file:line, change) and grade nothing")
+    a.add_argument("--all-files", action="store_true",
+                   help="also mutate files the handout gives out unchanged (the lab's own code)")
+    a.add_argument("--jobs", type=_positive, default=2, help="scenarios (and builds) run at once (default 2)")
+    a.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
+    a.add_argument("--no-reuse", action="store_true", help="run every scenario of every mutant")
+    a.add_argument("--resume", action="store_true", help="keep mutants already graded in OUT")
+    a.add_argument("--regrade", action="store_true",
+                   help="grade the recordings already in OUT again with the rubric as it is now (no ROS: after "
+                        "changing items, parameters or analyzers); mutants not yet graded are graded")
+    a.add_argument("--quiet-diffs", action="store_true", help="print survivors without their diffs")
+    _time_scale_option(a)
+    a.set_defaults(func=run_audit_cli)
+
+
+def _operators(text: str) -> list[str]:
+    from grader.audit.mutate import OPERATORS
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in OPERATORS]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(f"unknown operator(s) {', '.join(unknown) or text!r}; "
+                                         f"choose from {', '.join(OPERATORS)}")
+    return names
+
+
+def run_audit_cli(args: argparse.Namespace) -> int:
+    from grader.audit.report import text_summary
+    from grader.audit.run import choose, find_reference, run_audit
+    from grader.rubric.load import load_rubric
+
+    if args.list:
+        rubric = load_rubric(args.rubric)
+        ref = find_reference(rubric, args.reference)
+        chosen, made, given = choose(rubric, ref, args.operators, args.sample, args.seed, args.all_files)
+        recorded = {e.mutant for e in rubric.equivalent_mutants}
+        for m in chosen:
+            mark = "  (equivalent)" if m.id in recorded else ""
+            print(f"{m.id:30} {m.file}:{m.line}  {m.description}{mark}")
+        from grader.rubric.load import display_path
+
+        print(f"{len(chosen)} of {made} mutants of {display_path(ref)}" + (f"; not mutated: {', '.join(given)}" if given else ""))
+        return 0
+    out = args.out
+    if out is None:
+        out = Path(f"audit-{load_rubric(args.rubric).lab}")
+
+    def say(text: str) -> None:
+        print(text, file=sys.stderr, flush=True)
+
+    try:
+        report = run_audit(args.rubric, out, reference=args.reference, jobs=args.jobs, time_scale=args.time_scale,
+                           reuse=not args.no_reuse, cache_dir=args.cache_dir, sample_n=args.sample,
+                           operators=args.operators, seed=args.seed, only=args.only, all_files=args.all_files,
+                           resume=args.resume, regrade=args.regrade, say=say)
+    except KeyboardInterrupt:
+        print("grader: interrupted; graded mutants are kept: rerun with --resume to continue", file=sys.stderr)
+        return 130
+    except GraderError:
+        raise
+    print(text_summary(report, diffs=not args.quiet_diffs))
+    print(f"report: {Path(out) / 'audit.md'} (and audit.json; the mutants' reports: {Path(out) / 'graded' / 'index.html'})")
+    return 1 if report.count("surviving") or report.count("error") else 0

@@ -1,0 +1,122 @@
+"""Repeated runs of a scenario (``repeat: N`` in the rubric) and the median that grades them.
+
+Most items are decided by one run: the scenario's placements hold the turtle still until a goal
+is handed over, and the analyzers judge quantities that do not depend on scheduling (a command
+computed from a placed pose, a rate over seconds). An item that stays sensitive to a few
+milliseconds (a deadline its submission meets by a hair, a chaotic controller's arrival) gets a
+scenario that runs N times (N odd); each item of the scenario is graded by the median of its N
+findings, and the result says so (``decided``: runs, how many agreed, every run's outcome).
+
+Runs stop early once the median is settled: when more than half of the planned runs agree on
+every item of the scenario, further runs cannot move the median (``repeat: 3`` costs two runs
+when they agree, three when they do not).
+
+Folders: run 1 is ``scenarios/<id>/`` as for any scenario; run k is ``scenarios/<id>.run<k>/``
+(a scenario id has no dot), so a regrade finds every run on disk.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import Counter
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+RUN_SUFFIX = ".run"
+_RUN = re.compile(r"^(?P<id>[A-Za-z0-9_-]+)\.run(?P<k>[2-9][0-9]*)$")
+
+
+def run_folder(scenarios_dir: Path, sc_id: str, k: int) -> Path:
+    """Where run ``k`` (1-based) of scenario ``sc_id`` is recorded."""
+    return scenarios_dir / (sc_id if k == 1 else f"{sc_id}{RUN_SUFFIX}{k}")
+
+
+def run_folders(scenarios_dir: Path, sc_id: str) -> list[Path]:
+    """The recorded runs of ``sc_id``, run 1 first (only run 1 when it was not repeated)."""
+    more = []
+    if scenarios_dir.is_dir():
+        for p in scenarios_dir.iterdir():
+            m = _RUN.match(p.name)
+            if m and m["id"] == sc_id and p.is_dir():
+                more.append((int(m["k"]), p))
+    return [scenarios_dir / sc_id] + [p for _, p in sorted(more)]
+
+
+def scenario_of(folder_name: str) -> str:
+    """The scenario id of a run folder's name (``ex3_action.run2`` -> ``ex3_action``)."""
+    m = _RUN.match(folder_name)
+    return m["id"] if m else folder_name
+
+
+def outcome(finding: Any) -> tuple[str, float]:
+    """What a run concluded about an item, for comparing runs: status and fraction."""
+    return str(finding.status), round(float(finding.fraction), 4)
+
+
+def settled(outcomes_per_item: Iterable[Sequence[tuple[str, float]]], planned: int) -> bool:
+    """True when, for every item, more than half of the ``planned`` runs share one outcome: the
+    median of all ``planned`` runs is then that outcome, whatever the others would say."""
+    return all(lst and Counter(lst).most_common(1)[0][1] * 2 > planned for lst in outcomes_per_item)
+
+
+def settles_check(items: list, planned: int) -> Callable[[list[Path]], bool] | None:
+    """For a scenario run ``planned`` > 1 times: whether the runs recorded so far (their folders)
+    settle the median of every one of its ``items``; None for a scenario that runs once."""
+    if planned <= 1:
+        return None
+
+    def check(folders: list[Path]) -> bool:
+        from grader.errors import GraderError
+        from grader.grading.pipeline import analyze_item, scenario_frames
+
+        try:
+            frames = [scenario_frames(f) for f in folders]
+        except GraderError:
+            return False
+        return settled([[outcome(analyze_item(item, fr)) for fr in frames] for item in items], planned)
+
+    return check
+
+
+def run_until_settled(record_one: Callable[[int, Path], dict], scenarios_dir: Path, sc_id: str, planned: int,
+                      settles: Callable[[list[Path]], bool] | None) -> dict:
+    """Record run 1, 2, ... of a scenario (``record_one(k, folder)``) until ``planned`` runs, or
+    until ``settles`` says the runs so far decide every item's median. The record: the first
+    run's, with every run's errors and the times of all of them (``runs``: how many)."""
+    records: list[dict] = []
+    for k in range(1, planned + 1):
+        records.append(record_one(k, run_folder(scenarios_dir, sc_id, k)))
+        if settles is not None and 2 * k > planned and k < planned and \
+                settles([run_folder(scenarios_dir, sc_id, i) for i in range(1, k + 1)]):
+            break
+    if len(records) == 1:
+        return records[0]
+    first = dict(records[0])
+    first["errors"] = [f"run {k}: {e}" if k > 1 else e for k, r in enumerate(records, 1) for e in r.get("errors", [])]
+    for key in ("parent_wall_s", "active_s"):
+        first[key] = round(sum(float(r.get(key) or 0.0) for r in records), 3)
+    first["runs"] = len(records)
+    return first
+
+
+def median_finding(findings: Sequence[Any], planned: int) -> Any:
+    """The median of one item's findings over its runs (by fraction, then status: fail <
+    partial < error < pass), with ``decided`` saying how it was decided. One finding: itself,
+    ``decided`` = one run."""
+    from grader.rubric.score import _RANK
+
+    if len(findings) == 1 and planned <= 1:
+        return replace(findings[0], decided={"by": "one run", "runs": 1})
+    order = sorted(range(len(findings)),
+                   key=lambda i: (round(float(findings[i].fraction), 4), _RANK.get(str(findings[i].status), 2)))
+    chosen = findings[order[(len(order) - 1) // 2]]
+    mine = outcome(chosen)
+    agree = sum(1 for f in findings if outcome(f) == mine)
+    decided = {
+        "by": "median of repeated runs", "runs": len(findings), "planned": planned, "agree": agree,
+        "stable": agree == len(findings),
+        "outcomes": [{"run": i + 1, "status": f.status, "fraction": round(float(f.fraction), 4),
+                      "value": f.value} for i, f in enumerate(findings)],
+    }
+    return replace(chosen, decided=decided)

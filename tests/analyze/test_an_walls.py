@@ -1,0 +1,63 @@
+"""no_wall_contact and keeps_moving on simulated wall-avoidance controllers, with the wall-pen
+rubric's parameters and scenarios. Two blind spots ``grader rubric audit`` found there: a turtle
+circling in the middle (no wall ever near) and a box missing one side that the run from the
+lab's start (facing east) never meets."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from analyze_synth import START, check, simulate
+from grader import analyze
+from grader.rubric.load import load_rubric
+
+REPO = Path(__file__).resolve().parents[2]
+RUBRIC = load_rubric(REPO / "rubrics" / "wall_pen.yaml")
+
+
+def box(top: float = 9.0):
+    """The lab text's controller: straight at 5 m/s inside [2, 9] x [2, top], else a left turn."""
+    def f(x, y, th, _gx, _gy):
+        if x > 9.0 or x < 2.0 or y < 2.0 or y > top:
+            return 1.0, 1.0
+        return 5.0, 0.0
+    return f
+
+
+def run(controller, start=START, duration: float = 62.0) -> dict:
+    return simulate([(0.0, 0.0, 0.0)], controller, duration, start=start, ctrl_period=0.016)
+
+
+def walls(frames: dict):
+    return check(analyze.run("no_wall_contact", frames, dict(RUBRIC.item("walls.no_contact").params)))
+
+
+def test_the_labs_controller_passes_from_both_starts() -> None:
+    for sc in RUBRIC.item("walls.no_contact").scenario:
+        place = next((s.place for s in RUBRIC.scenarios[sc].steps if s.place), None)
+        start = (place.x, place.y, place.theta) if place else START
+        finding = walls(run(box(), start=start, duration=20.0 if place else 62.0))
+        assert finding.status == "pass", (sc, finding.feedback)
+        assert finding.evidence["min_clearance_m"] < 3.0
+
+
+def test_circling_in_the_middle_meets_no_wall() -> None:
+    frames = run(lambda *_: (1.0, 1.0))          # `pose.x > -9.0`: always "near a wall", always turning
+    blind = check(analyze.run("no_wall_contact", frames, {}))
+    assert blind.status == "pass"                # what the rubric paid before: 20/20
+    finding = walls(frames)
+    assert finding.status == "fail"
+    assert finding.feedback.startswith("The turtle never came within 3 m of a wall (closest 3.5")
+    keeps = check(analyze.run("keeps_moving", frames, dict(RUBRIC.item("motion.keeps_moving").params)))
+    assert keeps.status == "pass"                # it does keep moving: only the wall item says why
+
+
+def test_a_box_without_its_top_side_hits_the_wall_from_the_north_start() -> None:
+    item = RUBRIC.item("walls.no_contact")
+    places = [s.place for sc in item.scenario for s in RUBRIC.scenarios[sc].steps if s.place]
+    assert any(abs(math.remainder(p.theta - math.pi / 2, math.tau)) < 0.1 for p in places), \
+        "walls.no_contact must also be judged from a start facing north"
+    north = next(p for p in places if abs(math.remainder(p.theta - math.pi / 2, math.tau)) < 0.1)
+    finding = walls(run(box(top=18.0), start=(north.x, north.y, north.theta), duration=20.0))
+    assert finding.status == "fail" and "hit the wall" in finding.feedback

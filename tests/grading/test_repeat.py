@@ -1,0 +1,112 @@
+"""Repeated scenarios (``repeat: N``): the median that grades them, when runs can stop early,
+what result.json and the report say. Pure: findings in, findings out (no ROS)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from grader.analyze import Finding
+from grader.grading.repeat import (median_finding, run_folder, run_folders, run_until_settled, scenario_of,
+                                   settled)
+from grader.report.readable import spread_text
+from grader.rubric.schema import Item
+from grader.rubric.score import _score_auto
+
+
+def f(status: str, fraction: float, value: str = "") -> Finding:
+    return Finding(value or status, fraction, status, f"{status} {fraction}")
+
+
+def test_the_median_run_grades_and_the_spread_is_recorded() -> None:
+    m = median_finding([f("pass", 1.0), f("partial", 0.5), f("pass", 1.0)], planned=3)
+    assert (m.status, m.fraction) == ("pass", 1.0)
+    assert m.decided["by"] == "median of repeated runs"
+    assert (m.decided["runs"], m.decided["agree"], m.decided["stable"]) == (3, 2, False)
+    assert [o["status"] for o in m.decided["outcomes"]] == ["pass", "partial", "pass"]
+    low = median_finding([f("fail", 0.0), f("partial", 0.25), f("pass", 1.0)], planned=3)
+    assert (low.status, low.fraction) == ("partial", 0.25)                 # the middle one, not a mean
+    same = median_finding([f("fail", 0.0), f("error", 0.0), f("fail", 0.0)], planned=3)
+    assert same.status == "fail"
+    one = median_finding([f("partial", 0.5)], planned=1)
+    assert one.decided == {"by": "one run", "runs": 1} and one.status == "partial"
+
+
+def test_runs_stop_once_more_than_half_agree_on_every_item() -> None:
+    assert settled([[("pass", 1.0), ("pass", 1.0)]], planned=3)
+    assert not settled([[("pass", 1.0), ("fail", 0.0)]], planned=3)
+    assert not settled([[("pass", 1.0), ("pass", 1.0)], [("pass", 1.0), ("fail", 0.0)]], planned=3)
+    assert not settled([[("pass", 1.0), ("pass", 1.0)]], planned=5)        # 2 of 5 is not a majority
+    assert settled([[("pass", 1.0)] * 3], planned=5)
+
+
+def test_run_until_settled_records_two_runs_when_they_agree_three_when_not(tmp_path: Path) -> None:
+    made: list[int] = []
+
+    def record(k: int, folder: Path) -> dict:
+        folder.mkdir(parents=True)
+        made.append(k)
+        return {"errors": [f"e{k}"] if k == 3 else [], "parent_wall_s": 10.0, "active_s": 8.0}
+
+    rec = run_until_settled(record, tmp_path / "a", "sc", 3, lambda folders: True)
+    assert made == [1, 2] and rec["runs"] == 2 and rec["parent_wall_s"] == 20.0
+    made.clear()
+    rec = run_until_settled(record, tmp_path / "b", "sc", 3, lambda folders: False)
+    assert made == [1, 2, 3] and rec["runs"] == 3 and rec["errors"] == ["run 3: e3"]
+    assert [p.name for p in run_folders(tmp_path / "b", "sc")] == ["sc", "sc.run2", "sc.run3"]
+    assert run_folders(tmp_path / "b", "other") == [tmp_path / "b" / "other"]
+    assert run_folder(tmp_path, "sc", 1) == tmp_path / "sc" and scenario_of("sc.run3") == "sc"
+    made.clear()
+    rec = run_until_settled(record, tmp_path / "c", "sc", 1, None)
+    assert made == [1] and "runs" not in rec
+
+
+def test_result_and_report_say_how_an_item_was_decided() -> None:
+    item = Item.model_validate({"id": "ex3.timeout", "title": "t", "section": {"exercise": 3}, "points": 4,
+                                "scenario": "a", "analyzer": "logged", "partial": "none",
+                                "params": {"logger": "x", "pattern": "y"}})
+    res = _score_auto(item, median_finding([f("pass", 1.0), f("partial", 0.5), f("pass", 1.0)], planned=3))
+    assert res.points == 4 and res.decided["runs"] == 3
+    assert [o["points"] for o in res.decided["outcomes"]] == [4.0, 0.0, 4.0]     # partial: none
+    assert spread_text(res.decided) == ("Graded by the median of 3 runs: 2 of 3 runs pass (4 points), "
+                                        "1 of 3 runs fail (0 points).")
+    two = _score_auto(item, median_finding([f("pass", 1.0), f("pass", 1.0)], planned=3))
+    assert two.decided["stable"] and "a further 1 run(s) could not have changed the median" in spread_text(two.decided)
+    single = _score_auto(item, f("pass", 1.0))
+    assert single.decided == {"by": "one run", "runs": 1} and spread_text(single.decided) == ""
+
+
+@pytest.mark.parametrize("repeat, ok", [(1, True), (3, True), (2, False), (11, False)])
+def test_the_rubric_loader_takes_odd_repeats_up_to_nine(repeat: int, ok: bool) -> None:
+    from pydantic import ValidationError
+
+    from grader.scenario.model import Scenario
+
+    spec = {"repeat": repeat, "steps": [{"id": "w", "wait": 1}]}
+    if ok:
+        assert Scenario.model_validate(spec).repeat == repeat
+    else:
+        with pytest.raises(ValidationError):
+            Scenario.model_validate(spec)
+
+
+def test_the_report_and_the_class_view_show_unstable_items() -> None:
+    from grader.report.html import render_html
+    from grader.report.index import render_index
+    from grader.rubric.score import Result
+
+    item = Item.model_validate({"id": "ex3.timeout", "title": "gives up in time", "section": {"exercise": 3},
+                                "points": 4, "scenario": "a", "analyzer": "logged",
+                                "params": {"logger": "x", "pattern": "y"}})
+    shaky = _score_auto(item, median_finding([f("pass", 1.0), f("fail", 0.0), f("pass", 1.0)], planned=3))
+    steady = _score_auto(item, median_finding([f("pass", 1.0), f("pass", 1.0)], planned=3))
+    page = render_html(Result(lab="x", title="X", items=(shaky,)), "alice")
+    assert "Graded by the median of 3 runs: 2 of 3 runs pass (4 points), 1 of 3 runs fail (0 points)." in page
+    index = render_index({"alice": Result(lab="x", title="X", items=(shaky,)),
+                          "bob": Result(lab="x", title="X", items=(steady,))})
+    assert 'id="unstable-h"' in index and "2 item result(s) were graded by the median" in index
+    assert 'data-submission="alice" data-item="ex3.timeout"' in index and 'data-submission="bob" data-item' not in index
+    quiet = render_index({"bob": Result(lab="x", title="X", items=(steady,))})
+    assert 'id="unstable-none"' in quiet
+    assert 'id="unstable-h"' not in render_index({"carol": Result(lab="x", title="X", items=(_score_auto(item, f("pass", 1.0)),))})
