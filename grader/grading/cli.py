@@ -178,7 +178,10 @@ def run_grade(args: argparse.Namespace) -> int:
     from grader.rubric.load import load_rubric
     from grader.scores.roster import parse_mapping, read_roster
 
+    from grader.similarity.cli import after_grading, grade_settings
+
     rubric = load_rubric(args.rubric)
+    similarity = grade_settings(args)
     due = _due_override(args, rubric)
     if args.map and not args.roster:
         raise GraderError("--map describes the roster's columns: give the roster with --roster")
@@ -223,9 +226,7 @@ def run_grade(args: argparse.Namespace) -> int:
     for name, why in refused.items():
         print(f"grader: {name}: not graded: {why}", file=sys.stderr)
     if not interrupted and not args.shard:     # a shard is compared once merged (grader merge)
-        from grader.similarity.cli import after_grading
-
-        after_grading(args.out, rubric, args)
+        after_grading(args.out, rubric, similarity)
     print(f"wrote {args.out / 'grades.csv'} and {args.out / 'index.html'}")
     if interrupted or any("interrupted" in m for m in failures.values()):
         print("grader: interrupted; finished submissions are saved; rerun with --resume to continue",

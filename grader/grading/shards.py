@@ -87,12 +87,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run_merge(args: argparse.Namespace) -> int:
     from grader.grading.outputs import write_batch_outputs
     from grader.rubric.load import load_rubric
+    from grader.similarity.cli import after_grading, grade_settings
 
     rubric = load_rubric(args.rubric)
+    similarity = grade_settings(args)
     merged = merge_outputs(args.parts, args.out, rubric)
     write_batch_outputs(args.out, rubric)
-    from grader.similarity.cli import after_grading
-
-    after_grading(args.out, rubric, args)
+    after_grading(args.out, rubric, similarity)
     print(f"merged {len(merged)} submissions from {len(args.parts)} outputs into {args.out}")
     return 0

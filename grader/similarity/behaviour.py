@@ -17,7 +17,8 @@ the bag is analyzed, so a class is compared without reading its bags again):
 * ``names``: the nodes, topics and services the student's nodes create.
 
 From result.json (``result_features``, when the class is compared): the items that did not pass
-with their status and headline value (the same failing items with the same wrong values), and the
+with their status and headline value (the same failing items with the same wrong values; an item
+that measured nothing is left out: a node that never ran is no fingerprint), and the
 numbers each item measured (fitted gains, rates, errors: the analyzer's own evidence, without its
 thresholds and times).
 """
@@ -34,7 +35,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 FINGERPRINT_FILE = "fingerprint.json"
-FINGERPRINT_SCHEMA = 1
+FINGERPRINT_SCHEMA = 2          # 2: generic traceback lines left out
 PATH_POINTS = 40            # points of a resampled path
 CMD_GRID_S = 0.1            # grid of a command series
 CMD_SPAN_S = 6.0            # seconds of a step's command series kept (the response to the goal)
@@ -55,6 +56,11 @@ class Feature:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Feature":
         return cls(**{k: d[k] for k in ("key", "kind", "group", "label", "value", "scenario") if k in d})
+
+
+#: lines any crashing Python program prints: no fingerprint of anyone's code (the exception's own
+#: line, e.g. "ValueError: not enough values to unpack (expected #, got #)", is kept)
+GENERIC_LINE = re.compile(r"^(Traceback \(most recent call last\):|File \".*\", line #.*|\^+|~+\^*~*)$")
 
 
 def template(line: str) -> str:
@@ -192,7 +198,7 @@ def fingerprint_frames(frames: Mapping[str, Any], scenario: str) -> list[Feature
     if len(out):
         lines |= {template(s) for s in out["text"] if str(s).strip()}
     feats += [Feature(f"{scenario}|log|{line}", "token", "log", f"logged: “{line}”", line, scenario)
-              for line in sorted(lines) if line and len(line) > 2]
+              for line in sorted(lines) if line and len(line) > 2 and not GENERIC_LINE.match(line)]
     names = [("node", n) for n in sorted(nodes)] + [("topic", t) for t in sorted(pubs)] + \
             [("service", s) for s in sorted(services)]
     feats += [Feature(f"{scenario}|names|{kind}:{name}", "token", "names", f"{kind} {name}", name, scenario)
@@ -250,7 +256,7 @@ def result_features(doc: Mapping[str, Any], item_scenarios: Mapping[str, list[st
         if item.get("kind") not in ("auto", "advisory", "integrity") or status not in ("pass", "partial", "fail"):
             continue
         scenario = ",".join(item_scenarios.get(iid, []))
-        if status != "pass":
+        if status != "pass" and item.get("value") is not None:     # no value: nothing was measured
             value = item.get("value")
             feats.append(Feature(f"item|{iid}|outcome", "token", "failure", f"{iid}: {status}, {_value_text(value)}",
                                  f"{status}:{_value_text(value)}", scenario))

@@ -27,17 +27,24 @@ def add_grade_options(p: argparse.ArgumentParser) -> None:
     add_options(p)
 
 
-def after_grading(out: Path, rubric, args: argparse.Namespace) -> None:
+def grade_settings(args: argparse.Namespace):
+    """The similarity settings of `grader grade`/`grader merge`, checked before any grading (a
+    wrong --known or --boilerplate folder is reported at once, not after an hour of grading);
+    None with --no-similarity."""
+    return None if getattr(args, "no_similarity", False) else settings_from(args)
+
+
+def after_grading(out: Path, rubric, settings) -> None:
     """Similarity of the batch after `grader grade`/`grader merge` (seconds for a class): never
-    fails the grading; a problem is one line on stderr."""
+    fails the grading; a problem is one line on stderr. ``settings``: ``grade_settings(args)``."""
     import sys
 
     from grader.similarity.run import graded_ids, run_similarity
 
-    if getattr(args, "no_similarity", False) or len(graded_ids(out)) < 2:
+    if settings is None or len(graded_ids(out)) < 2:
         return
     try:
-        summary = run_similarity(out, rubric, settings_from(args))
+        summary = run_similarity(out, rubric, settings)
     except Exception as exc:  # noqa: BLE001 - the grades are written; similarity is extra
         print(f"grader: similarity not computed ({type(exc).__name__}: {exc}); run `grader similarity "
               f"{out} --rubric ...` to retry", file=sys.stderr)
@@ -77,7 +84,10 @@ def settings_from(args: argparse.Namespace):
 
     for d in args.boilerplate:
         if not Path(d).is_dir():
-            raise GraderError(f"--boilerplate {d}: not a folder")
+            raise GraderError(f"--boilerplate {d}: not a folder (give the folder of the code the students "
+                              "were given)")
+    if args.known and not Path(args.known).is_dir():
+        raise GraderError(f"--known {args.known}: not a folder (give a folder of workspaces or archives)")
     settings = Settings(boilerplate=[str(Path(d).resolve()) for d in args.boilerplate],
                         known=str(Path(args.known).resolve()) if args.known else None)
     if args.threshold is not None:

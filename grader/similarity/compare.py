@@ -13,10 +13,14 @@ For each feature (grader.similarity.behaviour) two submissions hold, with ``d`` 
   for them; agreeing there is expected, agreeing away from it is not. Tokens (log lines, names,
   failing items) are not discounted: rarity alone weighs them.
 
-A feature's evidence is closeness x rarity x (1 - forced). Features of one scenario and group
-(paths, commands, ...) are averaged (tokens: summed), each group capped at ``log2(N / 2)`` bits,
-the most two submissions alone can share; a pair's behaviour score is its evidence over that cap
-times the groups both have: 1 for a pair alone in the class with identical, unforced behaviour.
+``N`` is the number of submissions with a recording of the feature's scenario (the class, but for
+those whose build failed). A feature's evidence is closeness x rarity x (1 - forced). Features of
+one scenario and group (paths, commands, ...) are averaged (tokens: summed), each group capped at
+``log2(N / 2)`` bits, the most two submissions alone can share; a pair's behaviour score is its
+evidence over the sum of those caps for the groups both have: 1 for a pair alone in the class with
+identical, unforced behaviour. A group in which every submission that ran the scenario holds the
+same (the topic the lab names, the rate every timer keeps) cannot tell anyone apart and is left
+out of both.
 """
 
 from __future__ import annotations
@@ -95,18 +99,24 @@ def _distances(kind: str, values: list) -> np.ndarray:
 def compare_behaviour(features: Mapping[str, list[Feature]], passing: Mapping[str, set[str]],
                       ids: list[str]) -> dict[tuple[str, str], BehaviourMatch]:
     """Every pair with any shared evidence. ``features``: submission -> its features;
-    ``passing``: scenario -> submissions whose items on it all passed (for the forced part)."""
-    n_class = len(ids)
-    if n_class < 2:
+    ``passing``: scenario -> submissions whose items on it all passed (for the forced part).
+
+    Rarity is counted among the submissions that have the feature's scenario at all (``N`` of
+    the module docstring): a submission whose build failed, or a regrade from bags of some
+    scenarios only, does not make what the others share look rare."""
+    if len(ids) < 2:
         return {}
-    cap = math.log2(n_class / 2) if n_class > 2 else 1.0
     order = {sid: i for i, sid in enumerate(ids)}
     by_key: dict[str, dict[str, Feature]] = defaultdict(dict)
+    ran: dict[str, set[str]] = defaultdict(set)            # scenario -> submissions with features of it
     for sid, feats in features.items():
         for f in feats:
             by_key[f.key][sid] = f
+            ran[f.scenario].add(sid)
+    n_of = {sc: len(subs) for sc, subs in ran.items()}
     held: dict[str, dict[tuple[str, str], set[str]]] = defaultdict(lambda: defaultdict(set))  # sid -> group -> keys
     per_pair: dict[tuple[str, str], list[Shared]] = defaultdict(list)
+    uniform: set[str] = set()          # keys every submission that ran the scenario holds alike
     for key, holders in by_key.items():
         first = next(iter(holders.values()))
         for sid in holders:
@@ -115,9 +125,12 @@ def compare_behaviour(features: Mapping[str, list[Feature]], passing: Mapping[st
             continue
         sids = sorted(holders, key=order.__getitem__)
         if first.kind == "token":
-            _tokens(key, first, sids, holders, n_class, per_pair)
+            alike = _tokens(key, first, sids, holders, n_of[first.scenario], per_pair)
         else:
-            _continuous(key, first, sids, holders, n_class, passing.get(first.scenario, set()), per_pair)
+            alike = _continuous(key, first, sids, holders, n_of[first.scenario],
+                                passing.get(first.scenario, set()), per_pair)
+        if alike and len(holders) == n_of[first.scenario]:
+            uniform.add(key)
     out = {}
     for (a, b), shared in per_pair.items():
         groups: dict[tuple[str, str], list[Shared]] = defaultdict(list)
@@ -127,15 +140,23 @@ def compare_behaviour(features: Mapping[str, list[Feature]], passing: Mapping[st
         for (sc, group), items in groups.items():
             counts = len(held[a][sc, group] & held[b][sc, group])
             if items[0].distance is None:
-                bits += min(cap, sum(s.evidence for s in items))
+                bits += min(cap(n_of[sc]), sum(s.evidence for s in items))
             else:
-                bits += min(cap, sum(s.evidence for s in items) / max(1, counts))
-        both = len(held[a].keys() & held[b].keys())
-        score = bits / (cap * both) if both else 0.0
+                bits += min(cap(n_of[sc]), sum(s.evidence for s in items) / max(1, counts))
+        # the groups that could tell them apart: both have it, and it is not the same in everyone
+        telling = [g for g in held[a].keys() & held[b].keys() if (held[a][g] | held[b][g]) - uniform]
+        possible = sum(cap(n_of[sc]) for sc, _group in telling)
+        score = bits / possible if possible else 0.0
         if bits > 0:
             shared.sort(key=lambda s: -s.evidence)
-            out[a, b] = BehaviourMatch(a, b, round(score, 4), round(bits, 3), both, shared)
+            out[a, b] = BehaviourMatch(a, b, round(min(1.0, score), 4), round(bits, 3), len(telling), shared)
     return out
+
+
+def cap(n: int) -> float:
+    """The most bits one group of features can give a pair among ``n`` submissions: what two
+    of them alone share (``log2(n / 2)``)."""
+    return math.log2(n / 2) if n > 2 else 1.0
 
 
 def _pair(a: str, b: str, order: list[str]) -> tuple[str, str]:
@@ -143,7 +164,8 @@ def _pair(a: str, b: str, order: list[str]) -> tuple[str, str]:
 
 
 def _tokens(key: str, first: Feature, sids: list[str], holders: Mapping[str, Feature], n_class: int,
-            per_pair: dict) -> None:
+            per_pair: dict) -> bool:
+    """Pairs holding the same value; True when every holder holds the same one."""
     by_value: dict[str, list[str]] = defaultdict(list)
     for sid in sids:
         by_value[str(holders[sid].value)].append(sid)
@@ -158,19 +180,21 @@ def _tokens(key: str, first: Feature, sids: list[str], holders: Mapping[str, Fea
             for j in range(i + 1, len(same)):
                 per_pair[same[i], same[j]].append(Shared(key, label, first.group, first.scenario, None, 1.0,
                                                          len(same), round(bits, 3), 0.0, round(bits, 3)))
+    return len(by_value) == 1
 
 
 def _continuous(key: str, first: Feature, sids: list[str], holders: Mapping[str, Feature], n_class: int,
-                passing: set[str], per_pair: dict) -> None:
+                passing: set[str], per_pair: dict) -> bool:
+    """Pairs within three tolerances; True when every holder is within one of every other."""
     tol = TOLERANCE[first.kind]
     try:
         d = _distances(first.kind, [holders[s].value for s in sids])
     except (ValueError, TypeError):
-        return
+        return False
     close = closeness(d, tol)
     iu, ju = np.nonzero(np.triu(close > 0, k=1))
     if not len(iu):
-        return
+        return False
     radius = np.maximum(d[iu, ju], tol)
     near = (d[iu] <= radius[:, None]) | (d[ju] <= radius[:, None])
     holders_n = near.sum(axis=1)
@@ -191,6 +215,7 @@ def _continuous(key: str, first: Feature, sids: list[str], holders: Mapping[str,
         per_pair[a, b].append(Shared(key, first.label, first.group, first.scenario, round(float(d[iu[k], ju[k]]), 5),
                                      round(float(close[iu[k], ju[k]]), 3), int(holders_n[k]), round(float(bits[k]), 3),
                                      round(float(forced[k]), 3), round(float(evidence[k]), 3)))
+    return bool(np.all(d <= tol))
 
 
 def iter_pairs(ids: Iterable[str]):
@@ -200,4 +225,4 @@ def iter_pairs(ids: Iterable[str]):
             yield ids[i], ids[j]
 
 
-__all__ = ["BehaviourMatch", "Shared", "TOLERANCE", "closeness", "compare_behaviour", "iter_pairs"]
+__all__ = ["BehaviourMatch", "Shared", "TOLERANCE", "cap", "closeness", "compare_behaviour", "iter_pairs"]

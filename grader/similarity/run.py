@@ -75,9 +75,10 @@ def graded_ids(out: Path) -> list[str]:
 
 
 def _scenario_features(sub_out: Path) -> list[behaviour.Feature]:
-    """Stored fingerprints of a submission's scenarios; made from the bag where missing."""
+    """Stored fingerprints of a submission's scenarios; made from the bag where missing. A
+    repeated scenario (``repeat:``) counts by its first run, as every submission has that one."""
     feats = []
-    for sc_dir in sorted(p for p in (sub_out / "scenarios").glob("*") if p.is_dir()):
+    for sc_dir in _first_runs(sub_out):
         stored = behaviour.read_fingerprint(sc_dir)
         if stored is None and (sc_dir / "bag").exists():
             from grader.grading.pipeline import scenario_frames
@@ -89,6 +90,12 @@ def _scenario_features(sub_out: Path) -> list[behaviour.Feature]:
             stored = behaviour.read_fingerprint(sc_dir)
         feats += stored or []
     return feats
+
+
+def _first_runs(sub_out: Path) -> list[Path]:
+    from grader.grading.repeat import scenario_of
+
+    return sorted(p for p in (Path(sub_out) / "scenarios").glob("*") if p.is_dir() and scenario_of(p.name) == p.name)
 
 
 def _labels(rubric) -> tuple[dict[str, list[str]], dict[str, dict]]:
@@ -155,7 +162,7 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
     docs = {sid: json.loads((out / sid / "result.json").read_text(encoding="utf-8")) for sid in ids}
     # behaviour features (stored at grade time; bags read only where missing, on `jobs` processes)
     missing = [sid for sid in ids if any((d / "bag").exists() and not (d / behaviour.FINGERPRINT_FILE).exists()
-                                         for d in (out / sid / "scenarios").glob("*"))]
+                                         for d in _first_runs(out / sid))]
     feats: dict[str, list[behaviour.Feature]] = {}
     if missing and jobs > 1 and len(missing) > 1:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
@@ -198,14 +205,14 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
 
     pairs: dict[tuple[str, str], Pair] = {}
     for (a, b), m in list(smatches.items()) + list(known_pairs.items()):
-        pairs[a, b] = Pair(a, b, round(m.score, 4), round(m.a_in_b, 4), round(m.b_in_a, 4), m.shared,
-                           known=b.startswith(KNOWN_PREFIX))
+        pairs[a, b] = Pair(a, b, round(float(m.score), 4), round(float(m.a_in_b), 4), round(float(m.b_in_a), 4),
+                           int(m.shared), known=b.startswith(KNOWN_PREFIX))
     for (a, b), bm in bmatches.items():
         p = pairs.setdefault((a, b), Pair(a, b))
-        p.behaviour, p.behaviour_bits = bm.score, bm.bits
+        p.behaviour, p.behaviour_bits = float(bm.score), float(bm.bits)
         p.features = [asdict(s) for s in bm.shared[:40]]
     for p in pairs.values():
-        p.listed = p.score >= settings.threshold
+        p.listed = bool(p.score >= settings.threshold)
     clusters = _clusters([p for p in pairs.values() if p.listed and not p.known])
     for i, members in enumerate(clusters):
         for p in pairs.values():

@@ -10,8 +10,11 @@ by the build), graded with the Lab 3 rubric cut down to the controller scenario
   of numpy, another setup.py), same constants and behaviour;
 * ``known_copy``: the known public solution ``fixtures/similarity/enee467_lab3/known/`` renamed and
   reformatted;
-* ``reference``, ``honest_b``, ``honest_c``: three correct solutions written independently with the
-  lab's suggested gains (K_1 = 0.5, K_2 = 1) and timer (0.03 s): they converge on one trajectory.
+* honest alternatives, all correct: ``reference``, ``honest_b`` and ``honest_c`` (written
+  independently with the lab's suggested gains, K_1 = 0.5, K_2 = 1, and timer, 0.03 s: the three
+  converge on one trajectory), ``alt_executors`` (K_1 = 0.45, K_2 = 1.5, a stop within 1 cm) and
+  ``alt_rate_loop_threads`` (K_1 = 0.4, K_2 = 0.9 in a 30 Hz rate loop), main's Lab 3 ``alt_*``
+  fixtures. (``alt_small_gains`` is left out: its 31-40 s per goal would double the test's time.)
 """
 
 from __future__ import annotations
@@ -28,16 +31,27 @@ LAB3 = REPO / "fixtures" / "submissions" / "enee467_lab3"
 SIM = REPO / "fixtures" / "similarity" / "enee467_lab3"
 KNOWN = SIM / "known"
 COPIES = {"orig", "copy_a", "copy_b", "rewritten"}      # one code: no_wrap's
-HONEST = {"reference", "honest_b", "honest_c"}
+HONEST = {"reference", "honest_b", "honest_c", "alt_executors", "alt_rate_loop_threads"}
+#: the step timeout of the class test's rubric: the correct members settle on every goal within
+#: 12 s; no_wrap never reaches the lab's first goal, and its copies need not spend the full 60 s
+#: there to show it
+TEST_STEP_TIMEOUT = 25
 
 
-def controller_rubric(dest: Path, scenarios: tuple[str, ...] = ("ex2_controller",)) -> Path:
-    """The Lab 3 rubric with only ``scenarios`` and their items (paths made absolute)."""
+def controller_rubric(dest: Path, scenarios: tuple[str, ...] = ("ex2_controller",),
+                      step_timeout: float | None = None) -> Path:
+    """The Lab 3 rubric with only ``scenarios`` and their items (paths made absolute);
+    ``step_timeout``: every goal step's timeout lowered to it (for a shorter test)."""
     src = REPO / "rubrics" / "enee467_lab3.yaml"
     doc = yaml.safe_load(src.read_text(encoding="utf-8"))
     doc["handout"] = str((src.parent / doc["handout"]).resolve())
     doc["support"] = {k: str((src.parent / v).resolve()) for k, v in doc["support"].items()}
     doc["scenarios"] = {k: v for k, v in doc["scenarios"].items() if k in scenarios}
+    if step_timeout is not None:
+        for sc in doc["scenarios"].values():
+            for step in sc.get("steps") or ():
+                if "goal" in step and step.get("timeout", 0) > step_timeout:
+                    step["timeout"] = step_timeout
     items = []
     for item in doc["items"]:
         sc = item.get("scenario")
@@ -73,7 +87,8 @@ def build_class(root: Path) -> dict[str, Path]:
         disguise_tree(root / "orig" / "src", root / name / "src", seed=i)
     _package(SIM / "rewritten_no_wrap", root / "rewritten")
     disguise_tree(KNOWN / "public_turtle_lab3" / "src", root / "known_copy" / "src", seed=7)
-    _package(LAB3 / "reference", root / "reference")
+    for name in ("reference", "alt_executors", "alt_rate_loop_threads"):
+        _package(LAB3 / name, root / name)
     for name in ("honest_b", "honest_c"):
         _package(SIM / name, root / name)
     for p in sorted(root.iterdir()):
@@ -81,4 +96,4 @@ def build_class(root: Path) -> dict[str, Path]:
     return subs
 
 
-__all__ = ["COPIES", "HONEST", "KNOWN", "build_class", "controller_rubric"]
+__all__ = ["COPIES", "HONEST", "KNOWN", "TEST_STEP_TIMEOUT", "build_class", "controller_rubric"]
