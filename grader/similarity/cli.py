@@ -18,6 +18,9 @@ def add_options(p: argparse.ArgumentParser) -> None:
                         "(e.g. the lab text's code): never counted (repeatable)")
     p.add_argument("--threshold", type=_share, default=None, metavar="SHARE",
                    help="list a pair when its source or behaviour similarity reaches this (0-1, default 0.5)")
+    p.add_argument("--max-pages", type=int, default=None, metavar="N",
+                   help="side-by-side pages (and class-view rows) for the N most similar listed pairs "
+                        "(default 50; every pair is in OUT/similarity/pairs.csv)")
 
 
 def add_grade_options(p: argparse.ArgumentParser) -> None:
@@ -92,6 +95,10 @@ def settings_from(args: argparse.Namespace):
                         known=str(Path(args.known).resolve()) if args.known else None)
     if args.threshold is not None:
         settings.threshold = args.threshold
+    if args.max_pages is not None:
+        if args.max_pages < 0:
+            raise GraderError(f"--max-pages {args.max_pages}: give 0 or more")
+        settings.max_pages = args.max_pages
     return settings
 
 

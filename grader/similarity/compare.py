@@ -54,6 +54,7 @@ class Shared:
     bits: float                   # rarity
     forced: float
     evidence: float
+    among: int = 0                # submissions with a recording of the scenario (N)
 
 
 @dataclass
@@ -179,7 +180,7 @@ def _tokens(key: str, first: Feature, sids: list[str], holders: Mapping[str, Fea
         for i in range(len(same)):
             for j in range(i + 1, len(same)):
                 per_pair[same[i], same[j]].append(Shared(key, label, first.group, first.scenario, None, 1.0,
-                                                         len(same), round(bits, 3), 0.0, round(bits, 3)))
+                                                         len(same), round(bits, 3), 0.0, round(bits, 3), n_class))
     return len(by_value) == 1
 
 
@@ -214,7 +215,7 @@ def _continuous(key: str, first: Feature, sids: list[str], holders: Mapping[str,
         a, b = sids[iu[k]], sids[ju[k]]
         per_pair[a, b].append(Shared(key, first.label, first.group, first.scenario, round(float(d[iu[k], ju[k]]), 5),
                                      round(float(close[iu[k], ju[k]]), 3), int(holders_n[k]), round(float(bits[k]), 3),
-                                     round(float(forced[k]), 3), round(float(evidence[k]), 3)))
+                                     round(float(forced[k]), 3), round(float(evidence[k]), 3), n_class))
     return bool(np.all(d <= tol))
 
 

@@ -59,7 +59,8 @@ def feature_sentence(f: Mapping[str, Any], n_class: int) -> str:
     what = GROUP_WORDS.get(str(f.get("group")), str(f.get("group")))
     holders = int(f.get("holders", 2))
     forced = float(f.get("forced") or 0.0)
-    text = (f"{what}: {f.get('label')}, {_distance_words(f)}; {holders} of {n_class} submissions show this "
+    text = (f"{what}: {f.get('label')}, {_distance_words(f)}; {holders} of {f.get('among') or n_class} "
+            f"submissions show this "
             f"({f.get('bits', 0):.1f} bits of rarity)")
     if forced > 0:
         text += f"; {100 * forced:.0f} % of it is what passing submissions do"
@@ -114,7 +115,7 @@ def _behaviour_section(p: Mapping[str, Any], summary: Mapping[str, Any]) -> str:
     rows = "".join(
         f'<tr><td>{escape(GROUP_WORDS.get(f["group"], f["group"]))}</td><td>{escape(f["label"])}</td>'
         f'<td>{escape(f["scenario"] or "—")}</td><td>{escape(_distance_words(f))}</td>'
-        f'<td class="num">{f["holders"]} of {n}</td><td class="num">{f["bits"]:.1f}</td>'
+        f'<td class="num">{f["holders"]} of {f.get("among") or n}</td><td class="num">{f["bits"]:.1f}</td>'
         f'<td class="num">{_pct(float(f["forced"]))}</td><td class="num">{f["evidence"]:.2f}</td></tr>'
         for f in feats)
     figures = overlay_figures(p, summary)
@@ -122,7 +123,8 @@ def _behaviour_section(p: Mapping[str, Any], summary: Mapping[str, Any]) -> str:
                    for fig in figures)
     lead = (f"Behaviour similarity {_pct(p['behaviour'])} ({p['behaviour_bits']:.1f} bits): what the two "
             f"submissions' code did in the recorded scenarios, each shared feature weighed by how few of the "
-            f"{n} submissions share it (bits: log2 of the class size over that count) and discounted where it "
+            f"{n} submissions share it (bits: log2 of the number with a recording of that scenario over that "
+            f"count) and discounted where it "
             f"is what submissions passing the scenario do (the lab asks for it).")
     return (f'<section aria-labelledby="beh-h"><h2 id="beh-h">Behaviour</h2><p>{lead}</p><div class="scroll">'
             f'<table class="shared"><thead><tr><th scope="col">What</th><th scope="col">Feature</th>'
@@ -174,11 +176,15 @@ def class_section(summary: Mapping[str, Any] | None) -> str:
                         for i, c in enumerate(summary["clusters"]))
         groups = (f'<h3>Groups of three or more</h3><p class="sub">Submissions joined by listed pairs, '
                   f'shown once as a group.</p><ul class="sim-groups">{items}</ul>')
+    shown = [p for p in listed if p.get("page")]
+    more = (f'<p class="sub">{len(listed) - len(shown)} more pair(s) reach {threshold:g}: see '
+            f'<a href="{OUT_DIR}/{PAIRS_CSV}">{PAIRS_CSV}</a> (pages are made for the '
+            f'{len(shown)} most similar).</p>') if len(shown) < len(listed) else ""
     if not listed:
         table = f'<p id="similar-none">No pair reaches {threshold:g}.</p>'
     else:
         rows = []
-        for rank, p in enumerate(listed, 1):
+        for rank, p in enumerate(shown, 1):
             top = "; ".join(escape(GROUP_WORDS.get(f["group"], f["group"]) + ": " + f["label"])
                             for f in (p.get("features") or [])[:3]) or "—"
             grp = "" if p.get("cluster") is None else f'group {p["cluster"] + 1}'
@@ -192,7 +198,7 @@ def class_section(summary: Mapping[str, Any] | None) -> str:
                  f'#</th><th scope="col">Submission</th><th scope="col">Similar to</th><th scope="col" class="num">'
                  f'Source</th><th scope="col" class="num">Behaviour</th><th scope="col">Group</th>'
                  f'<th scope="col">Most unusual in common</th><th scope="col">Page</th></tr></thead>'
-                 f'<tbody>{"".join(rows)}</tbody></table></div>')
+                 f'<tbody>{"".join(rows)}</tbody></table></div>{more}')
     return (f'<section aria-labelledby="similar-h"><h2 id="similar-h">Similar submissions</h2>'
             f'<p class="sub">{head}</p>{groups}{table}</section>')
 

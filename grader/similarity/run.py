@@ -40,6 +40,7 @@ class Settings:
     common_min: int = 10              # ... and by more than this many submissions are not counted
     boilerplate: list[str] = field(default_factory=list)     # folders of given code (besides the rubric's)
     known: str | None = None
+    max_pages: int = 50               # side-by-side pages (and class-view rows) for the most similar listed pairs
 
 
 @dataclass
@@ -228,7 +229,8 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
                      "tolerance": _tolerances(), "common_fingerprints_dropped": len(common)},
         "no_source": no_source,
         "clusters": [sorted(c) for c in clusters],
-        "pairs": [asdict(p) | {"score": p.score, "page": p.page} for p in ranked],
+        "pairs": [asdict(p) | {"score": p.score, "page": p.page if p.listed and rank < settings.max_pages else None}
+                  for rank, p in enumerate(ranked)],             # listed pairs come first
         "timings": {k: round(v, 3) for k, v in timings.items()},
         "_sets": {s.id: s for s in sets + known_sets},
         "_features": feats,
@@ -286,7 +288,7 @@ def write(out: Path, summary: dict[str, Any]) -> Path:
     public = {k: v for k, v in summary.items() if not k.startswith("_")}
     t = time.perf_counter()
     for p in summary["pairs"]:
-        if p["listed"]:
+        if p["page"]:
             atomic_write(folder / p["page"], render_pair(p, summary, Path(out)))
     public["timings"]["pages_s"] = round(time.perf_counter() - t, 3)
     atomic_write(folder / SUMMARY, json.dumps(public, indent=1) + "\n")

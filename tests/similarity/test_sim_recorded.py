@@ -115,3 +115,18 @@ def test_side_by_side_page_in_chromium(batch, tmp_path) -> None:
         href = page.eval("document.querySelector('#similar tbody tr a[href^=\"similarity/\"]').getAttribute('href')")
         assert href == f"{OUT_DIR}/{page_name}"
         page.close()
+
+
+def test_pages_are_made_for_the_most_similar_pairs_only(batch, tmp_path) -> None:
+    """--max-pages bounds the pages (and class-view rows) of a class where many pairs reach the
+    threshold; pairs.csv keeps them all."""
+    out, rubric = batch
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy, symlinks=True)
+    assert grader_main(["similarity", str(copy), "--rubric", str(rubric), "--threshold", "0", "--max-pages", "1"]) == 0
+    summary = json.loads((copy / OUT_DIR / SUMMARY).read_text())
+    assert all(p["listed"] for p in summary["pairs"]) and len(summary["pairs"]) == 6
+    assert [p["page"] is not None for p in summary["pairs"]] == [True] + [False] * 5
+    assert len(list((copy / OUT_DIR).glob("pair-*.html"))) == 1
+    index = (copy / "index.html").read_text()
+    assert index.count("side by side</a>") == 1 and "5 more pair(s) reach 0" in index
