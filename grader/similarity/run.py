@@ -21,13 +21,14 @@ from typing import Any
 
 from grader.errors import GraderError
 from grader.similarity import behaviour, code
-from grader.similarity.compare import BehaviourMatch, compare_behaviour
+from grader.similarity.compare import analyse
 from grader.similarity.files import SOURCE_DIR
 
 OUT_DIR = "similarity"
 SUMMARY = "similarity.json"
 PAIRS_CSV = "pairs.csv"
 KNOWN_PREFIX = "known:"
+MAX_FEATURES = 40            # shared features kept per listed pair (most telling first)
 
 
 @dataclass
@@ -177,7 +178,8 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
     timings["behaviour_features_s"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
-    bmatches = compare_behaviour(feats, _passing(docs, item_scenarios), ids)
+    found = analyse(feats, _passing(docs, item_scenarios), ids)
+    bmatches = found.matches
     timings["behaviour_pairs_s"] = time.perf_counter() - t1
 
     # source
@@ -211,9 +213,13 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
     for (a, b), bm in bmatches.items():
         p = pairs.setdefault((a, b), Pair(a, b))
         p.behaviour, p.behaviour_bits = float(bm.score), float(bm.bits)
-        p.features = [asdict(s) for s in bm.shared[:40]]
     for p in pairs.values():
         p.listed = bool(p.score >= settings.threshold)
+    t4 = time.perf_counter()
+    for p in pairs.values():           # the features behind a pair: for the pairs the class view shows
+        if p.listed and (p.a, p.b) in bmatches:
+            p.features = [vars(s).copy() for s in found.shared(p.a, p.b)[:MAX_FEATURES]]
+    timings["behaviour_explained_s"] = time.perf_counter() - t4
     clusters = _clusters([p for p in pairs.values() if p.listed and not p.known])
     for i, members in enumerate(clusters):
         for p in pairs.values():
@@ -238,9 +244,9 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
 
 
 def _tolerances() -> dict[str, float]:
-    from grader.similarity.compare import TOLERANCE
+    from grader.similarity.compare import TOLERANCE, UNIFORM_SHARE
 
-    return dict(TOLERANCE)
+    return {**TOLERANCE, "uniform_share": UNIFORM_SHARE}
 
 
 def _clusters(pairs: list[Pair]) -> list[set[str]]:

@@ -84,3 +84,13 @@ def test_result_features_skip_items_that_measured_nothing() -> None:
 
 def test_log_templates_ignore_numbers_and_spacing() -> None:
     assert template("New goal:  (2.00, 7.00)") == template("New goal: (0.8, -5.5e-1)") == "New goal: (#, #)"
+
+
+def test_the_account_of_a_pair_adds_up_to_its_score() -> None:
+    """The matrices score every pair; ``shared`` explains one: with one feature per group the
+    explained evidence is the pair's bits, and every scored pair has an account."""
+    feats, passing, ids = _class()
+    matches = compare_behaviour(feats, passing, ids)
+    assert matches and all(m.shared for m in matches.values())
+    for m in matches.values():
+        assert abs(sum(min(cap(len(ids)), s.evidence) for s in m.shared) - m.bits) < 0.01, m
