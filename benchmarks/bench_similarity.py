@@ -334,6 +334,15 @@ def main() -> int:
         copies, made = make_class(out, args.n, args.copies)
         print(f"class of {args.n} made in {time.perf_counter() - t0:.1f} s ({len(copies)} copies of "
               f"{len(set(copies.values()))} submissions); load average {os.getloadavg()[0]:.1f}")
+        from grader.grading.pipeline import scenario_frames
+        spent = 0.0
+        for sc_dir in sorted((Path(tmp) / "reference-regrade" / "reference" / "scenarios").iterdir()):
+            frames = scenario_frames(sc_dir)
+            c0 = time.process_time()
+            behaviour.fingerprint_frames(frames, sc_dir.name)
+            spent += time.process_time() - c0
+        print(f"at grade time: fingerprinting the reference's {len(list(sc_dir.parent.iterdir()))} real recordings "
+              f"(frames in memory) took {spent:.2f} s CPU")
         settings = Settings()
         c0, w0 = time.process_time(), time.perf_counter()
         summary = compute(out, rubric, settings, jobs=args.jobs)
