@@ -10,11 +10,13 @@ by the build), graded with the Lab 3 rubric cut down to the controller scenario
   of numpy, another setup.py), same constants and behaviour;
 * ``known_copy``: the known public solution ``fixtures/similarity/enee467_lab3/known/`` renamed and
   reformatted;
-* honest alternatives, all correct: ``reference``, ``honest_b`` and ``honest_c`` (written
-  independently with the lab's suggested gains, K_1 = 0.5, K_2 = 1, and timer, 0.03 s: the three
-  converge on one trajectory), ``alt_executors`` (K_1 = 0.45, K_2 = 1.5, a stop within 1 cm) and
+* honest alternatives, all correct: ``honest_b`` and ``honest_c`` (written independently with the
+  lab's suggested gains, K_1 = 0.5, K_2 = 1, and timer, 0.03 s: the two converge on one
+  trajectory), ``alt_executors`` (K_1 = 0.45, K_2 = 1.5, a stop within 1 cm) and
   ``alt_rate_loop_threads`` (K_1 = 0.4, K_2 = 0.9 in a 30 Hz rate loop), main's Lab 3 ``alt_*``
-  fixtures. (``alt_small_gains`` is left out: its 31-40 s per goal would double the test's time.)
+  fixtures. (``alt_small_gains`` is left out: its 31-40 s per goal would double the test's time.
+  The Lab 3 ``reference`` is left out too: ``no_wrap`` is that code with one line changed, so in
+  this class it would rightly rank as one more copy.)
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ LAB3 = REPO / "fixtures" / "submissions" / "enee467_lab3"
 SIM = REPO / "fixtures" / "similarity" / "enee467_lab3"
 KNOWN = SIM / "known"
 COPIES = {"orig", "copy_a", "copy_b", "rewritten"}      # one code: no_wrap's
-HONEST = {"reference", "honest_b", "honest_c", "alt_executors", "alt_rate_loop_threads"}
+HONEST = {"honest_b", "honest_c", "alt_executors", "alt_rate_loop_threads"}
 #: the step timeout of the class test's rubric: the correct members settle on every goal within
 #: 12 s; no_wrap never reaches the lab's first goal, and its copies need not spend the full 60 s
 #: there to show it
@@ -87,7 +89,7 @@ def build_class(root: Path) -> dict[str, Path]:
         disguise_tree(root / "orig" / "src", root / name / "src", seed=i)
     _package(SIM / "rewritten_no_wrap", root / "rewritten")
     disguise_tree(KNOWN / "public_turtle_lab3" / "src", root / "known_copy" / "src", seed=7)
-    for name in ("reference", "alt_executors", "alt_rate_loop_threads"):
+    for name in ("alt_executors", "alt_rate_loop_threads"):
         _package(LAB3 / name, root / name)
     for name in ("honest_b", "honest_c"):
         _package(SIM / name, root / name)

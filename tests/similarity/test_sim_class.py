@@ -3,7 +3,7 @@ the top by source and by behaviour, a rewritten copy is found by its behaviour, 
 solutions that converge on one trajectory stay below the copies, a known public solution is named,
 and the side-by-side page renders in headless Chromium.
 
-ONE grading batch (grader.testing.similarity_class: ten Lab 3 controllers, the controller scenario
+ONE grading batch (grader.testing.similarity_class: nine Lab 3 controllers, the controller scenario
 only) serves every assertion of this file.
 """
 
@@ -53,7 +53,7 @@ def _get(pairs: dict, a: str, b: str, key: str) -> float:
 
 def test_the_class_graded_as_its_fixtures_say(graded) -> None:
     out, _, summary = graded
-    assert summary["class_size"] == 10 and summary["pairs_compared"] == 45
+    assert summary["class_size"] == 9 and summary["pairs_compared"] == 36
     for sid in HONEST | {"known_copy"}:
         doc = json.loads((out / sid / "result.json").read_text())
         assert doc["auto_score"] == doc["auto_max"], sid
@@ -99,8 +99,8 @@ def test_copies_rank_at_the_top_by_behaviour(graded) -> None:
 
 
 def test_honest_alternatives_are_not_ranked_above_copies(graded) -> None:
-    """reference, honest_b and honest_c drive one trajectory (the lab's gains): what every
-    passing submission does is forced by the lab, so it is no evidence."""
+    """honest_b and honest_c drive one trajectory (the lab's gains): what every passing
+    submission does is forced by the lab, so it is no evidence."""
     _, _, summary = graded
     pairs = _pairs(summary)
     ranked = [frozenset((p["a"], p["b"])) for p in summary["pairs"]]         # by max(source, behaviour)
@@ -109,7 +109,7 @@ def test_honest_alternatives_are_not_ranked_above_copies(graded) -> None:
     assert max(copy_ranks) < min(honest_ranks, default=len(ranked))
     for a, b in combinations(sorted(HONEST), 2):
         assert not (pairs.get(frozenset((a, b))) or {}).get("listed"), (a, b)
-    same_path = pairs.get(frozenset(("honest_b", "reference")))
+    same_path = pairs.get(frozenset(("honest_b", "honest_c")))
     if same_path:   # their paths are close, and marked as what passing submissions do
         assert all(f["forced"] > 0.5 for f in same_path["features"] if f["group"] == "path")
 
