@@ -26,7 +26,7 @@ def _values(summary: Mapping[str, Any], key: str) -> dict[str, Any]:
 
 
 def _path_plot(key: str, label: str, a: str, b: str, values: Mapping[str, Any], shared: Mapping[str, Any]) -> Plot:
-    title = f"Both trajectories, {label}: the two submissions in colour, the rest of the class in grey"
+    title = f"Both trajectories: {label}"            # the legend says which is which; the class in grey
     fig, ax = new_figure(title, (6.4, 4.6), legend_width=2.0)
     others = [sid for sid in values if sid not in (a, b)]
     if others:      # one artist for the whole class: a page of a 200-student class draws in 0.1 s
@@ -49,7 +49,7 @@ def _path_plot(key: str, label: str, a: str, b: str, values: Mapping[str, Any], 
 def _series_plot(key: str, label: str, a: str, b: str, values: Mapping[str, Any], shared: Mapping[str, Any]) -> Plot:
     from grader.similarity.behaviour import CMD_GRID_S
 
-    title = f"Both series, {label}: the two submissions in colour, the rest of the class in grey"
+    title = f"Both series: {label}"
     fig, ax = new_figure(title, (6.4, 3.4), legend_width=2.0)
     grouped = shared.get("group") == "commands"
     lines = []
@@ -65,7 +65,7 @@ def _series_plot(key: str, label: str, a: str, b: str, values: Mapping[str, Any]
         ax.plot(xs, ys, color=colour, ls=style, lw=1.8, label=sid)
     ax.autoscale_view()
     ax.set(xlabel="time after the first change (s)" if grouped else "quantile (0, 10, 25, 50, 75, 90, 100 %)",
-           ylabel="value (unitless)")
+           ylabel="value as published")
     ax.legend(**OUTSIDE)
     alt = f"{label} of {a} and {b} on one plot over the rest of the class; {shared.get('holders')} submissions this close."
     return Plot(fig, title, alt)
