@@ -126,7 +126,7 @@ def test_outputs_and_offline_recompute(graded, tmp_path) -> None:
     shutil.copytree(out, copy, symlinks=True)
     for fp in copy.glob("*/scenarios/*/fingerprint.json"):
         fp.unlink()
-    assert grader_main(["similarity", str(copy), "--rubric", str(rubric), "--known", str(KNOWN), "--jobs", "1"]) == 0
+    assert grader_main(["similarity", str(copy), "--rubric", str(rubric), "--known", str(KNOWN), "--jobs", "2"]) == 0
     again = json.loads((copy / OUT_DIR / SUMMARY).read_text())
     assert [(p["a"], p["b"], p["source"], p["behaviour"]) for p in again["pairs"]] == \
            [(p["a"], p["b"], p["source"], p["behaviour"]) for p in summary["pairs"]]

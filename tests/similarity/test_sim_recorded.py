@@ -130,3 +130,22 @@ def test_pages_are_made_for_the_most_similar_pairs_only(batch, tmp_path) -> None
     assert len(list((copy / OUT_DIR).glob("pair-*.html"))) == 1
     index = (copy / "index.html").read_text()
     assert index.count("side by side</a>") == 1 and "5 more pair(s) reach 0" in index
+
+
+def test_fingerprints_are_made_from_the_bags_when_missing(batch, tmp_path) -> None:
+    """A batch graded before fingerprints were kept: `grader similarity` reads the bags (on two
+    processes) and scores every pair as it does from the stored fingerprints."""
+    out, rubric = batch
+    grader_main(["similarity", str(out), "--rubric", str(rubric)])
+    want = json.loads((out / OUT_DIR / SUMMARY).read_text())
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy, symlinks=True)
+    gone = list(copy.glob("*/scenarios/*/fingerprint.json"))
+    assert len(gone) == 4
+    for fp in gone:
+        fp.unlink()
+    assert grader_main(["similarity", str(copy), "--rubric", str(rubric), "--jobs", "2"]) == 0
+    got = json.loads((copy / OUT_DIR / SUMMARY).read_text())
+    assert all(fp.exists() for fp in gone)
+    assert [(p["a"], p["b"], p["source"], p["behaviour"]) for p in got["pairs"]] == \
+           [(p["a"], p["b"], p["source"], p["behaviour"]) for p in want["pairs"]]
