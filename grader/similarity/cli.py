@@ -17,7 +17,9 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="code the students were given besides the rubric's handout and support packages "
                         "(e.g. the lab text's code): never counted (repeatable)")
     p.add_argument("--threshold", type=_share, default=None, metavar="SHARE",
-                   help="list a pair when its source or behaviour similarity reaches this (0-1, default 0.5)")
+                   help="list a pair when its source similarity reaches this (0-1, default 0.5) ...")
+    p.add_argument("--behaviour-threshold", type=_share, default=None, metavar="SHARE",
+                   help="... or its behaviour similarity reaches this (0-1, default 0.3)")
     p.add_argument("--max-pages", type=int, default=None, metavar="N",
                    help="side-by-side pages (and class-view rows) for the N most similar listed pairs "
                         "(default 50; every pair is in OUT/similarity/pairs.csv)")
@@ -95,6 +97,8 @@ def settings_from(args: argparse.Namespace):
                         known=str(Path(args.known).resolve()) if args.known else None)
     if args.threshold is not None:
         settings.threshold = args.threshold
+    if args.behaviour_threshold is not None:
+        settings.behaviour_threshold = args.behaviour_threshold
     if args.max_pages is not None:
         if args.max_pages < 0:
             raise GraderError(f"--max-pages {args.max_pages}: give 0 or more")
@@ -107,8 +111,8 @@ def print_summary(summary: dict, out: Path) -> None:
     t = summary["timings"]
     print(f"similarity: {summary['class_size']} submissions, {summary['pairs_compared']} pairs"
           + (f", {len(summary['known'])} known solution(s)" if summary["known"] else "")
-          + f" in {t.get('total_s', 0):.1f} s; {len(listed)} pair(s) at or above "
-          f"{summary['settings']['threshold']:g}")
+          + f" in {t.get('total_s', 0):.1f} s; {len(listed)} pair(s) at or above source "
+          f"{summary['settings']['threshold']:g} or behaviour {summary['settings']['behaviour_threshold']:g}")
     for p in listed[:20]:
         other = ("known solution " + p["b"].split(":", 1)[1]) if p["known"] else p["b"]
         print(f"  {p['a']:<20} {other:<28} source {p['source']:.0%}  behaviour {p['behaviour']:.0%}")

@@ -144,8 +144,7 @@ def render_pair(p: Mapping[str, Any], summary: Mapping[str, Any], out: Path) -> 
         group = (f'<p>Both belong to a group of {len(members)} submissions joined by similar pairs: '
                  f'{", ".join(escape(m) for m in members)}.</p>')
     lead = (f'<p>{_report_link(p["a"])} and {_report_link(p["b"])}: source similarity {_pct(p["source"])}, '
-            f'behaviour similarity {_pct(p["behaviour"])} (listed at {summary["settings"]["threshold"]:g} or '
-            f'more). {escape(NOTE)}</p>')
+            f'behaviour similarity {_pct(p["behaviour"])} (listed at {_limits(summary)}). {escape(NOTE)}</p>')
     body = _source_section(p, summary.get("_sets") or {}) + _behaviour_section(p, summary)
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
@@ -156,18 +155,24 @@ def render_pair(p: Mapping[str, Any], summary: Mapping[str, Any], out: Path) -> 
 """
 
 
+def _limits(summary: Mapping[str, Any]) -> str:
+    st = summary.get("settings", {})
+    return (f"source similarity {_pct(st.get('threshold', 0.5))} or behaviour similarity "
+            f"{_pct(st.get('behaviour_threshold', 0.3))} or more")
+
+
 def class_section(summary: Mapping[str, Any] | None) -> str:
     """The class view's "Similar submissions" section (empty when similarity was not computed)."""
     if not summary:
         return ""
     listed = [p for p in summary.get("pairs") or () if p.get("listed")]
     n = summary.get("class_size", 0)
-    threshold = summary.get("settings", {}).get("threshold", 0.5)
+    limits = _limits(summary)
     known = summary.get("known") or []
     head = (f'{n} submissions, {summary.get("pairs_compared", 0)} pairs compared by source and behaviour'
             + (f', each also with {len(known)} known solution(s) ({", ".join(known)})' if known else "")
-            + f'. Listed: pairs whose source or behaviour similarity is {threshold:g} or more '
-              f'(<code>grader similarity OUT --threshold</code>), most similar first. All pairs: '
+            + f'. Listed: pairs at {limits} (<code>grader similarity OUT --threshold S '
+              f'--behaviour-threshold B</code>), the furthest above them first. All pairs: '
               f'<a href="{OUT_DIR}/{PAIRS_CSV}">{PAIRS_CSV}</a>. {escape(NOTE)}')
     groups = ""
     if summary.get("clusters"):
@@ -177,11 +182,11 @@ def class_section(summary: Mapping[str, Any] | None) -> str:
         groups = (f'<h3>Groups of three or more</h3><p class="sub">Submissions joined by listed pairs, '
                   f'shown once as a group.</p><ul class="sim-groups">{items}</ul>')
     shown = [p for p in listed if p.get("page")]
-    more = (f'<p class="sub">{len(listed) - len(shown)} more pair(s) reach {threshold:g}: see '
+    more = (f'<p class="sub">{len(listed) - len(shown)} more pair(s) are listed: see '
             f'<a href="{OUT_DIR}/{PAIRS_CSV}">{PAIRS_CSV}</a> (pages are made for the '
             f'{len(shown)} most similar).</p>') if len(shown) < len(listed) else ""
     if not listed:
-        table = f'<p id="similar-none">No pair reaches {threshold:g}.</p>'
+        table = f'<p id="similar-none">No pair is at {limits}.</p>'
     else:
         rows = []
         for rank, p in enumerate(shown, 1):

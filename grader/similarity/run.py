@@ -35,7 +35,9 @@ MAX_FEATURES = 40            # shared features kept per listed pair (most tellin
 class Settings:
     """What decides which pairs are listed; every number is written into similarity.json."""
 
-    threshold: float = 0.5            # a pair is listed when its source or behaviour score reaches this
+    threshold: float = 0.5            # a pair is listed when its source similarity reaches this ...
+    behaviour_threshold: float = 0.3  # ... or its behaviour similarity reaches this (another scale: a
+    #                                   group of k alike among N holds log2(N/k) / log2(N/2) of its bits)
     min_shared: int = 8               # fingerprints two submissions must share for any source score
     common_share: float = 0.2         # fingerprints held by more of the class than this share ...
     common_min: int = 10              # ... and by more than this many submissions are not counted
@@ -62,6 +64,11 @@ class Pair:
     @property
     def score(self) -> float:
         return max(self.source, self.behaviour)
+
+    def strength(self, settings: "Settings") -> float:
+        """How far the pair reaches its thresholds (>= 1: listed); the class view's order."""
+        return max(self.source / max(settings.threshold, 1e-9),
+                   self.behaviour / max(settings.behaviour_threshold, 1e-9))
 
     @property
     def page(self) -> str:
@@ -214,7 +221,7 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
         p = pairs.setdefault((a, b), Pair(a, b))
         p.behaviour, p.behaviour_bits = float(bm.score), float(bm.bits)
     for p in pairs.values():
-        p.listed = bool(p.score >= settings.threshold)
+        p.listed = bool(p.source >= settings.threshold or p.behaviour >= settings.behaviour_threshold)
     t4 = time.perf_counter()
     for p in pairs.values():           # the features behind a pair: for the pairs the class view shows
         if p.listed and (p.a, p.b) in bmatches:
@@ -225,7 +232,7 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
         for p in pairs.values():
             if p.listed and p.a in members and p.b in members:
                 p.cluster = i
-    ranked = sorted(pairs.values(), key=lambda p: (-p.score, p.a, p.b))
+    ranked = sorted(pairs.values(), key=lambda p: (not p.listed, -p.strength(settings), p.a, p.b))
     timings["total_s"] = time.perf_counter() - t0
     return {
         "schema": 1, "lab": next(iter(docs.values()), {}).get("lab") if docs else None,
@@ -235,7 +242,8 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
                      "tolerance": _tolerances(), "common_fingerprints_dropped": len(common)},
         "no_source": no_source,
         "clusters": [sorted(c) for c in clusters],
-        "pairs": [asdict(p) | {"score": p.score, "page": p.page if p.listed and rank < settings.max_pages else None}
+        "pairs": [asdict(p) | {"score": p.score, "strength": round(p.strength(settings), 4),
+                               "page": p.page if p.listed and rank < settings.max_pages else None}
                   for rank, p in enumerate(ranked)],             # listed pairs come first
         "timings": {k: round(v, 3) for k, v in timings.items()},
         "_sets": {s.id: s for s in sets + known_sets},

@@ -90,7 +90,7 @@ def test_copies_rank_at_the_top_by_behaviour(graded) -> None:
     assert lowest_copy > highest_other, (lowest_copy, highest_other)
     # the rewritten copy (other structure, same constants and behaviour) is found by behaviour ...
     rewritten = pairs[frozenset(("orig", "rewritten"))]
-    assert rewritten["listed"] and rewritten["behaviour"] >= summary["settings"]["threshold"], rewritten
+    assert rewritten["listed"] and rewritten["behaviour"] >= summary["settings"]["behaviour_threshold"], rewritten
     # ... with the features that made it: a shared unusual trajectory, the same failing item
     groups = {f["group"] for f in rewritten["features"]}
     assert {"path", "failure"} <= groups, groups
@@ -103,7 +103,7 @@ def test_honest_alternatives_are_not_ranked_above_copies(graded) -> None:
     submission does is forced by the lab, so it is no evidence."""
     _, _, summary = graded
     pairs = _pairs(summary)
-    ranked = [frozenset((p["a"], p["b"])) for p in summary["pairs"]]         # by max(source, behaviour)
+    ranked = [frozenset((p["a"], p["b"])) for p in summary["pairs"]]         # the class view's order
     copy_ranks = [ranked.index(frozenset(c)) for c in combinations(sorted(COPIES), 2)]
     honest_ranks = [ranked.index(frozenset(c)) for c in combinations(sorted(HONEST), 2) if frozenset(c) in pairs]
     assert max(copy_ranks) < min(honest_ranks, default=len(ranked))
