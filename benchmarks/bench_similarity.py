@@ -372,8 +372,11 @@ def main() -> int:
         rank = {frozenset((p["a"], p["b"])): i for i, p in enumerate(summary["pairs"])}
         found = [p for p in listed if frozenset((p["a"], p["b"])) in truth]
         worst = max(rank.get(k, len(rank)) for k in truth)
+        others = [p for p in listed if frozenset((p["a"], p["b"])) not in truth]
+        by_src = sum(1 for p in others if p["source"] >= settings.threshold)
         print(f"\ncopied pairs: {len(truth)}; listed {len(found)}, ranked within the first {worst + 1}; "
-              f"other pairs listed: {len(listed) - len(found)}")
+              f"other pairs listed: {len(others)} ({by_src} by source, {len(others) - by_src} by behaviour "
+              f"only; the generator's honest code shares whole blocks)")
         pairs_of = {frozenset((p["a"], p["b"])): p for p in summary["pairs"]}
         for k in sorted(truth, key=lambda k: rank.get(k, len(rank))):
             p = pairs_of.get(k)
