@@ -14,6 +14,9 @@ from grader.similarity.run import KNOWN_PREFIX, OUT_DIR, PAIRS_CSV
 NOTE = ("Similarity is not proof of misconduct: honest solutions of one lab share a lot. This page "
         "shows what the two have in common and how unusual that is in this class; read the code and the "
         "reports before drawing any conclusion.")
+CLASS_NOTE = ("Similarity is not proof of misconduct: honest solutions of one lab share a lot. Each pair's "
+              "page shows what the two have in common and how unusual that is in this class; read the code "
+              "and the reports before drawing any conclusion.")
 GROUP_WORDS = {"path": "trajectory", "commands": "commands sent", "values": "published values",
                "rate": "publish rate", "log": "log line", "names": "name", "failure": "item not passed",
                "measured": "measured value"}
@@ -173,7 +176,7 @@ def class_section(summary: Mapping[str, Any] | None) -> str:
             + (f', each also with {len(known)} known solution(s) ({", ".join(known)})' if known else "")
             + f'. Listed: pairs at {limits} (<code>grader similarity OUT --threshold S '
               f'--behaviour-threshold B</code>), the furthest above them first. All pairs: '
-              f'<a href="{OUT_DIR}/{PAIRS_CSV}">{PAIRS_CSV}</a>. {escape(NOTE)}')
+              f'<a href="{OUT_DIR}/{PAIRS_CSV}">{PAIRS_CSV}</a>. {escape(CLASS_NOTE)}')
     groups = ""
     if summary.get("clusters"):
         items = "".join(f'<li data-group="{i + 1}">Group {i + 1} ({len(c)} submissions): '
