@@ -108,3 +108,19 @@ def test_counted_files_and_interfaces(tmp_path, boiler):
     assert m.score == 1.0
     assert snapshot(tmp_path / "ws", tmp_path / "out") == 4
     assert (tmp_path / "out" / "source" / "src" / "goal_if" / "srv" / "SetGoal.srv").exists()
+
+
+def test_source_fingerprints_are_the_same_in_every_process(tmp_path) -> None:
+    """copydetect's own k-gram hash is Python's hash(), reseeded per process: two runs of one
+    class scored otherwise. Two processes with other PYTHONHASHSEEDs must keep the same
+    fingerprints (this fails with copydetect's hash)."""
+    import os
+    import subprocess
+    import sys
+
+    script = ("import sys; from pathlib import Path; from grader.similarity import code; "
+              "s = code.read_set('x', Path(sys.argv[1])); print(sorted(s.hashes)[:50], s.size)")
+    target = str(LAB3 / "no_wrap" / "src" / "turtle_control")
+    runs = [subprocess.run([sys.executable, "-c", script, target], capture_output=True, text=True, check=True,
+                           cwd=REPO, env={**os.environ, "PYTHONHASHSEED": seed}).stdout for seed in ("1", "2")]
+    assert runs[0] == runs[1] and runs[0].strip()
