@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from grader.grading.pipeline import GradedSubmission
     from grader.intake.batch import IntakeBatch
     from grader.rubric.schema import Rubric
+    from grader.similarity.run import Settings as SimilaritySettings
 
 __all__ = ["BatchResult", "PathLike", "analyze", "check", "grade", "load_rubric", "read_frames", "regrade"]
 
@@ -106,6 +107,7 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
           time_scale: float = 1.0, intake: str = "auto", roster: PathLike | None = None,
           roster_map: Sequence[str] = (), classroom_prefix: str | None = None,
           due: str | None = None, timezone: str | None = None, cache_max_size: str | None = None,
+          similarity: SimilaritySettings | None = None,
           on_intake: Callable[[IntakeBatch], None] | None = None,
           on_start: Callable[[int, int], None] | None = None,
           on_done: Callable[[str, GradedSubmission | None, str | None], None] | None = None,
@@ -121,7 +123,10 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     ``time_scale`` > 1: simulated time where the rubric allows; ``roster`` (+ ``roster_map``
     ``FIELD=COLUMN`` entries): match each submission to a student; ``due``/``timezone``: replace
     the late policy's due date; ``cache_max_size`` (``5G``, ``800M``): the cache's cap, enforced
-    least-recently-used at the end of the batch (default ``$GRADER_CACHE_MAX_SIZE`` or 5 GB). ``on_intake`` gets what was found, ``on_start(selected, done)``
+    least-recently-used at the end of the batch (default ``$GRADER_CACHE_MAX_SIZE`` or 5 GB);
+    ``similarity``: compare the graded class afterwards (``grader.similarity``: source and
+    behaviour, written to ``out/similarity/`` and the class view; never for a shard, which
+    ``grader merge`` compares once merged). ``on_intake`` gets what was found, ``on_start(selected, done)``
     how many submissions are to be graded and how many of them already are (``resume``) before
     grading starts, ``on_done(id, graded or None, error or None)`` each finished submission,
     ``progress`` status lines of a single submission.
@@ -176,6 +181,10 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     finally:
         write_batch_outputs(out, loaded)
     batch.interrupted = batch.interrupted or any("interrupted" in m for m in batch.failures.values())
+    if similarity is not None and not batch.interrupted and not shard:
+        from grader.similarity.cli import after_grading
+
+        after_grading(out, loaded, similarity)
     return batch
 
 

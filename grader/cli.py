@@ -24,6 +24,7 @@ SUBSYSTEMS = (
     "grader.rubric.guide",
     "grader.scores.cli",
     "grader.lms.cli",
+    "grader.similarity.cli",
 )
 
 

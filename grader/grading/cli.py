@@ -38,6 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="run every scenario, even when an identical one was recorded before")
     _cache_cap_option(g)
     _time_scale_option(g)
+    from grader.similarity.cli import add_grade_options
+
+    add_grade_options(g)
     g.set_defaults(func=run_grade)
 
     c = sub.add_parser("check", help="self-check your own workspace (public items only)",
@@ -172,6 +175,9 @@ class Progress:
 def run_grade(args: argparse.Namespace) -> int:
     from grader import api
 
+    from grader.similarity.cli import grade_settings
+
+    similarity = grade_settings(args)      # a wrong --known/--boilerplate is said before any grading
     progress: Progress | None = None
 
     def found(intake: Any) -> None:
@@ -197,8 +203,8 @@ def run_grade(args: argparse.Namespace) -> int:
                           resume=args.resume, reuse=not args.no_reuse, cache_dir=args.cache_dir,
                           time_scale=args.time_scale, intake=args.intake, roster=args.roster, roster_map=args.map,
                           classroom_prefix=args.classroom_prefix, due=args.due, timezone=args.timezone,
-                          cache_max_size=args.cache_max_size, on_intake=found, on_start=start, on_done=done,
-                          progress=status)
+                          cache_max_size=args.cache_max_size, similarity=similarity, on_intake=found,
+                          on_start=start, on_done=done, progress=status)
     finally:
         if progress is not None:
             progress.close()

@@ -244,7 +244,22 @@ def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
         if not isinstance(frames, Exception):
             mismatches[sc] = check_contract(rubric.contract, rubric.scenario_roles(sc), frames)
     findings.contract = merge_mismatches(mismatches)
+    _fingerprint(sub_out, frames_cache, problems)
     return findings, problems
+
+
+def _fingerprint(sub_out: Path, frames_cache: dict[str, Any], problems: list[str]) -> None:
+    """Each read scenario's behaviour fingerprint (grader.similarity) next to its bag, while its
+    frames are in memory: a class is then compared without reading its bags again."""
+    from grader.similarity.behaviour import write_fingerprint
+
+    for sc, frames in frames_cache.items():
+        if isinstance(frames, Exception):
+            continue
+        try:
+            write_fingerprint(sub_out / SCENARIOS_DIR / sc, frames)
+        except Exception as exc:  # noqa: BLE001 - similarity never costs a grade
+            problems.append(f"scenario {sc}: behaviour fingerprint not written ({type(exc).__name__}: {exc})")
 
 
 def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: Path | None = None,
@@ -268,6 +283,7 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
     from grader.grading.schedule import Slots
     from grader.rubric.score import score
     from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
+    from grader.similarity.files import snapshot
     from grader.workspace import build_workspace
     from grader.workspace.build import default_cache_dir
 
@@ -292,6 +308,7 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
         with slots.taken():
             build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support), holds=holds)
         shutil.copy(build.build_log, out / "build.log") if build.build_log.exists() else None
+        snapshot(build.root / "src", out)          # the source files grader similarity compares
         errors += [f"submission: {w}" for w in build.warnings]
         if not build.ok:
             errors += [f"package {n} did not build ({build.packages[n].status}):\n{build.packages[n].log_excerpt}"

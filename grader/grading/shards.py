@@ -82,15 +82,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("parts", type=Path, nargs="+", help="the shard outputs OUT_1 ... OUT_N")
     m.add_argument("-o", "--out", type=Path, required=True)
     m.add_argument("--rubric", type=Path, required=True, help="the rubric every shard was graded with")
+    from grader.similarity.cli import add_grade_options
+
+    add_grade_options(m)
     m.set_defaults(func=run_merge)
 
 
 def run_merge(args: argparse.Namespace) -> int:
     from grader.grading.outputs import write_batch_outputs
     from grader.rubric.load import load_rubric
+    from grader.similarity.cli import after_grading, grade_settings
 
     rubric = load_rubric(args.rubric)
+    similarity = grade_settings(args)
     merged = merge_outputs(args.parts, args.out, rubric)
     write_batch_outputs(args.out, rubric)
+    after_grading(args.out, rubric, similarity)
     print(f"merged {len(merged)} submissions from {len(args.parts)} outputs into {args.out}")
     return 0

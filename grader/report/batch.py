@@ -35,10 +35,12 @@ def load_results(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) 
 
 def write_batch(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> tuple[Path, Path]:
     """(Re)write ``out_dir/grades.csv`` and ``out_dir/index.html`` (the class view); returns both."""
+    from grader.similarity.run import read_summary
+
     results = load_results(out_dir, rubric)
     docs = read_docs(out_dir, list(results))
     return (write_grades_csv(out_dir, results, rubric=rubric, intake=intake_docs(docs)),
-            write_index(out_dir, results, docs=docs))
+            write_index(out_dir, results, docs=docs, similarity=read_summary(Path(out_dir))))
 
 
 def intake_docs(docs: dict[str, dict]) -> dict[str, dict]:

@@ -269,10 +269,18 @@ def _sub_table(subs: Sequence[Submission]) -> str:
             f'<thead><tr>{head}</tr></thead><tbody>{"".join(rows)}</tbody></table></div></section>')
 
 
+def _similar(summary: Mapping[str, Any] | None) -> str:
+    from grader.similarity.page import class_section
+
+    return class_section(summary)
+
+
 def render_index(results: Mapping[str, Result], *, title: str | None = None,
-                 docs: Mapping[str, Mapping[str, Any]] | None = None) -> str:
+                 docs: Mapping[str, Mapping[str, Any]] | None = None,
+                 similarity: Mapping[str, Any] | None = None) -> str:
     """The class view. ``docs``: each submission's result.json (build status, timings, previous
-    grading), optional."""
+    grading), optional. ``similarity``: ``OUT/similarity/similarity.json`` (grader.similarity), for
+    the section "Similar submissions"."""
     subs = []
     for sid in sorted(results):
         check_submission_id(sid)
@@ -285,7 +293,8 @@ def render_index(results: Mapping[str, Result], *, title: str | None = None,
         lead = (f"{len(subs)} submission(s). Automatic score out of {first.auto_max:g}: median "
                 f"{statistics.median(scores):g}, mean {statistics.mean(scores):.1f}, lowest {min(scores):g}, "
                 f"highest {max(scores):g}. Totals stay empty (—) until manual items are graded.")
-        body = _distribution(subs) + _item_table(subs) + _unstable(subs) + _regrade(subs) + _sub_table(subs)
+        body = (_distribution(subs) + _item_table(subs) + _unstable(subs) + _regrade(subs) + _sub_table(subs)
+                + _similar(similarity))
         script = f"<script>{INDEX_JS}</script>"
     else:
         lead, body, script = "No graded submissions yet.", "", ""

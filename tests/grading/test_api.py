@@ -98,7 +98,10 @@ def test_user_errors_are_grader_errors(tmp_path: Path) -> None:
 
 # CLI option (argparse dest) -> the API keyword it becomes
 RENAMED = {"no_reuse": "reuse", "map": "roster_map", "path": "path", "func": None, "command": None,
-           "rubric": "rubric", "submissions": "submissions", "workspace": "workspace"}
+           "rubric": "rubric", "submissions": "submissions", "workspace": "workspace",
+           # grader.similarity's options, gathered into one Settings
+           **{o: "similarity" for o in ("known", "boilerplate", "threshold", "behaviour_threshold", "max_pages",
+                                        "no_similarity")}}
 
 
 def _subparser(name: str) -> argparse.ArgumentParser:
@@ -121,8 +124,10 @@ def test_the_api_is_typed_and_documented() -> None:
     from grader.analyze import Finding
     from grader.intake.batch import IntakeBatch
 
+    from grader.similarity.run import Settings as SimilaritySettings
+
     names = {"pd": pd, "Finding": Finding, "GradedSubmission": GradedSubmission, "IntakeBatch": IntakeBatch,
-             "Rubric": Rubric}
+             "Rubric": Rubric, "SimilaritySettings": SimilaritySettings}
     for name in api.__all__:
         obj = getattr(api, name)
         if inspect.isfunction(obj):

@@ -82,6 +82,8 @@ def test_merged_shards_equal_one_unsharded_batch(shards: dict[str, Path], tmp_pa
         assert (merged / sid / "report.html").is_file() and (merged / sid / "scenarios").is_dir()
     index = (merged / "index.html").read_text()
     assert all(f"{sid}/report.html" in index for sid in IDS)
+    # the merged class is compared as one (grader similarity runs after the merge)
+    assert (merged / "similarity" / "similarity.json").is_file() and 'id="similar-h"' in index
 
 
 @pytest.mark.slow
