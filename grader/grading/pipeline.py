@@ -2,6 +2,9 @@
 
 ``analyze_bags`` is the offline half: it needs only the scenario folders (bags + records), so
 ``grader regrade`` recomputes a grade on any machine without ROS.
+
+A little over the project's ~400 lines: the one path from a submission to its result, whose
+steps (build, run, analyze, score, write) share the submission's folder and problem list.
 """
 
 from __future__ import annotations

@@ -6,6 +6,10 @@ recording* (scenario, see ``grader.scenario.model``). A new lab is a new YAML fi
 new analyzer), not new grading code. The classes mirror the YAML keys one to one; the loader
 (``grader.rubric.load``) validates a file into them and reports every problem as
 ``file:line: field.path: message``. Format reference: rubrics/README.md.
+
+Over the project's ~400 lines: the classes mirror the rubric's keys and their cross-field
+checks, which need the whole model at hand; the contract and intake fields are in modules of
+their own (``contract.py``, ``intake_fields.py``).
 """
 
 from __future__ import annotations

@@ -4,6 +4,9 @@
 ``status``, ``feedback``, ``evidence``; see grader.analyze) into points with the item's
 partial-credit rule, fills the rubric's feedback templates, and collects what needs a human:
 ungraded manual items (kept as empty points), advisory warnings (0 points) and integrity flags.
+
+A little over the project's ~400 lines: the Result model and the scoring that fills it (gating,
+contract blocking, the student view) change together.
 """
 
 from __future__ import annotations

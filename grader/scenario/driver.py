@@ -5,6 +5,9 @@ process exits) is also published on ``/grader/events``, and student stdout/stder
 ``/grader/stdout``, so the bag alone is enough to recompute a grade. With a ``sink`` (the
 scenario's recorder, in this process) they go into the bag from here, not through DDS, where any
 node could publish an "event" of its own (:mod:`grader.bag.recorder`).
+
+Over the project's ~400 lines: one node holds every client, publisher and the hold/placement
+state the steps share; the step logic itself is in ``steps.py``.
 """
 
 from __future__ import annotations

@@ -14,6 +14,9 @@ JSON round-trips and JSON Schema from one declaration.
 
 The field types and base model live in ``grader.scenario.fields``, the ``until:`` conditions in
 ``grader.scenario.conditions``; both are re-exported here, so ``model`` names the whole language.
+
+A little over the project's ~400 lines: one class per step and process kind of the rubric
+language, each short; the language reads best as one file (the guide is generated from it).
 """
 
 from __future__ import annotations

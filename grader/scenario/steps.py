@@ -3,6 +3,9 @@
 Dispatch is by type (``HANDLERS[type(step.do)]``, ``CONDITIONS[type(step.until)]``), so every
 class of ``grader.scenario.model`` has exactly one implementation here and a test can check
 that none is missing.
+
+Over the project's ~400 lines: one handler per step class and one predicate per condition,
+kept together so the dispatch tables and the test of their completeness stay in one place.
 """
 
 from __future__ import annotations
