@@ -67,7 +67,7 @@ def known_labs() -> tuple[list[Lab], list[str]]:
             continue
         labs.append(Lab(rub.lab, rub.title, float(rub.total if rub.total is not None else rub.total_max),
                         rub.auto_max, path))
-    return labs, broken
+    return sorted(labs, key=lambda lab: lab.id), broken     # by id, as `grader labs` lists them
 
 
 def rubric_for_lab(lab: str) -> Path:
