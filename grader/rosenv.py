@@ -79,7 +79,9 @@ def trusted_env(env: Mapping[str, str], prefixes: Iterable[Path],
       would be loaded, and the generated modules' typesupport libraries are found there) and
       gets the trusted builds' ones, last.
     * ``AMENT_PREFIX_PATH`` and ``CMAKE_PREFIX_PATH`` keep their prefixes (package share
-      lookups, definitions for the bag) but after everything else, the trusted builds first.
+      lookups) but last, after the system's and the trusted builds' (whose definitions the
+      recorder writes into the bag): a package of theirs named like one of ROS (``turtlesim``)
+      is never found before it.
     """
     out = dict(env)
     roots = [Path(p) for p in prefixes]
@@ -99,7 +101,7 @@ def trusted_env(env: Mapping[str, str], prefixes: Iterable[Path],
         + [str(p / "lib") for p in trusted if (p / "lib").is_dir()])
     for var in ("AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH"):
         theirs = [e for e in entries(var) if _under(e, roots)]
-        put(var, [str(p) for p in trusted] + [e for e in entries(var) if e not in theirs] + theirs)
+        put(var, [e for e in entries(var) if e not in theirs] + [str(p) for p in trusted] + theirs)
     sites = [str(p / PY_SITE) for p in trusted if (p / PY_SITE).is_dir()]
     if sites:
         out[INTERFACE_PATH_VAR] = os.pathsep.join(sites)

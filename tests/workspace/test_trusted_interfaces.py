@@ -102,7 +102,7 @@ def test_a_grader_process_gets_nothing_of_the_students_builds(tmp_path: Path) ->
     assert str(student) not in ours["PYTHONPATH"] and str(student) not in ours["LD_LIBRARY_PATH"]
     assert ours["LD_LIBRARY_PATH"].split(os.pathsep)[-1] == str(trusted / "lib")       # last
     ament = ours["AMENT_PREFIX_PATH"].split(os.pathsep)
-    assert ament[0] == str(trusted) and ament[-1] == str(student)                  # theirs after the system's
+    assert ament == [sys.prefix, "/opt/ros/jazzy", str(trusted), str(student)]     # theirs last
     assert ours[INTERFACE_PATH_VAR] == str(trusted / PY_SITE)
     assert str(trusted) not in ours["PYTHONPATH"]          # appended after start-up, never before the venv
     os.environ[INTERFACE_PATH_VAR] = ours[INTERFACE_PATH_VAR]
