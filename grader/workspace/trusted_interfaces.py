@@ -85,8 +85,7 @@ def definitions(install: Path, package: str) -> dict[str, list[Path]]:
         if not folder.is_dir():
             continue
         files = sorted(f for f in folder.glob(f"*.{kind}")
-                       if f.is_file() and not f.is_symlink() and f.resolve().is_relative_to(inside)
-                       and f.stat().st_size <= MAX_DEFINITION_BYTES)
+                       if f.is_file() and not f.is_symlink() and f.resolve().is_relative_to(inside))
         if files:
             found[kind] = files
     return found
@@ -115,6 +114,8 @@ def _check(package: str, files: dict[str, list[Path]]) -> set[str]:
         for f in paths:
             if not TYPE_NAME.match(f.stem):
                 raise GraderError(f"{kind}/{f.name}: '{f.stem}' is no valid interface name")
+            if f.stat().st_size > MAX_DEFINITION_BYTES:
+                raise GraderError(f"{kind}/{f.name} is larger than {MAX_DEFINITION_BYTES // 1024} KiB")
             for dep in field_packages(f.read_text(errors="replace")):
                 if not PACKAGE_NAME.match(dep):
                     raise GraderError(f"{kind}/{f.name}: '{dep}' is no valid package name")
