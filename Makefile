@@ -5,7 +5,7 @@ PYTHON ?= python3
 VENV   := .venv
 GRADER := $(VENV)/bin/grader
 
-.PHONY: bootstrap demo test test-fast test-slurm bench clean
+.PHONY: bootstrap demo test test-fast test-heavy test-slurm bench clean
 
 bootstrap:
 	@$(PYTHON) -m grader.bootstrap
@@ -20,14 +20,20 @@ demo: bootstrap
 	done
 	@echo "open demo-out/<lab>/index.html (the class view, one report per submission) and demo-out/<lab>/grades.csv"
 
+# everything but the heavy tests (~25 min on 2 cores); CI (.ci/run) runs test-heavy after it
 test: bootstrap
-	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest -m "not heavy" $(PYTEST_ARGS)
 
 test-fast: bootstrap
-	$(VENV)/bin/python -m pytest -m "not slow" $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest -m "not slow and not heavy" $(PYTEST_ARGS)
+
+# the longest end-to-end tests: every fixture of every lab, the fault corpus, a real Slurm
+# cluster, installs from git/pipx, the Gradescope image (see the `heavy` marker)
+test-heavy: bootstrap
+	$(VENV)/bin/python -m pytest -m heavy $(PYTEST_ARGS)
 
 # the Slurm example on a real single-node Slurm (slurmctld + slurmd started and stopped by the
-# test; part of `make test` too)
+# test; part of `make test-heavy` too)
 test-slurm: bootstrap
 	$(VENV)/bin/python -m pytest tests/scale/test_slurm.py $(PYTEST_ARGS)
 

@@ -219,6 +219,23 @@ def has_events(frames: Frames) -> bool:
     return topic(frames, EVENTS) is not None
 
 
+def held_mask(frames: Frames, t: np.ndarray) -> np.ndarray:
+    """True where ``t`` (bag times) falls while the grader held the turtles still (from each
+    ``turtles_held`` event to the ``turtles_released`` after it, or to the end): a placement's
+    hand-over, time no student code could move the turtle in."""
+    mask = np.zeros(len(t), dtype=bool)
+    start = None
+    for e in events(frames, (Event.TURTLES_HELD, Event.TURTLES_RELEASED)):
+        if e["event"] == Event.TURTLES_HELD:
+            start = e["t"] if start is None else start
+        elif start is not None:
+            mask |= (t >= start) & (t <= e["t"])
+            start = None
+    if start is not None:
+        mask |= t >= start
+    return mask
+
+
 def scenario_start(frames: Frames) -> float | None:
     """Receive time of the driver's ``scenario_start`` event: the origin of the times a report
     shows ("12.3 s after the scenario started"). None when the bag has no such event."""

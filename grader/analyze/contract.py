@@ -92,7 +92,8 @@ def _package(contract: Contract, e: PackageEntry, g: _Graph, facts: dict | None)
     if not facts or e.name in facts:
         return None
     claimed = {p.name for p in contract.packages.values()}
-    found = sorted(n for n, f in facts.items() if n not in claimed and (f.get("executables") or f.get("launch_files")))
+    found = sorted(n for n, f in facts.items() if n not in claimed
+                   and (f.get("executables") or f.get("launch_files") or f.get("stray_executables")))
     return (found, _said("a package", e.name, found, "Your package")) if found else None
 
 

@@ -32,8 +32,8 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, provenance, register
 from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, missing_topic_feedback, rosout_lines,
-                                    thin, times, topic)
+from grader.analyze._common import (sim_pose, WORLD_MAX, Frames, fmt, held_mask, missing_topic_feedback,
+                                    rosout_lines, thin, times, topic)
 from grader.analyze.rate import rate_stats
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -221,11 +221,14 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
     dt = np.maximum(np.diff(pt), 1e-3)
     speed = np.concatenate([[0.0], np.hypot(np.diff(x), np.diff(y)) / dt])
-    after = pt >= ct[0] + 0.1
+    # while the grader holds the turtle for a placement it cannot move: that time is not judged
+    held = held_mask(frames, pt)
+    after = (pt >= ct[0] + 0.1) & ~held
     share = float(np.mean(speed[after] > p["min_speed"])) if after.any() else 0.0
     stalls = _stalls(pt[after], speed[after] > p["min_speed"])
     ev = {"commands": len(ct), "rate_hz": stats["rate_hz"], "max_gap_s": float(gaps.max()) if len(gaps) else None,
-          "moving_share": share, "stalls": stalls[:10], "limit_gap_s": p["max_gap_s"]}
+          "moving_share": share, "stalls": stalls[:10], "limit_gap_s": p["max_gap_s"],
+          "held_s": float(np.sum(np.diff(pt)[held[1:]])) if len(pt) > 1 else 0.0}
     value = f"{share:.0%} of the time moving"
     problems = []
     slow = bool(len(gaps)) and gaps.max() >= p["max_gap_s"]

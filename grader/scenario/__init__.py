@@ -78,8 +78,11 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
             launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error=str(exc)),)
     prefixes = tuple(str(p) for p in build.prefixes()) if build is not None else ()
     interfaces = tuple(str(p) for p in build.interface_prefixes()) if build is not None else ()
+    from grader.workspace.executables import stray_executables
+
     packages = {name: PackageFacts(status=pkg.status, executables=tuple(sorted(pkg.executables)),
-                                   launch_files=tuple(launch_files(build, name)))
+                                   launch_files=tuple(launch_files(build, name)),
+                                   stray_executables=tuple(stray_executables(name, build.install / name)))
                 for name, pkg in (build.packages.items() if build is not None else ())}
     return ScenarioRun(id=scenario_id, scenario=scenario, launched=launched, prefixes=prefixes,
                        interfaces=interfaces,

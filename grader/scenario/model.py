@@ -436,6 +436,8 @@ class PackageFacts(Model):
     status: str                        # built | failed | skipped
     executables: Annotated[tuple[str, ...], Field(strict=False)] = ()
     launch_files: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    #: executables it installed under another package's lib/ folder (``lib/<other>/<name>``)
+    stray_executables: Annotated[tuple[str, ...], Field(strict=False)] = ()
 
 
 class ScenarioRun(Model):

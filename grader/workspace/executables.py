@@ -62,6 +62,16 @@ def executable_paths(package: str, prefix: Path, *, nested: bool = True) -> list
     return out
 
 
+def stray_executables(package: str, prefix: Path) -> list[str]:
+    """Executables the package installed under ``<prefix>/lib/<other>/`` (``lib/<other>/<name>``):
+    ``ros2 run`` finds none of them under either name. A package renamed in ``setup.py`` whose
+    ``setup.cfg`` still says ``script_dir=$base/lib/<old name>`` leaves its nodes there."""
+    lib = Path(prefix) / "lib"
+    others = sorted(d.name for d in lib.iterdir() if d.is_dir() and d.name != package
+                    and not d.name.startswith(("python", "."))) if lib.is_dir() else []
+    return [str(p.relative_to(lib)) for other in others for p in executable_paths(other, prefix)]
+
+
 def listing(package: str, prefix: Path | None) -> list[str]:
     """Names ``ros2 pkg executables <package>`` prints (empty when the package is not found)."""
     return sorted(p.name for p in executable_paths(package, prefix)) if prefix is not None else []

@@ -61,3 +61,34 @@ def test_a_box_without_its_top_side_hits_the_wall_from_the_north_start() -> None
     north = next(p for p in places if abs(math.remainder(p.theta - math.pi / 2, math.tau)) < 0.1)
     finding = walls(run(box(top=18.0), start=(north.x, north.y, north.theta), duration=20.0))
     assert finding.status == "fail" and "hit the wall" in finding.feedback
+
+
+def test_a_placement_hold_is_not_a_stall() -> None:
+    """The grader holds the turtle still while it places it (``turtles_held`` ..
+    ``turtles_released``, ~2 s when no goal is handed over): the wall-pen drive_north run's
+    hold made every correct controller "stand still 2.2 s" and lose keeps_moving. The held time
+    is not judged; a stall outside a hold still is. (Fails without the hold mask.)"""
+    import pandas as pd
+
+    from analyze_synth import events_frame
+
+    frames = run(box(), duration=20.0)
+    pose = frames["/turtle1/pose"].copy()
+    t = pose.index.to_numpy()
+    t0, t1 = t[0] + 0.6, t[0] + 2.8
+    still = (t >= t0) & (t <= t1)
+    first = int(still.argmax())
+    for col in ("x", "y", "theta"):                      # the turtle held where it was
+        pose.loc[pose.index[still], col] = pose[col].iloc[first]
+    pose.loc[pose.index[still], ["linear_velocity", "angular_velocity"]] = 0.0
+    params = dict(RUBRIC.item("motion.keeps_moving").params)
+    frames["/turtle1/pose"] = pose
+    frames.pop("/grader/sim/turtle1/pose", None)
+    unheld = check(analyze.run("keeps_moving", frames, params))
+    assert unheld.status == "fail" and "stood still for 2.2 s" in unheld.feedback, unheld.feedback
+    events = frames.get("/grader/events")
+    held = events_frame([(t0 - 0.01, "turtles_held", {"step": "north", "ok": True}),
+                         (t1 + 0.01, "turtles_released", {"step": "north", "ok": True})])
+    frames["/grader/events"] = held if events is None else pd.concat([events, held]).sort_index()
+    finding = check(analyze.run("keeps_moving", frames, params))
+    assert finding.status == "pass", finding.feedback

@@ -80,6 +80,7 @@ RENAMED = "rename_topic-ee7f7777"
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 @pytest.mark.timeout(900)
 def test_audit_kills_a_broken_mutant_and_lists_survivors_with_diffs(tmp_path: Path) -> None:
     ref = SUBS / "first_nodes" / "reference"

@@ -40,7 +40,7 @@ def plant_links(folder: Path) -> None:
     module.plant_links(folder)
 
 
-pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(1800)]
+pytestmark = [pytest.mark.slow, pytest.mark.heavy, pytest.mark.ros, pytest.mark.timeout(1800)]
 
 
 def tree_state(*roots: Path) -> dict[str, str]:

@@ -102,6 +102,7 @@ def test_wheel_builds_from_a_git_file_url(clone: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.ros
+@pytest.mark.heavy
 @pytest.mark.timeout(1800)
 def test_pipx_install_from_git_then_setup_and_self_check(clone: Path, tools: Path, tmp_path: Path) -> None:
     """`pipx install git+file://...`, `grader setup`, `grader check --lab enee467-lab3`: a student's

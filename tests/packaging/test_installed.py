@@ -42,7 +42,7 @@ REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures" / "submissions" / "enee467_lab3"
 SCHEMA = json.loads((REPO / "grader" / "lms" / "gradescope.schema.json").read_text())
 
-pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(3600)]
+pytestmark = [pytest.mark.slow, pytest.mark.heavy, pytest.mark.ros, pytest.mark.timeout(3600)]
 
 
 def clean_env(**extra: str) -> dict[str, str]:

@@ -32,7 +32,7 @@ LAB3 = REPO / "fixtures" / "submissions" / "enee467_lab3"
 RUBRIC = REPO / "rubrics" / "enee467_lab3.yaml"
 FIXTURES = ["reference", "bm_log10", "wrong_sign", "broken_build"]
 
-pytestmark = [pytest.mark.slow, pytest.mark.ros, pytest.mark.timeout(2400)]
+pytestmark = [pytest.mark.slow, pytest.mark.heavy, pytest.mark.ros, pytest.mark.timeout(2400)]
 
 
 @pytest.fixture(scope="module")

@@ -269,3 +269,20 @@ def test_a_package_outside_the_submission_is_found_in_a_sourced_ros(tmp_path: Pa
         build.argv("mine", "node")
     with pytest.raises(GraderError, match=r"package 'other' is not in the submission \(packages found: mine\)"):
         build.argv("other", "node")
+
+
+def test_stray_executables_are_those_under_another_packages_lib_folder(tmp_path: Path) -> None:
+    """A package renamed in setup.py whose setup.cfg still installs its scripts into
+    lib/<old name>/: ros2 run finds them under neither name, and the contract check needs to
+    know the package has nodes at all (first_nodes diagnosis other_package)."""
+    from grader.workspace.executables import listing, stray_executables
+
+    prefix = tmp_path / "install" / "my_package"
+    for rel in ("lib/my_first_package/my_first_node", "lib/python3.11/site-packages/x.py"):
+        path = prefix / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("#!/usr/bin/env python3\n")
+        path.chmod(0o755)
+    assert listing("my_package", prefix) == []
+    assert stray_executables("my_package", prefix) == ["my_first_package/my_first_node"]
+    assert stray_executables("my_first_package", prefix) == []
