@@ -52,52 +52,70 @@ def _prepend(env: dict[str, str], var: str, parts: Iterable[str]) -> None:
         env[var] = os.pathsep.join(new + old)
 
 
-#: the students' Python trees, for a grader process that imports their interface types: appended
-#: to ``sys.path`` after start-up (:func:`add_student_paths`) instead of being on ``PYTHONPATH``
-STUDENT_PATH_VAR = "GRADER_STUDENT_PYTHONPATH"
-#: the students' trees :func:`add_student_paths` added in this process (kept out of grader processes)
-_STUDENT_PATHS: list[str] = []
+#: the trusted builds' Python trees (``grader.workspace.trusted_interfaces``), for a grader process
+#: that imports the students' interface types: appended to ``sys.path`` after start-up
+#: (:func:`add_interface_paths`), so no module of theirs shadows one of the grader's
+INTERFACE_PATH_VAR = "GRADER_INTERFACE_PYTHONPATH"
 
 
-def trusted_env(env: Mapping[str, str], prefixes: Iterable[Path]) -> dict[str, str]:
+def _under(entry: str, roots: list[Path]) -> bool:
+    path = Path(entry)
+    return any(path == r or r in path.parents for r in roots)
+
+
+def trusted_env(env: Mapping[str, str], prefixes: Iterable[Path],
+                interfaces: Iterable[Path] = ()) -> dict[str, str]:
     """``env`` for a grader process (the scenario child, the simulator), which runs outside the
-    students' jail: the students' Python trees (``<prefix>/lib/pythonX.Y/site-packages`` of their
-    builds) leave ``PYTHONPATH`` for :data:`STUDENT_PATH_VAR`.
+    students' jail as the grader's user (root on Gradescope): nothing of the students' builds
+    (``prefixes``) may be loaded in it.
 
-    On ``PYTHONPATH`` they come before the venv, so Python would run a ``sitecustomize.py`` or
-    ``usercustomize.py`` a student's package installs there at the start of every grader process
-    (as the grader's user: root on Gradescope), and a student's module named like one the grader
-    imports (``yaml``, ``numpy``) would shadow it.
+    * ``PYTHONPATH`` loses their Python trees: before the venv, Python would run a
+      ``sitecustomize.py`` or ``.pth`` file a student's package installs there at start-up, a
+      module named like one the grader imports (``yaml``, ``numpy``) would shadow it, and their
+      interface packages may hold any Python their build installed. The student types come
+      from ``interfaces`` instead, the grader's own builds of their definitions, appended to
+      ``sys.path`` at start-up (:data:`INTERFACE_PATH_VAR`, :func:`add_interface_paths`).
+    * ``LD_LIBRARY_PATH`` loses their ``lib`` folders (a library there named like one of ROS
+      would be loaded, and the generated modules' typesupport libraries are found there) and
+      gets the trusted builds' ones, last.
+    * ``AMENT_PREFIX_PATH`` and ``CMAKE_PREFIX_PATH`` keep their prefixes (package share
+      lookups) but last, after the system's and the trusted builds' (whose definitions the
+      recorder writes into the bag): a package of theirs named like one of ROS (``turtlesim``)
+      is never found before it.
     """
     out = dict(env)
-    roots = [Path(p) for p in prefixes] + [Path(p) for p in _STUDENT_PATHS]
-    theirs: list[str] = []
-    ours: list[str] = []
-    for entry in filter(None, out.get("PYTHONPATH", "").split(os.pathsep)):
-        path = Path(entry)
-        (theirs if any(path == r or r in path.parents for r in roots) else ours).append(entry)
-    if ours:
-        out["PYTHONPATH"] = os.pathsep.join(ours)
+    roots = [Path(p) for p in prefixes]
+    trusted = [Path(p) for p in interfaces]
+
+    def entries(var: str) -> list[str]:
+        return [e for e in out.get(var, "").split(os.pathsep) if e]
+
+    def put(var: str, parts: list[str]) -> None:
+        if parts:
+            out[var] = os.pathsep.join(dict.fromkeys(parts))
+        else:
+            out.pop(var, None)
+
+    put("PYTHONPATH", [e for e in entries("PYTHONPATH") if not _under(e, roots)])
+    put("LD_LIBRARY_PATH", [e for e in entries("LD_LIBRARY_PATH") if not _under(e, roots)]
+        + [str(p / "lib") for p in trusted if (p / "lib").is_dir()])
+    for var in ("AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH"):
+        theirs = [e for e in entries(var) if _under(e, roots)]
+        put(var, [e for e in entries(var) if e not in theirs] + [str(p) for p in trusted] + theirs)
+    sites = [str(p / PY_SITE) for p in trusted if (p / PY_SITE).is_dir()]
+    if sites:
+        out[INTERFACE_PATH_VAR] = os.pathsep.join(sites)
     else:
-        out.pop("PYTHONPATH", None)
-    if theirs:
-        out[STUDENT_PATH_VAR] = os.pathsep.join(theirs)
+        out.pop(INTERFACE_PATH_VAR, None)
     return out
 
 
-def add_student_paths() -> None:
+def add_interface_paths() -> None:
     """In a grader process started with :func:`trusted_env`: make the students' interface types
-    importable, after everything of the grader's own (so nothing of theirs shadows it), and give
-    the processes it starts the build's ``PYTHONPATH`` back."""
-    theirs = [e for e in os.environ.pop(STUDENT_PATH_VAR, "").split(os.pathsep) if e]
-    _STUDENT_PATHS.extend(theirs)
-    for entry in theirs:
+    (the grader's builds of them) importable, after everything of the grader's own."""
+    for entry in filter(None, os.environ.pop(INTERFACE_PATH_VAR, "").split(os.pathsep)):
         if entry not in sys.path:
             sys.path.append(entry)
-    # what this process starts gets the build's environment as colcon's setup.bash gives it (the
-    # students' trees first); RosGraph takes them out again for the grader's own processes
-    if theirs:
-        os.environ["PYTHONPATH"] = os.pathsep.join([*theirs, *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))])
 
 
 def child_env(*, domain_id: int | None = None, prefixes: Iterable[Path] = (),

@@ -277,7 +277,7 @@ class ManagedProcess:
 class RosGraph:
     """An isolated ROS graph: a leased domain id, localhost-only discovery, owned processes."""
 
-    def __init__(self, workdir: Path, *, prefixes: Iterable[Path] = (),
+    def __init__(self, workdir: Path, *, prefixes: Iterable[Path] = (), interfaces: Iterable[Path] = (),
                  extra_env: Mapping[str, str] | None = None,
                  lease: DomainLease | None = None, sandbox: ChildConfig | None = None) -> None:
         self.workdir = Path(workdir)
@@ -292,6 +292,8 @@ class RosGraph:
         if self.sandbox is not None and self.sandbox.netns:
             extra["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"   # the namespace is the boundary
         self._prefixes = [Path(p) for p in prefixes]
+        #: the grader's own builds of the students' interface packages (its processes' types)
+        self._interfaces = [Path(p) for p in interfaces]
         self.env = child_env(domain_id=self.domain_id, prefixes=self._prefixes, extra={**extra, **(extra_env or {})})
         self.processes: list[ManagedProcess] = []
         self.limits = LimitWatch(self.sandbox)
@@ -325,7 +327,7 @@ class RosGraph:
             if not spec.untrusted:
                 # a grader process (the simulator, also when a launch file starts it) runs outside
                 # the jail: nothing of the students' Python trees may run in it at start-up
-                env = trusted_env(env, self._prefixes)
+                env = trusted_env(env, self._prefixes, self._interfaces)
         proc = process_class(spec, env, self.logdir, **kwargs)
         if kwargs.get("output_cap"):
             self.limits.watch_output(proc)

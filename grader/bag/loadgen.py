@@ -76,9 +76,9 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     from grader.bag.rosio import message_class
-    from grader.rosenv import add_student_paths
+    from grader.rosenv import add_interface_paths
 
-    add_student_paths()     # a grader process (trusted env): the students' types, after our own
+    add_interface_paths()     # a grader process: the students' types from the grader's own build of them
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=int(os.environ.get("ROS_DOMAIN_ID", "0") or 0))
     node = rclpy.create_node(args.node_name, context=ctx)

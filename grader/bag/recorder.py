@@ -447,9 +447,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from grader.rosenv import add_student_paths
+    from grader.rosenv import add_interface_paths
 
-    add_student_paths()     # started with a trusted env: the students' types, after our own modules
+    add_interface_paths()     # a grader process: the students' types from the grader's own build of them
     return run(build_parser().parse_args(argv))
 
 

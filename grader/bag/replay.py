@@ -217,9 +217,9 @@ def add_arguments(p: Any) -> None:
 def main(argv: list[str] | None = None) -> int:
     import argparse
 
-    from grader.rosenv import add_student_paths
+    from grader.rosenv import add_interface_paths
 
-    add_student_paths()     # started with a trusted env: the students' types, after our own modules
+    add_interface_paths()     # a grader process: the students' types from the grader's own build of them
     parser = argparse.ArgumentParser(prog="python -m grader.bag.replay")
     add_arguments(parser)
     args = parser.parse_args(argv)

@@ -180,7 +180,9 @@ class CgroupSet:
                 (d / "cpu.max").write_text(f"{quota} {CPU_PERIOD_US}")
             else:
                 (d / "cpu.cfs_period_us").write_text(str(CPU_PERIOD_US))
-                (d / "cpu.cfs_quota_us").write_text(str(quota))
+                # v1 refuses (EINVAL) a quota above an ancestor's (a container given less than
+                # this many CPUs): that ancestor's quota already holds the group back further
+                _try_write(d / "cpu.cfs_quota_us", str(quota))
 
     def counters(self) -> dict[str, float]:
         """What the kernel counted: OOM kills, refused forks, CPU throttling, peaks."""

@@ -77,6 +77,7 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
         except GraderError as exc:
             launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error=str(exc)),)
     prefixes = tuple(str(p) for p in build.prefixes()) if build is not None else ()
+    interfaces = tuple(str(p) for p in build.interface_prefixes()) if build is not None else ()
     from grader.workspace.executables import stray_executables
 
     packages = {name: PackageFacts(status=pkg.status, executables=tuple(sorted(pkg.executables)),
@@ -84,6 +85,7 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
                                    stray_executables=tuple(stray_executables(name, build.install / name)))
                 for name, pkg in (build.packages.items() if build is not None else ())}
     return ScenarioRun(id=scenario_id, scenario=scenario, launched=launched, prefixes=prefixes,
+                       interfaces=interfaces,
                        sim_node=sim_node, notes=notes, launch_installed=installed, packages=packages,
                        launch_files=files)
 
@@ -109,9 +111,9 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
 
     sandbox = ScenarioSandbox(prefixes=run.prefixes, env=env, memory_mb=run.scenario.limits.memory_mb,
                               name=run.id)
-    from grader.rosenv import trusted_env     # the students' Python trees: imported last, never run at start-up
+    from grader.rosenv import trusted_env     # nothing of the students' builds runs in the grader's processes
 
-    env = trusted_env(env, [Path(p) for p in run.prefixes])
+    env = trusted_env(env, [Path(p) for p in run.prefixes], [Path(p) for p in run.interfaces])
     with sandbox, open(out / "scenario.log", "wb") as log:
         argv = sandbox.argv([sys.executable, "-m", "grader.scenario.run", str(run_file), str(out)])
         proc = subprocess.Popen(argv, env=sandbox.env(env), stdout=log, stderr=subprocess.STDOUT,

@@ -445,6 +445,9 @@ class ScenarioRun(Model):
     scenario: Scenario
     launched: dict[str, Annotated[tuple[LaunchedProcess, ...], Field(strict=False)]]  # rubric process -> OS processes
     prefixes: Annotated[tuple[str, ...], Field(strict=False)] = ()
+    #: the grader's own builds of the build's interface packages: the only student types grader
+    #: processes import (``grader.workspace.trusted_interfaces``)
+    interfaces: Annotated[tuple[str, ...], Field(strict=False)] = ()
     sim_node: str = "turtlesim"
     notes: dict[str, Annotated[tuple[str, ...], Field(strict=False)]] = {}  # process -> remarks (launch)
     launch_installed: dict[str, bool] = {}   # process -> its launch file is in the package's share

@@ -9,8 +9,9 @@ With ``time_scale`` > 1 the simulator (or ``grader_clock``) owns simulated time 
 runs with ``use_sim_time`` (see :mod:`grader.scenario.simtime`); the clock is held while a
 student process starts, and the run stops early with ``time_scale.fallback`` in the record when
 the watchdog says it would not grade like 1x (:mod:`grader.scenario.watchdog`).
-Runs in a child process started with the build's environment, so the student's interface types
-import here and rclpy state never leaks between scenarios.
+Runs in a child process started with a trusted environment (``rosenv.trusted_env``): the students'
+interface types import here from the grader's own build of their definitions, never from theirs
+(``grader.workspace.trusted_interfaces``), and rclpy state never leaks between scenarios.
 """
 
 from __future__ import annotations
@@ -220,7 +221,10 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
     driver = recorder = sim = None
-    with RosGraph(out) as graph:
+    # the students' processes get their build's environment (as its setup.bash gives it), the
+    # grader's processes the trusted one (rosenv.trusted_env)
+    with RosGraph(out, prefixes=[Path(p) for p in run.prefixes],
+                  interfaces=[Path(p) for p in run.interfaces]) as graph:
         record["domain_id"] = graph.domain_id
         _discover_like(graph)
         try:
@@ -429,9 +433,9 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m grader.scenario.run RUN.json OUT_DIR", file=sys.stderr)
         return 2
     run = ScenarioRun.model_validate_json(Path(argv[0]).read_text())
-    from grader.rosenv import add_student_paths
+    from grader.rosenv import add_interface_paths
 
-    add_student_paths()        # the students' interface types, after the grader's own modules
+    add_interface_paths()     # a grader process: the students' types from the grader's own build of them
     import faulthandler
     faulthandler.enable()      # a crash in rclpy leaves the Python stacks in scenario.log
     # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks

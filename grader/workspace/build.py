@@ -39,6 +39,7 @@ from grader.workspace.diagnose import DETAIL_LINES, Availability, Diagnosis, dia
 from grader.workspace.package_cache import (CachedPackage, PackageCache, copy_installs, package_keys,
                                             stage_support)
 from grader.workspace.source import PackageSource, stage_sources, tree_digest
+from grader.workspace.trusted_interfaces import TrustedInterfaces, build_trusted_interfaces
 
 BUILD_TIMEOUT_S = 900
 BUILD_MEMORY_MB = 6144     # colcon + compilers of one submission together (cgroup)
@@ -80,6 +81,8 @@ class BuildResult:
     cached: bool = False
     duration_s: float = 0.0
     warnings: list[str] = field(default_factory=list)   # what staging skipped (not cached: per submission)
+    #: the grader's own builds of the interface packages, for grader processes (trusted_interfaces)
+    interfaces: TrustedInterfaces = field(default_factory=TrustedInterfaces)
 
     @property
     def install(self) -> Path:
@@ -101,6 +104,11 @@ class BuildResult:
     def prefixes(self) -> list[Path]:
         """Install prefixes of the built packages (what ``source install/setup.bash`` adds)."""
         return [self.install / n for n, p in self.packages.items() if p.status == "built"]
+
+    def interface_prefixes(self) -> list[Path]:
+        """Install prefixes of the trusted builds of its interface packages: what grader
+        processes import the students' types from (never ``prefixes()``)."""
+        return [Path(p) for _, p in sorted(self.interfaces.prefixes.items())]
 
     def env(self, **kwargs) -> dict[str, str]:
         return child_env(prefixes=self.prefixes(), **kwargs)
@@ -362,7 +370,10 @@ def _build(submission: Path, cache_dir: Path, support: dict[str, Path] | None, f
                 result.warnings = staging_result.warnings
                 if trusted:
                     packages_cache.share(result, keys)      # e.g. after the index was cleared
-                return result
+                elif not all(Path(p).is_dir() for p in result.interfaces.prefixes.values()):
+                    result.interfaces = build_trusted_interfaces(result, cache_dir)    # cleared meanwhile
+                    result_file.write_text(json.dumps(_to_json(result), indent=1))
+                return _with_interface_problems(result)
             if root.exists():
                 shutil.rmtree(root)
             root.mkdir(parents=True)
@@ -379,22 +390,33 @@ def _build(submission: Path, cache_dir: Path, support: dict[str, Path] | None, f
             packages = _package_results(root, staged, timed_out=rc == TIMED_OUT, reused=reused)
             result = BuildResult(str(submission), digest, root, packages,
                                  duration_s=round(time.monotonic() - t0, 2), warnings=staging_result.warnings)
+            if not trusted:      # grader processes import the students' types from their own build
+                result.interfaces = build_trusted_interfaces(result, cache_dir)
             result_file.write_text(json.dumps(_to_json(result), indent=1))
             if trusted:
                 packages_cache.share(result, keys)
-            return result
+            return _with_interface_problems(result)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _with_interface_problems(result: BuildResult) -> BuildResult:
+    """The student reads why the grader could not use one of their interface packages."""
+    result.warnings = [*result.warnings, *(f"interface package '{n}': {why}"
+                                           for n, why in sorted(result.interfaces.problems.items()))]
+    return result
 
 
 def _to_json(result: BuildResult) -> dict:
     return {"source": result.source, "digest": result.digest, "root": str(result.root),
             "duration_s": result.duration_s,
-            "packages": {n: asdict(p) for n, p in result.packages.items()}}
+            "packages": {n: asdict(p) for n, p in result.packages.items()},
+            "trusted_interfaces": result.interfaces.to_json()}
 
 
 def load_result(path: Path) -> BuildResult:
     data = json.loads(Path(path).read_text())
     return BuildResult(data["source"], data["digest"], Path(data["root"]),
                        {n: PackageBuild(**p) for n, p in data["packages"].items()},
-                       duration_s=data.get("duration_s", 0.0))
+                       duration_s=data.get("duration_s", 0.0),
+                       interfaces=TrustedInterfaces.from_json(data.get("trusted_interfaces")))

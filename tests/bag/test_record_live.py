@@ -100,7 +100,8 @@ def test_custom_student_types_decode_from_the_bag_alone(tmp_path: Path, tci_pref
 
     pkg = "turtle_control_interfaces"
     bag = tmp_path / "custom"
-    with RosGraph(workdir=tmp_path / "g", prefixes=[tci_prefix]) as g:
+    # the test's own build of the interface package: trusted, the types of the grader's processes
+    with RosGraph(workdir=tmp_path / "g", prefixes=[tci_prefix], interfaces=[tci_prefix]) as g:
         rec = start_recorder(g, bag)
         pubs = [
             loadgen(g, "goal", f"{pkg}/msg/Goal", ["/goal"], rate=50, count=20),

@@ -166,6 +166,14 @@ def test_the_reasons_are_in_the_results(batch: dict) -> None:
     tampered = "".join(f.read_text(errors="replace") for f in (batch["out"] / "autograder_tamper").glob("scenarios/*/logs/*"))
     assert "TAMPER run start" in tampered and "sitecustomize.py: " in tampered and ": done" not in tampered
     assert "SNOOPED" not in tampered
+    # the planted module of interface_import ran in its nodes (their jail) and in no grader process
+    # (those would also have left its marker in /tmp: test_nothing_outside_the_output_changed)
+    scen = batch["out"] / "interface_import" / "scenarios"
+    planted = "".join(f.read_text(errors="replace") for f in scen.glob("*/logs/*.log"))
+    assert "PLANTED IMPORT uid 65534" in planted or ("PLANTED IMPORT" in planted and os.geteuid() != 0)
+    assert "PLANTED IMPORT" not in "".join(f.read_text(errors="replace") for f in scen.glob("*/scenario.log"))
+    assert not [f for f in scen.glob("*/logs/*") if "PLANTED IMPORT" in f.read_text(errors="replace")
+                and "turtlesim" in f.name]
 
 
 # --------------------------------------------------------------------------- Lab 3: the grader teleports too

@@ -299,8 +299,9 @@ def test_installed_grader_grades_the_chase_lab_with_its_own_analyzer_file(autogr
 # --- the sandbox on Gradescope: hostile submissions in a simulated /autograder, run as root ---
 
 FAULTS = REPO / "fixtures" / "faults"
-HOSTILE = ("autograder_tamper", "read_rubric", "write_outside")
+HOSTILE = ("autograder_tamper", "read_rubric", "write_outside", "interface_import")
 TAMPER = "grader-fault-tamper"
+PLANTED = "grader-fault-interface-import"     # the marker interface_import's planted module writes
 
 
 @pytest.fixture(scope="module")
@@ -410,6 +411,12 @@ def test_gradescope_grades_hostile_submissions_in_the_jail(goal_setter_image: tu
     # processes (root, outside the jail) must never run
     assert re.search(r"TAMPER build write \S+/install/turtle_goal/\S+/sitecustomize.py: done", tamper_logs)
     assert not list(Path("/tmp").glob(f"{TAMPER}*"))
+    # interface_import's planted module ran in its nodes, jailed, and in no grader process: the
+    # scenario process imported SetGoal from the grader's own build of SetGoal.srv
+    planted = "".join(f.read_text(errors="replace")
+                      for f in (roots["interface_import"] / "grader-out" / "submission").rglob("*.log"))
+    assert "PLANTED IMPORT uid 65534" in planted, planted[-3000:]
+    assert not re.search(r"PLANTED IMPORT uid 0\b", planted) and not list(Path("/tmp").glob(f"{PLANTED}*"))
 
     # the honest submission graded by `grader grade` outside Gradescope: the same results
     subs = tmp_path / "local-subs"
@@ -417,11 +424,20 @@ def test_gradescope_grades_hostile_submissions_in_the_jail(goal_setter_image: tu
     sh([venv_grader(autograder), "grade", subs, "--rubric", rubric,
         "-o", tmp_path / "local", "--cache-dir", tmp_path / "local-cache", "--jobs", "2"], cwd=tmp_path, env=clean_env())
     local = json.loads((tmp_path / "local" / "honest" / "result.json").read_text())
-    local_tests = {i["id"]: (float(i["points"] or 0), float(i["max_points"]), i["status"])
-                   for i in local["items"] if i["kind"] != "manual"}
-    assert honest["score"] == local["auto_score"]
-    assert {t["extra_data"]["item"]: (t["score"], t["max_score"], t["extra_data"]["status"]) for t in honest["tests"]} \
-        == local_tests
+    # results.json as Gradescope would get it from the local grade, field by field. What may
+    # differ between two live runs of the same code: execution_time (wall time) and each test's
+    # ``output`` (its feedback quotes measured values, e.g. the distance at which the turtle
+    # stopped); everything that is a grade (score, status, visibility) may not.
+    local_tests = [{"name": f"{i['id']}: {i['title']}", "score": float(i["points"] or 0),
+                    "max_score": float(i["max_points"]), "status": "passed" if i["status"] == "pass" else "failed",
+                    "item": i["id"], "kind": i["kind"], "item_status": i["status"]}
+                   for i in local["items"] if i["kind"] != "manual"]
+    gradescope_tests = [{"name": t["name"], "score": t["score"], "max_score": t["max_score"], "status": t["status"],
+                         "item": t["extra_data"]["item"], "kind": t["extra_data"]["kind"],
+                         "item_status": t["extra_data"]["status"]} for t in honest["tests"]]
+    assert gradescope_tests == local_tests
+    assert honest["score"] == local["auto_score"] and honest["extra_data"]["auto_max"] == local["auto_max"]
+    assert honest["output"].splitlines()[0] == f"{title}: {local['auto_score']:g}/{local['auto_max']:g} points from the autograder."
 
 
 def sysconfig_purelib(venv: Path) -> str:

@@ -198,3 +198,27 @@ def test_bubblewrap_without_size_still_jails(tmp_path: Path, monkeypatch) -> Non
     finally:
         monkeypatch.delenv("GRADER_BWRAP")
         probe.cache_clear()
+
+
+def test_a_cpu_quota_above_an_ancestors_is_left_to_the_ancestor() -> None:
+    """cgroup v1 refuses (EINVAL) a child's CPU quota above an ancestor's, as in a container
+    given half a CPU: the scenario's group is made without one instead of failing the scenario."""
+    from grader.sandbox.cgroups import CgroupSet, CgroupSupport, find_cgroup_support
+
+    base = find_cgroup_support().bases.get("cpu")
+    if base is None or not (Path(base) / "cpu.cfs_quota_us").exists():
+        pytest.skip("no writable cgroup v1 cpu controller here")
+    outer = Path(base) / f"grader-test-quota-{os.getpid()}"
+    outer.mkdir()
+    try:
+        (outer / "cpu.cfs_period_us").write_text("100000")
+        (outer / "cpu.cfs_quota_us").write_text("50000")              # half a CPU above the grader
+        group = CgroupSet.create(CgroupSupport(bases={"cpu": str(outer)}), "scenario")
+        group.set_limits(cpus=1.0)
+        assert (outer / "scenario" / "cpu.cfs_quota_us").read_text().strip() == "-1"
+        group.set_limits(cpus=0.25)                                  # below it: applied
+        assert (outer / "scenario" / "cpu.cfs_quota_us").read_text().strip() == "25000"
+    finally:
+        for d in (outer / "scenario", outer):
+            if d.exists():
+                d.rmdir()
