@@ -260,7 +260,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
-                _wait_recorded(driver, recorder, record)
+                _wait_recorded(driver, recorder, record, topics)
             start_hold = contextlib.ExitStack()
             if scale:
                 # the clock is held from here until the autostarted processes are up: a recorder
@@ -353,7 +353,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     return record
 
 
-def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[str, Any]) -> None:
+def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[str, Any],
+                   topics: list[str] | None) -> None:
     """Go on only once the recorder has recorded the simulator's poses (both topics).
 
     The driver hearing the simulator says nothing about the recorder: it is another DDS
@@ -367,8 +368,11 @@ def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[st
 
     if recorder is None:
         return
-    wanted = [driver.pose_topic or "/turtle1/pose"]
-    wanted.append(truth_pose_topic(wanted[0]))
+    pose = driver.pose_topic or "/turtle1/pose"
+    # only the topics this scenario records (a rubric's `record:` list may leave the copy out)
+    wanted = [t for t in (pose, truth_pose_topic(pose)) if topics is None or t in topics]
+    if not wanted:
+        return
     if not driver.wait_until(lambda: all(recorder.recorded(t) for t in wanted), RECORDER_READY_S, wall=True):
         missing = [t for t in wanted if not recorder.recorded(t)]
         record["errors"].append(f"the recorder recorded nothing on {', '.join(missing)} within "
