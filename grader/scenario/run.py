@@ -12,6 +12,9 @@ the watchdog says it would not grade like 1x (:mod:`grader.scenario.watchdog`).
 Runs in a child process started with a trusted environment (``rosenv.trusted_env``): the students'
 interface types import here from the grader's own build of their definitions, never from theirs
 (``grader.workspace.trusted_interfaces``), and rclpy state never leaks between scenarios.
+
+A little over the project's ~400 lines: the child's one sequence (graph, recorder, simulator,
+driver, students, steps, shutdown) shares its record and its clean-up stack.
 """
 
 from __future__ import annotations
