@@ -134,12 +134,9 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
                             f"(first at t={unexplained[0]['t']:.2f}, {unexplained[0]['distance']:.2f} m)")
     elif df is None:
         return Finding.error(f"No {name} messages were recorded; the check could not run.", ev)
-    ev["basis"] = (("publisher list" if pubs else "")
-                   + (" and the simulator's own record" if recorded
-                      else " and the simulator's own copy of every pose" if exact else ""))
-    if not ev["basis"]:
-        ev["basis"] = "pose stream consistency (publisher list not recorded)"
-    ev["basis"] = ev["basis"].strip().removeprefix("and ")
+    parts = (["publisher list"] if pubs else []) + (
+        ["the simulator's own record"] if recorded else ["the simulator's own copy of every pose"] if exact else [])
+    ev["basis"] = " and ".join(parts) or "pose stream consistency (publisher list not recorded)"
     if problems:
         return Finding("flagged", 0.0, "fail",
                        "Integrity: " + "; ".join(problems) + ". Only the simulator may publish the turtle's pose.", ev)
