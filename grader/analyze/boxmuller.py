@@ -38,6 +38,7 @@ EVIDENCE = {
     "exclude_loggers": ("loggers whose lines are not the student's values", ''),
     "max_lag_s": ('latest a value may be logged after its input', 's'),
     "lead_s": ('earliest before its input', 's'),
+    "max_chance_full": ('chance a match in the full lag window is a coincidence, at most', ''),
     "bug_min_ratio": ('share of values a known bug must explain', SHARE),
     "max_chance": ('chance a match is a coincidence, at most', ''),
     "tail_grace_s": ('time after the last input still read', 's'),

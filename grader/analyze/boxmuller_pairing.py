@@ -99,6 +99,7 @@ COMMON_DEFAULTS = {
     "exclude_loggers": ["turtlesim", "rosbag2_recorder", "rosbag2_player", "grader", "simple_publisher"],
     "max_lag_s": 2.0,               # a printed value may answer inputs up to this much earlier
     "lead_s": 0.25,                 # ... or this much later (clock skew log stamp vs recorder)
+    "max_chance_full": 0.02,        # the full lag window may decide only where chance matches stay below this
 }
 
 
@@ -314,50 +315,72 @@ def _pair(inp: Inputs, src: Source, pos: int, z: np.ndarray, sens: np.ndarray, v
     return pairs
 
 
-def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred: Any, p: dict, t_cut: float) -> Pairing:
-    """Pair lines with inputs (see _pair) and measure the share matched, corrected for chance.
-
-    Two passes: the first uses the full window; when it finds real matches their time lags are
-    tight (a node logs within milliseconds of receiving), so the second pass only accepts lags in
-    that band (+-50 ms). Then the chance that a random input in the band matches a line is
-    measured on windows shifted far away in time, and the matched share is corrected for it, so
-    coarse printing ("%.1f") against a fast replay cannot earn credit by coincidence.
-    """
-    z, sens = pred[formula]
-    v, h = src.column(pos)
-    full = (-p["lead_s"], p["max_lag_s"])
-    lo, hi = _windows(inp, src.time, p)
-    pairs = _pair(inp, src, pos, z, sens, v, h, lo, hi)
-    lag = full
-    lags = np.array([src.time[j] - inp.t[i] for j, i, m in pairs if m])
-    if len(lags) >= 5:
-        lag = (max(full[0], float(np.quantile(lags, 0.02)) - 0.05),
-               min(full[1], float(np.quantile(lags, 0.98)) + 0.05))
-        lo, hi = _windows(inp, src.time, p, lag)
-        pairs = _pair(inp, src, pos, z, sens, v, h, lo, hi)
-    # chance level: the same lines against inputs far away in time
+def _chance(inp: Inputs, src: Source, pos: int, z: np.ndarray, sens: np.ndarray, v: np.ndarray,
+            h: np.ndarray, p: dict, lag: tuple[float, float], lo: np.ndarray, hi: np.ndarray) -> float | None:
+    """Share of lines a random input in the lag band would match: the same lines against inputs
+    far away in time (full windows only, not cut by the bag's ends); None when the bag is too
+    short to shift any window that far."""
     span = lag[1] - lag[0] + 1.0
     have = np.array([-len(n) <= pos < len(n) for n in src.numbers]) & np.isfinite(v)
     hits = tot = 0
     width = max(1.0, 0.8 * float(np.median(hi - lo))) if len(hi) else 1.0
     for shift in (-3 * span, -2 * span, 2 * span, 3 * span):
         slo, shi = _windows(inp, src.time, p, lag, shift)
-        ok = have & (shi - slo >= width)      # full windows only (not cut by the bag's ends)
+        ok = have & (shi - slo >= width)
         if ok.sum():
             hits += _count_any(z, sens, v[ok], h[ok], slo[ok], shi[ok])
             tot += int(ok.sum())
-    chance = hits / tot if tot else 0.0
-    matched_i = [i for _, i, m in pairs if m]
-    if matched_i:
-        first_i = min(matched_i)
-        t0 = inp.t[first_i]
-        t_cut = max(t_cut, float(inp.t[max(matched_i)]))
-    else:
-        first_i = None
-        t0 = float(src.time[0]) - p["max_lag_s"] if len(src.time) else float("inf")
-    expected = int(((inp.t >= t0 - 1e-9) & (inp.t <= t_cut)).sum())
-    expected = max(expected, len(matched_i))
-    return Pairing(src, pos, formula, pairs, len(matched_i), expected, first_i, lag, chance)
+    return hits / tot if tot else None
+
+
+def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred: Any, p: dict, t_cut: float) -> Pairing:
+    """Pair lines with inputs (see _pair) and measure the share matched, corrected for chance.
+
+    Two passes: the first uses the full window; when it finds real matches their time lags are
+    usually tight (a node logs within milliseconds of receiving), so the second pass only accepts
+    lags in that band (2nd to 98th percentile, +-50 ms). For each, the chance that a random input
+    in the band matches a line is measured on windows shifted far away in time, and the matched
+    share is corrected for it, so coarse printing ("%.1f") against a fast replay cannot earn credit
+    by coincidence. The full pass decides instead when it matches more and chance plays no part
+    in it (``max_chance_full``): a node starved of CPU (a MultiThreadedExecutor on a loaded 2-core
+    machine) answers one pair in ten 0.1-1 s late, and a band fitted to the other nine must not
+    turn its correct values into "wrong lines" (a CI run graded such a correct subscriber
+    894/1000); with four or five printed decimals a chance match in the full 2 s window is ~1e-3.
+    Coarse printing keeps the band: there the correction, not the pairing, would decide.
+    """
+    z, sens = pred[formula]
+    v, h = src.column(pos)
+    full = (-p["lead_s"], p["max_lag_s"])
+    lo, hi = _windows(inp, src.time, p)
+    pairs = _pair(inp, src, pos, z, sens, v, h, lo, hi)
+    passes = [(full, pairs, lo, hi)]
+    lags = np.array([src.time[j] - inp.t[i] for j, i, m in pairs if m])
+    if len(lags) >= 5:
+        band = (max(full[0], float(np.quantile(lags, 0.02)) - 0.05),
+                min(full[1], float(np.quantile(lags, 0.98)) + 0.05))
+        blo, bhi = _windows(inp, src.time, p, band)
+        passes.append((band, _pair(inp, src, pos, z, sens, v, h, blo, bhi), blo, bhi))
+    best: Pairing | None = None
+    for lag, pairs, lo, hi in reversed(passes):          # the band first: it wins a tie
+        measured = _chance(inp, src, pos, z, sens, v, h, p, lag, lo, hi)
+        chance = 0.0 if measured is None else measured
+        matched_i = [i for _, i, m in pairs if m]
+        cut = t_cut
+        if matched_i:
+            first_i: int | None = min(matched_i)
+            t0 = inp.t[min(matched_i)]
+            cut = max(t_cut, float(inp.t[max(matched_i)]))
+        else:
+            first_i = None
+            t0 = float(src.time[0]) - p["max_lag_s"] if len(src.time) else float("inf")
+        expected = int(((inp.t >= t0 - 1e-9) & (inp.t <= cut)).sum())
+        expected = max(expected, len(matched_i))
+        cand = Pairing(src, pos, formula, pairs, len(matched_i), expected, first_i, lag, chance)
+        if best is None or (cand.ratio > best.ratio and measured is not None
+                            and measured <= p["max_chance_full"]):
+            best = cand
+    assert best is not None
+    return best
 
 
 @dataclass
