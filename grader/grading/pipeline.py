@@ -134,14 +134,19 @@ def _crashed_nodes(frames: dict) -> list[str]:
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
     limits = [str(e.get("detail") or e.get("limit") or e.get("what") or "") for e in events(frames, Event.LIMIT_HIT)]
+    starts = sorted((float(e["t"]), str(e.get("step"))) for e in events(frames, Event.STEP_START)
+                    if e.get("step") is not None and e.get("t") is not None)
     out = []
     for e in events(frames, Event.PROCESS_EXIT):
         if not e.get("stopped_by_grader"):
             name = e.get("process", "?")
             tail = last_line.get(name, "")
             code = e.get("returncode")
-            what = (f"{name} returned on its own (exit code 0) while the scenario ran: does it keep spinning?"
-                    if code == 0 else f"{name} crashed (exit code {code})")
+            # the step it died in: the rubric's scenario description says what that step sends
+            step = [s for t, s in starts if e.get("t") is not None and t <= float(e["t"])]
+            when = f" during step '{step[-1]}'" if step else ""
+            what = (f"{name} returned on its own (exit code 0){when} while the scenario ran: does it keep spinning?"
+                    if code == 0 else f"{name} crashed (exit code {code}){when}")
             out.append(what + (f" ({tail[:160]})" if tail else ""))
     if out and limits:
         out.append("limit reached: " + "; ".join(dict.fromkeys(m for m in limits if m)))
@@ -153,14 +158,16 @@ def analyze_item(item: Item, frames: dict) -> Finding:
 
     When the analysis could not happen because the student's node did not run (it could not be
     built or started, or it crashed), that is the student's failure (0 points) with the reason
-    in the feedback, not a grader error. Integrity checks are the exception: code that never ran
+    in the feedback, not a grader error. A partial finding gets the crash too: a controller that
+    died before the last goal must read that it died (and in which step), not only "goal 4 not
+    reached". Integrity checks are the exception: code that never ran
     did nothing suspicious, so for them "could not check" stays an error (see `combine_findings`).
     """
     from grader import analyze
 
     finding = analyze.run(cast(str, item.analyzer), frames, dict(item.params))
-    if finding.status not in ("fail", "error"):
-        return finding      # only a failed analysis needs the events and output parsed for a reason
+    if finding.status not in ("fail", "error", "partial"):
+        return finding      # only a lost point needs the events and output parsed for a reason
     missing = _unavailable_nodes(frames)
     crashed = _crashed_nodes(frames)
     if missing or crashed:
