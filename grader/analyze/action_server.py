@@ -304,6 +304,11 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
                 problem = f"result success=False after {row['duration_s']:.1f} s (status {g['status']}{where}{limit})"
             elif dist is not None and dist > tol + p["pos_slack"]:
                 problem = f"reported success but the turtle was {dist:.2f} m away (goal_tol {tol:g})"
+            elif g["status"] not in (None, "SUCCEEDED"):
+                # rclpy aborts a goal whose execute callback returns without succeed(): a
+                # client (ros2 action send_goal) reads "ABORTED" whatever the result says
+                problem = (f"the result says success=True but the goal ended {g['status']}: call "
+                           "goal_handle.succeed() before returning the result")
         row["ok"] = problem is None
         row["problem"] = problem
         ok_n += problem is None

@@ -179,3 +179,36 @@ def test_server_never_found_is_the_students_fault() -> None:
     for name in ("action_goals_succeed", "action_rejects_out_of_bounds", "action_timeout"):
         f = check(get(name)(fr, {}))
         assert f.status == "fail" and "never found" in f.feedback, name
+
+
+@pytest.mark.parametrize("hz,status", [(30.0, "pass"), (15.0, "pass"), (60.0, "pass"), (3000.0, "fail"), (0.0, "fail")])
+def test_the_control_loop_is_paced(hz: float, status: str) -> None:
+    # the template's 30 Hz, a student's default of 15 or 60 Hz; a loop without self.rate.sleep()
+    # (thousands a second, the audit's surviving mutant); a loop that publishes nothing
+    evs = [_goal(T0 + 1, 1.0, 9.0, True, True, T0 + 9), _goal(T0 + 10, 8.0, 3.0, True, True, T0 + 18),
+           _goal(T0 + 20, 15.0, 5.0, False)]
+    fr = _frames(evs)
+    if hz:
+        t = np.concatenate([np.arange(a + 0.06, b, 1.0 / hz) for a, b in ((T0 + 1, T0 + 9), (T0 + 10, T0 + 18))])
+        fr["/turtle1/cmd_vel"] = frame(t, **{"linear.x": 0.5, "angular.z": 0.1})
+        fr = with_meta({k: v for k, v in fr.items() if k != "__meta__"})
+    f = check(get("action_loop_paced")(fr, {}))
+    assert f.status == status, f.feedback
+    if hz:
+        assert f.evidence["rate_hz"] == pytest.approx(hz, rel=0.03)
+    if hz > 200:
+        assert "self.rate.sleep()" in f.feedback
+
+
+def test_the_loop_needs_a_goal_that_ran() -> None:
+    f = check(get("action_loop_paced")(_frames([_goal(T0 + 1, 15.0, 5.0, False)]), {}))
+    assert f.status == "fail" and "long enough" in f.feedback
+
+
+def test_a_success_the_goal_status_contradicts_is_not_a_success() -> None:
+    # execute_callback returning without goal_handle.succeed(): rclpy aborts the goal, and
+    # `ros2 action send_goal` reports ABORTED although the result says success=True
+    ev = _goal(T0 + 1, 1.0, 9.0, True, True, T0 + 9)
+    ev[-1][2]["status"] = 6
+    f = check(get("action_goals_succeed")(_frames([ev], [(T0 + 8.9, 1.0, 9.05)]), {}))
+    assert f.status == "fail" and "ABORTED" in f.feedback and "goal_handle.succeed()" in f.feedback

@@ -15,7 +15,7 @@ from grader.errors import GraderError
 EXPECTED = {
     "topic_type", "random_numbers_values", "publish_rate", "boxmuller", "boxmuller_logging", "normality",
     "goals_reached", "turn_direction", "control_law", "goal_publisher", "goal_publisher_robust",
-    "action_advertised", "action_goals_succeed", "action_rejects_out_of_bounds", "action_timeout",
+    "action_advertised", "action_goals_succeed", "action_loop_paced", "action_rejects_out_of_bounds", "action_timeout",
     "action_client_rejected", "integrity_pose_publisher", "integrity_no_teleport",
     "nodes_running", "launch_installed", "service_answers", "request_echoed",
     "circle_radius", "circle_period", "keeps_moving", "no_wall_contact",
