@@ -68,7 +68,7 @@ EVIDENCE = {
     "v_stop": ("speed counted as stopped", "m/s"),
     "steady_tol": ("movement counted as steady", "m"),
     "stop_weight": ("share of credit for stopping", SHARE),
-    "goal_source": ("where goals are read (events, topic, auto)", ""),
+    "goal_source": ("where goals are read (events, topic, auto, action)", ""),
     "trajectory": None,
     "wall_contacts": ("times the turtle hit a wall", ""),
     "teleported": ("calls of student code that moved the turtle while the goal was active", ""),
@@ -112,7 +112,7 @@ EVIDENCE = {
 _GOAL_DEFAULTS = {
     "steps": None,                  # step ids whose goals count (None: every goal)
     "pose_topic": "/turtle1/pose",
-    "goal_source": "auto",          # "auto" (events, else topic) | "events" | "topic"
+    "goal_source": "auto",          # "auto" (events, else topic) | "events" | "topic" | "action"
     "goal_topic": "/turtle1/goal",
 }
 

@@ -50,7 +50,8 @@ class SentGoal:
 
 
 def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal") -> list[SentGoal]:
-    """Goals in time order: ``goal_sent`` events (auto/events) or Float32MultiArray on goal_topic.
+    """Goals in time order: ``goal_sent`` events (auto/events) or Float32MultiArray on goal_topic,
+    or with ``source="action"`` the goals the driver sent to an action server.
 
     Consecutive identical goals are merged (re-sending the same goal does not restart it).
     ``t_end`` is the next goal's time, or the scenario's own teleport/reset that ends the attempt
@@ -58,6 +59,13 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
     to reach has not reached it), or NaN for the last goal.
     """
     out: list[SentGoal] = []
+    if source == "action":
+        # goals sent to an action server (``action:`` steps): the same geometry, driven by the
+        # server's execute loop instead of a topic-fed controller
+        for e in events(frames, Event.ACTION_GOAL_SENT):
+            xy = goal_xy(e.get("goal"))
+            if xy is not None:
+                out.append(SentGoal(e["t"], xy[0], xy[1], "action", extra={"step": e.get("step")}))
     if source in ("auto", "events"):
         for e in events(frames, Event.GOAL_SENT):
             if e.get("topic") not in (None, goal_topic):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pandas as pd
@@ -242,3 +243,42 @@ def test_lab3_a_higher_positive_gain_still_stops_at_the_goal() -> None:
         return max(v, 0.1), w          # never slower than 0.1 m/s: circles the goal inside 0.1 m
     f = run(circles)
     assert f.status == "partial" and not f.evidence["goals"][0]["stopped"], f.evidence["goals"][0]
+
+
+def _as_action_goals(fr: dict) -> dict:
+    """The same run with its goals sent to an action server (ex3_action's `action:` steps)."""
+    import json
+
+    from analyze_synth import string_frame, with_meta
+    ev = fr["/grader/events"]
+    rows = []
+    for t, d in zip(ev.index, ev["data"]):
+        e = json.loads(d)
+        if e["event"] == "goal_sent":
+            e = {"event": "action_goal_sent", "step": e["step"],
+                 "goal": {"goal": {"x": e["goal"][0], "y": e["goal"][1]}, "goal_tol": 0.1}}
+        rows.append((t, e))
+    out = {k: v for k, v in fr.items() if k != "__meta__"}
+    out["/grader/events"] = string_frame(rows)
+    return with_meta(out, publishers={"/turtle1/pose": ["/turtlesim"]})
+
+
+def test_the_control_law_of_an_action_servers_loop() -> None:
+    # the Lab 3 audit's surviving server mutant: theta_e = atan2(y_e c - x_e s, x_e c - y_e s)
+    # chatters between +-pi at the goal's heading and still reaches goals; its law does not fit
+    def chatter(x, y, th, gx, gy):
+        dx, dy = gx - x, gy - y
+        te = math.atan2(dy * math.cos(th) - dx * math.sin(th), dx * math.cos(th) - dy * math.sin(th))
+        return 0.5 * math.hypot(dx, dy), 2.0 * te
+
+    goals3 = [(0.5, 2.0, 7.0), (15.5, 8.0, 7.0), (30.5, 8.0, 9.5)]
+    good = _as_action_goals(simulate(goals3, law("correct", 0.5, 2.0), 45.0))
+    assert get("goals_reached")(good, {"goal_source": "action"}).evidence["goals"][0]["reached"]
+    f = check(get("control_law")(good, {"goal_source": "action", "r2_min": 0.6}))
+    assert f.status == "pass", f.feedback
+    assert 1.8 < float(str(f.value).split("K2=")[1].split()[0]) < 2.2, f.value
+    bad = _as_action_goals(simulate(goals3, chatter, 45.0))
+    f = check(get("control_law")(bad, {"goal_source": "action", "r2_min": 0.6}))
+    assert f.status != "pass", f.evidence
+    # without source="action" the goals are not seen at all
+    assert get("control_law")(good, {}).status != "pass"

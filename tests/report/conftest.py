@@ -92,6 +92,7 @@ def findings_for_lab3() -> dict[str, FakeFinding]:
                                        {"returncode": 1, "stderr_tail": "ValueError: not enough values to unpack"}),
         "ex3.action_advertised": F("/turtle_goal"),
         "ex3.goals_succeed": F("1/1", evidence={"results": [{"step": "reachable", "success": True, "error_m": 0.07}]}),
+        "ex3.control_law": F(0.95, evidence={"K_1": 0.49, "K_2": 1.99, "r2_v": 0.95, "r2_w": 0.93}),
         "ex3.loop_paced": F(30.1, evidence={"rate_hz": 30.1}),
         "ex3.rejects_out_of_bounds": F("rejected"),
         "ex3.timeout": F(None, 0.0, "error", "No result for the timeout goal within 15 s.", {}),

@@ -23,6 +23,7 @@ REFERENCE_FIGURES = {
     "ex1.boxmuller": 1, "ex1.normality": 2,                            # scatter; histogram + QQ
     "ex2.goals_reached": 1, "ex2.turn_direction": 1, "ex2.control_law": 1,   # trajectory, controller
     "ex3.goals_succeed": 1, "ex3.rejects_out_of_bounds": 1, "ex3.timeout": 1,  # action timeline
+    "ex3.control_law": 1,                                              # the server loop's law
 }
 
 

@@ -113,8 +113,8 @@ def test_long_format_has_every_item_and_guards_formulas(merged: Path, roster, tm
     rows = list(csv.DictReader(io.StringIO(raw.decode("utf-8-sig"))))
     assert {r["submission"] for r in rows} == {"reference", "bm_log10"}   # incomplete ones too
     ref = {r["item"]: r for r in rows if r["submission"] == "reference"}
-    # 6 manual + 20 automatic items and the total
-    assert len(ref) == 27 and ref["total"]["points"] == "88.5" and ref["total"]["status"] == "final"
+    # 6 manual + 21 automatic items and the total
+    assert len(ref) == 28 and ref["total"]["points"] == "88.5" and ref["total"]["status"] == "final"
     assert ref["q1"]["feedback"] == "'=SUM(A1)" and ref["q1"]["student"] == "Doe, Jane"
     assert ref["integrity.no_teleport"]["status"] == "pass"
     bm = {r["item"]: r for r in rows if r["submission"] == "bm_log10"}
