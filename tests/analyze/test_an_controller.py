@@ -274,11 +274,11 @@ def test_the_control_law_of_an_action_servers_loop() -> None:
     goals3 = [(0.5, 2.0, 7.0), (15.5, 8.0, 7.0), (30.5, 8.0, 9.5)]
     good = _as_action_goals(simulate(goals3, law("correct", 0.5, 2.0), 45.0))
     assert get("goals_reached")(good, {"goal_source": "action"}).evidence["goals"][0]["reached"]
-    f = check(get("control_law")(good, {"goal_source": "action", "r2_min": 0.6}))
+    f = check(get("control_law")(good, {"goal_source": "action", "r2_min": 0.75}))
     assert f.status == "pass", f.feedback
     assert 1.8 < float(str(f.value).split("K2=")[1].split()[0]) < 2.2, f.value
     bad = _as_action_goals(simulate(goals3, chatter, 45.0))
-    f = check(get("control_law")(bad, {"goal_source": "action", "r2_min": 0.6}))
+    f = check(get("control_law")(bad, {"goal_source": "action", "r2_min": 0.75}))
     assert f.status != "pass", f.evidence
     # without source="action" the goals are not seen at all
     assert get("control_law")(good, {}).status != "pass"
