@@ -40,7 +40,7 @@ test-fast: bootstrap
 # the longest end-to-end tests: every fixture of every lab, the fault corpus, a real Slurm
 # cluster, installs from git/pipx, the Gradescope image (see the `heavy` marker). Two pytest
 # sessions side by side: the fixture batch, and everything else (its log is printed when it
-# ends). One after the other they took 81 min on 2 cores (the fixture batch 32 of them), over
+# ends): 42 min on 2 cores; one after the other they took 81 (the fixture batch 32), over
 # CI's 90 with `make test`; every heavy test passed with another grading batch running beside
 # it (grading is built for a loaded machine: a starved recording is made again)
 HEAVY_TMP ?= $(or $(TMPDIR),/tmp)/grader-test-heavy
