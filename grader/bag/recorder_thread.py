@@ -144,6 +144,17 @@ class RecorderThread:
         entry = self.recorder.writer.topics.get(topic)
         return entry.info.message_count if entry is not None else 0
 
+    def matched(self, topic: str, publishers: int) -> bool:
+        """The recorder's subscription on ``topic`` is matched with at least ``publishers``
+        publishers: what is published from now on is recorded. A graph query alone cannot say it
+        (the recorder is another DDS participant, which discovers a new publisher, subscribes and
+        matches it up to ~1 s after the driver does on a loaded machine)."""
+        sub = self.recorder.subs.get(topic)
+        try:
+            return sub is not None and sub.handle is not None and sub.handle.get_publisher_count() >= publishers
+        except Exception:  # noqa: BLE001 - resubscribing in the recorder's thread just now
+            return False
+
     def post(self, topic: str, data: bytes) -> None:
         """A serialized message of a ``local`` topic, stamped now (thread-safe)."""
         self.recorder.post(topic, data)

@@ -82,7 +82,8 @@ class Driver:
 
     def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim",
                  *, time_scale: float = 1.0, clock_node: str | None = None,
-                 sink: Callable[[str, bytes], None] | None = None) -> None:
+                 sink: Callable[[str, bytes], None] | None = None,
+                 recording_matched: Callable[[str, int], bool] | None = None) -> None:
         import rclpy
         from rclpy.clock import Clock, ClockType
         from rclpy.parameter import Parameter
@@ -104,6 +105,8 @@ class Driver:
         self.String = String
         #: writes a serialized message of EVENTS_TOPIC / STDOUT_TOPIC straight into the bag
         self.sink = sink
+        #: (topic, publishers) -> the recorder's subscription is matched with that many (RecorderThread.matched)
+        self.recording_matched = recording_matched
         from rclpy.serialization import serialize_message
         self._serialize = serialize_message
         latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
@@ -298,6 +301,16 @@ class Driver:
                 self.watchdog.arrived(topic, self.clock.sim_s())
 
         self._subs[topic] = self.node.create_subscription(self._import(type_name), topic, on_msg, 100)
+
+    def commands_heard(self, topic: str) -> bool:
+        """Every publisher the graph shows on the watched command ``topic`` is matched by the
+        driver's subscription (:meth:`watch_commands`) and by the recorder's: a command sent
+        from now on is counted by the hand-over and is in the bag."""
+        sub = self._subs.get(topic)
+        n = self.node.count_publishers(topic)
+        if sub is None or n == 0 or sub.get_publisher_count() < n:
+            return False
+        return self.recording_matched is None or self.recording_matched(topic, n)
 
     def topic_type(self, topic: str, wait_s: float = 0.0) -> str | None:
         deadline = time.monotonic() + wait_s

@@ -250,7 +250,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if not scale:
                 sim = _start_clock_owner(graph, run, out, record, scale)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
-                            clock_node=clock_node, sink=recorder.post)
+                            clock_node=clock_node, sink=recorder.post,
+                            recording_matched=recorder.matched)
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
             if scale:
                 if not driver.clock.wait_for_clock(SIM_READY_S):

@@ -149,6 +149,14 @@ HANDOFF_MAX_S = 2.0
 #: wall seconds a placement waits for the controller's commands from the placed pose (two of them)
 #: before the goal is sent, so that the command the hand-over compares with is already from there
 PLACE_SETTLE_S = 0.25
+#: wall seconds a placement first waits until the driver and the recorder both have every
+#: publisher of the turtle's command topic matched. A placed step right after a controller's
+#: start-up otherwise hands its goal over while the recorder (another DDS participant) has not
+#: matched the controller yet: the hand-over saw six commands, the bag none until 0.55 s after
+#: the goal, and turn_direction judged wrong_sign's goal 1 from a command sent after the release
+#: (the short way, once in ~40 gradings under load; issue 22). A controller that publishes
+#: nothing there costs this much per placed step.
+HEARD_WAIT_S = 2.0
 
 
 def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState) -> dict[str, Any]:
@@ -479,10 +487,16 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
     action = step.do
     handoff = contextlib.ExitStack()
     if step.place is not None:
+        # commands from the controller reach the hand-over and the bag before anything is placed
+        t_heard = time.monotonic()
+        heard = driver.wait_until(lambda: driver.commands_heard(handoff_topic(cast(m.Placement, step.place))),
+                                  HEARD_WAIT_S, poll=0.005, wall=True)
+        heard_s = round(time.monotonic() - t_heard, 3)
         # held from before the teleport until the goal is handed over (callbacks run last first)
         driver.hold_turtles(True, step.id)
         handoff.callback(driver.hold_turtles, False, step.id)
-        state.detail = {"placed": _place(rt, step, step.place, state)}
+        state.detail = {"placed": {**_place(rt, step, step.place, state),
+                                   "commands_heard": heard, "heard_after_s": heard_s}}
         handoff.callback(_hand_over, rt, step, state, _command_at_placement(rt, step))
     if step.target is not None and not isinstance(action, m.Goal):
         # a goal set some other way (e.g. a service call): it is active from before the action,

@@ -142,3 +142,42 @@ def test_a_scenario_starts_only_once_the_simulators_poses_are_recorded(tmp_path:
     for name in ("/turtle1/pose", "/grader/sim/turtle1/pose"):
         assert name in frames and len(frames[name]) > 0, name
         assert frames[name].index[0] <= start, name      # recorded before the scenario began
+
+
+@pytest.mark.ros
+def test_a_placement_waits_until_the_commands_are_recorded(tmp_path: Path, monkeypatch) -> None:
+    """A placed step right after a controller's start-up: the recorder (another DDS participant)
+    may match the controller's command publisher up to ~1 s after the driver does, and the
+    commands computed during the hand-over were then missing from the bag (wrong_sign's goal 1
+    judged from a command sent after the release: the short way, once). Here the recorder is made
+    to see /turtle1/cmd_vel 2 s late; the placed step waits for it, and the command sent during
+    the placement is in the bag. (Fails without the wait: the bag has no command.)"""
+    import time
+
+    from grader.bag.frames import load_frames
+    from grader.bag.recorder import Recorder
+    from grader.scenario import run as scenario_run
+
+    for key in scenario_run.DISCOVERY_ENV:
+        monkeypatch.delenv(key, raising=False)
+    t0 = time.monotonic()
+    wanted = Recorder.wanted
+
+    def late(self, topic: str) -> bool:
+        if topic == "/turtle1/cmd_vel" and time.monotonic() - t0 < 2.0:
+            return False
+        return wanted(self, topic)
+
+    monkeypatch.setattr(Recorder, "wanted", late)
+    scenario = Scenario.model_validate({"steps": [
+        {"id": "placed", "place": {"x": 2.0, "y": 7.0, "theta": 2.1},
+         "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
+                     "msg": {"angular": {"z": 0.5}}}, "timeout": 0.2},
+    ], "limits": {"wall_s": 30}})
+    record = scenario_run.run_scenario_here(resolve("heard", scenario, None), tmp_path / "heard")
+    assert record["errors"] == [], record
+    placed = record["steps"][0]["detail"]["placed"]
+    assert placed["commands_heard"] is True and placed["heard_after_s"] > 0.3, placed
+    frames = load_frames(tmp_path / "heard" / "bag")
+    assert "/turtle1/cmd_vel" in frames and len(frames["/turtle1/cmd_vel"]) == 1
+    assert frames["/turtle1/cmd_vel"]["angular.z"].iloc[0] == 0.5
