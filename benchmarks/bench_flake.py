@@ -8,7 +8,8 @@ every fixture of each lab, sampled with a fixed seed: 40 Lab 3 submissions and 2
 lab, plus the few hand-written variants in ``EXTRA`` (bugs no operator makes, e.g. a heading
 error in degrees). The class is graded three times, at ``--jobs 2``, ``4`` and ``8``
 (``--no-reuse``, one shared build cache, so the runs differ only in the scenarios), optionally with
-``--load K`` CPU-burning processes alongside a run. Every automatic item whose status or points
+``--load K`` CPU-burning processes alongside a run; ``--side-by-side`` grades the three runs at
+the same time, each in a process of its own, so each run is the machine's load for the others. Every automatic item whose status or points
 differ between the runs is printed with the evidence of each run side by side (the keys that
 differ), and all of it goes to ``--report``. Target: none.
 
@@ -19,6 +20,7 @@ question. Fixtures alone cannot show it (they were made deterministic one by one
     .venv/bin/python benchmarks/bench_flake.py                          # the class, 3 runs: ~3 h on 2 cores
     .venv/bin/python benchmarks/bench_flake.py --labs enee467_lab3 --per-lab 8 --jobs 2 4
     .venv/bin/python benchmarks/bench_flake.py --fixtures [--runs 3] [--jobs 3]   # the Lab 3 fixtures
+    .venv/bin/python benchmarks/bench_flake.py --side-by-side              # the 3 runs at once: ~1.5 h
     options: --seed S, --load K [K ...] (one per run), --keep DIR, --report FILE.json,
              --scenarios ID [ID ...] (grade only the items of these scenarios: quicker samples)
 """
@@ -161,6 +163,28 @@ def _short(v: Any, n: int = 160) -> Any:
     return v if len(text) <= n else text[:n] + "..."
 
 
+def grade_run(n: int, j: int, k: int, labs: list[str], classes: dict[str, Path], work: Path,
+              scenarios: list[str] | None) -> dict[str, Any]:
+    """Run ``n`` (1-based) of the class at ``--jobs j`` with ``k`` CPU burners, into
+    ``work/run<n>/<lab>/``; its wall time, peak concurrency and load go to ``work/run<n>/run.json``."""
+    burners = burn(k)
+    t0, load0 = time.monotonic(), os.getloadavg()[0]
+    peak = 0
+    try:
+        for lab in labs:
+            out = work / f"run{n}" / lab
+            shutil.rmtree(out, ignore_errors=True)
+            peak = max(peak, grade(lab, classes[lab], out, j, work / "cache", scenarios)[1])
+    finally:
+        unburn(burners)
+    done = {"run": n, "jobs": j, "burners": k, "wall_s": time.monotonic() - t0, "peak": peak,
+            "load": [load0, os.getloadavg()[0]]}
+    (work / f"run{n}" / "run.json").write_text(json.dumps(done))
+    print(f"run {n}: --jobs {j}, {k} CPU burner(s): {done['wall_s']:.0f} s, at most {peak} at once "
+          f"(load {load0:.1f} -> {done['load'][1]:.1f})", flush=True)
+    return done
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--fixtures", action="store_true", help="grade the Lab 3 fixtures instead of the class")
@@ -172,6 +196,9 @@ def main() -> int:
                     help="--jobs of each run (default 2 4 8; with --fixtures 3 for every run)")
     ap.add_argument("--load", type=int, nargs="+", default=[0], help="CPU burners alongside each run")
     ap.add_argument("--scenarios", nargs="+", default=None, help="grade only the items of these scenarios")
+    ap.add_argument("--side-by-side", action="store_true",
+                    help="grade the runs at the same time, each a process of its own (each run is load for the others)")
+    ap.add_argument("--only-run", type=int, default=None, help=argparse.SUPPRESS)   # a side-by-side child
     ap.add_argument("--keep", type=Path, default=None, help="keep the class and the outputs here")
     ap.add_argument("--report", type=Path, default=None, help="write every differing item here (JSON)")
     args = ap.parse_args()
@@ -183,35 +210,40 @@ def main() -> int:
         ap.error("--load takes one value, or one per run")
     work = args.keep or Path(tempfile.mkdtemp(prefix="bench-flake-"))
     work.mkdir(parents=True, exist_ok=True)
+    if args.fixtures:
+        classes = {"enee467_lab3": REPO / "fixtures" / "submissions" / "enee467_lab3"}
+    else:
+        classes = {lab: work / "class" / lab for lab in labs}
+    if args.only_run is not None:
+        n = args.only_run
+        grade_run(n, jobs[n - 1], loads[n - 1], labs, classes, work, args.scenarios)
+        return 0
     try:
-        if args.fixtures:
-            classes = {"enee467_lab3": REPO / "fixtures" / "submissions" / "enee467_lab3"}
-            made: dict[str, list[dict]] = {}
-        else:
+        made: dict[str, list[dict]] = {}
+        if not args.fixtures:
             per_lab = {lab: args.per_lab or PER_LAB[lab] for lab in labs}
             shutil.rmtree(work / "class", ignore_errors=True)
             made = make_class(work / "class", labs, per_lab, args.seed)
-            classes = {lab: work / "class" / lab for lab in labs}
             for lab in labs:
                 print(f"class {lab}: {len(made[lab])} submissions", flush=True)
+        if args.side_by_side:
+            argv = [sys.executable, str(Path(__file__).resolve()), "--keep", str(work),
+                    "--labs", *labs, "--jobs", *map(str, jobs), "--load", *map(str, loads)]
+            argv += ["--fixtures"] if args.fixtures else []
+            argv += ["--scenarios", *args.scenarios] if args.scenarios else []
+            children = [subprocess.Popen(argv + ["--only-run", str(n)]) for n in range(1, len(jobs) + 1)]
+            if any(c.wait() != 0 for c in children):
+                raise SystemExit("a run failed (its output is above)")
+            runs = [json.loads((work / f"run{n}" / "run.json").read_text()) for n in range(1, len(jobs) + 1)]
+        else:
+            runs = [grade_run(n, j, k, labs, classes, work, args.scenarios)
+                    for n, (j, k) in enumerate(zip(jobs, loads), 1)]
+        walls = [r["wall_s"] for r in runs]
         seen: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
-        walls = []
-        for run, (j, k) in enumerate(zip(jobs, loads)):
-            burners = burn(k)
-            t0, load0 = time.monotonic(), os.getloadavg()[0]
-            peak = 0
-            try:
-                for lab in labs:
-                    out = work / f"run{run + 1}" / lab
-                    shutil.rmtree(out, ignore_errors=True)
-                    peak = max(peak, grade(lab, classes[lab], out, j, work / "cache", args.scenarios)[1])
-                    for (sub, item), got in item_outcomes(out).items():
-                        seen[(lab, sub, item)].append(got)
-            finally:
-                unburn(burners)
-            walls.append(time.monotonic() - t0)
-            print(f"run {run + 1}: --jobs {j}, {k} CPU burner(s): {walls[-1]:.0f} s, at most {peak} at once "
-                  f"(load {load0:.1f} -> {os.getloadavg()[0]:.1f})", flush=True)
+        for n in range(1, len(jobs) + 1):
+            for lab in labs:
+                for (sub, item), got in item_outcomes(work / f"run{n}" / lab).items():
+                    seen[(lab, sub, item)].append(got)
         differing = {key: v for key, v in seen.items()
                      if len({(o["status"], o["points"]) for o in v}) > 1 or len(v) != len(jobs)}
         rows = []
@@ -224,7 +256,7 @@ def main() -> int:
             rows.append({"lab": lab, "submission": sub, "item": item, "jobs": jobs,
                          "outcomes": [{"status": o["status"], "points": o["points"], "decided": o["decided"],
                                        "evidence": o["evidence"]} for o in values]})
-        decided = defaultdict(int)
+        decided: dict[str, int] = defaultdict(int)
         unstable = []
         for (lab, sub, item), values in seen.items():
             for o in values:
@@ -232,15 +264,17 @@ def main() -> int:
                 decided[mode] += 1
                 if (o["decided"] or {}).get("stable") is False:
                     unstable.append((lab, sub, item))
-        per_lab_n = {lab: len({s for (l, s, _i) in seen if l == lab}) for lab in labs}
-        print(f"submissions: {per_lab_n}; run wall times: " + ", ".join(f"{w:.0f} s" for w in walls))
+        per_lab_n = {lab: len({s for (lb, s, _i) in seen if lb == lab}) for lab in labs}
+        how = "side by side" if args.side_by_side else "one after another"
+        print(f"submissions: {per_lab_n}; run wall times ({how}): " + ", ".join(f"{w:.0f} s" for w in walls))
         print("item results decided by: " + ", ".join(f"{m} {n}" for m, n in sorted(decided.items())))
         if unstable:
             print(f"items whose repeated runs disagreed (graded by the median): {len(set(unstable))}")
         print(f"{len(seen)} item results compared over {len(jobs)} runs (--jobs {', '.join(map(str, jobs))}): "
               f"{len(differing)} differed")
         if args.report:
-            args.report.write_text(json.dumps({"jobs": jobs, "loads": loads, "walls_s": walls, "class": made,
+            args.report.write_text(json.dumps({"jobs": jobs, "loads": loads, "walls_s": walls, "runs": runs,
+                                               "side_by_side": args.side_by_side, "class": made,
                                                "compared": len(seen), "differing": rows}, indent=1, default=str))
         return 1 if differing else 0
     finally:
