@@ -310,8 +310,10 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     heading error is in degrees turns up to 3 rad per 16 ms tick, overshoots at once and turns
     back, so which way its heading seems to go, and the sign of its later commands, depend on
     its timer's phase. Without a hold, the first turning command from ``react_s`` after the goal
-    decides. The heading the turtle took is kept as evidence, and decides only for a controller
-    that sends no turning command (e.g. one that uses rotate_absolute).
+    decides. A held hand-over of which the bag has no command (a recorder that matched the
+    controller late) is judged from the turtle's first tick after the release, which the last
+    command sent while held drives. The heading the turtle took is kept as evidence, and decides
+    only for a controller that sends no turning command (e.g. one that uses rotate_absolute).
     """
     pose = _pose(frames, p)
     if pose is None:
@@ -361,7 +363,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         row["judged_from_s"] = float(t_from - g.t)
         pose_turn = _first_turn(t, th, t_from, g.t_end, p["detect_deg"])
         row["initial_turn"] = _TURN_WORDS[pose_turn]
-        w_judged = None
+        w_judged, first_move = None, 0
         if cmd is not None and "angular.z" in cmd.columns:
             ct = cmd["pub_t"].to_numpy(float) if "pub_t" in cmd.columns else times(cmd)
             ct = np.where(np.isfinite(ct), ct, times(cmd))
@@ -369,15 +371,22 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             turning = np.abs(w) > 1e-3
             during_hold: Any = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
             after = np.nonzero(turning & (ct > t_from) & (ct <= g.t_end))[0]
+            unrecorded = t_release is not None and not ((ct > g.t) & (ct <= t_from)).any()
+            first_move = _first_move(t, th, t_from, g.t_end) if unrecorded else 0
             if len(during_hold):
                 w_judged, row["command_sent_s"] = float(w[during_hold[-1]]), float(ct[during_hold[-1]] - g.t)
+            elif first_move:
+                # held, but the bag has no command from the hold (a recorder that matched the
+                # controller late): the turtle's first tick after the release is driven by the
+                # last command the simulator got while it was held, so its sign is that command's
+                row["basis_note"] = "no command of the hand-over is in the bag: judged from the first tick after the release"
             elif len(after):
                 w_judged, row["command_sent_s"] = float(w[after[0]]), float(ct[after[0]] - g.t)
             row["first_cmd_angular_z"] = w_judged
-        cmd_turn = int(np.sign(w_judged)) if w_judged is not None else 0
+        cmd_turn = int(np.sign(w_judged)) if w_judged is not None else first_move
         row["commanded_turn"] = _TURN_WORDS[cmd_turn]
-        turn = cmd_turn if w_judged is not None else pose_turn
-        row["basis"] = "command" if w_judged is not None else "pose"
+        turn = cmd_turn if w_judged is not None or cmd_turn else pose_turn
+        row["basis"] = "command" if w_judged is not None else ("first tick" if cmd_turn else "pose")
         ambiguous = abs(req) >= math.pi - math.radians(p["ambiguous_deg"])
         ok = turn != 0 and (ambiguous or turn == int(np.sign(req)))
         row.update(ambiguous=bool(ambiguous), short_way=bool(ok), turn=_TURN_WORDS[turn])
@@ -404,7 +413,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
                f"{r['required_turn_deg']:+.0f}°): the angular command should be proportional to "
                "the heading error.")
     else:
-        how = ("the controller's first command for it turned" if r["basis"] == "command"
+        how = ("the controller's first command for it turned" if r["basis"] in ("command", "first tick")
                else "the turtle started turning")
         msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle needed to turn {r['required_turn_deg']:+.0f}° "
                f"but {how} {r['turn']}, the long way.")
@@ -426,6 +435,16 @@ def _first_turn(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, dete
     dth = np.unwrap(th[m1]) - th[i1]
     over = np.nonzero(np.abs(dth) >= math.radians(detect_deg))[0]
     return int(np.sign(dth[over[0]])) if len(over) else 0
+
+
+def _first_move(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, eps: float = 1e-4) -> int:
+    """Which way the heading moved at the first pose after ``t_from`` that differs from the pose
+    there (+1 left, -1 right, 0 none): a held turtle's first tick after its release."""
+    i1 = min(int(np.searchsorted(t, t_from, side="left")), len(t) - 1)
+    m1 = (t >= t[i1]) & (t <= t_end)
+    dth = np.unwrap(th[m1]) - th[i1]
+    moved = np.nonzero(np.abs(dth) > eps)[0]
+    return int(np.sign(dth[moved[0]])) if len(moved) else 0
 
 
 def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,

@@ -98,6 +98,29 @@ def test_turn_direction_does_not_depend_on_the_controllers_timer_phase() -> None
         assert len(verdicts) == 1 and next(iter(verdicts))[0] in want, (kind, verdicts)
 
 
+def test_a_hand_over_missing_from_the_bag_is_judged_by_the_first_tick_after_the_release() -> None:
+    """Issue 22: the recorder matched a controller started just before the first goal late, and
+    the bag had none of the commands sent while the turtle was held; the first one it had, 0.55 s
+    after the goal, came after wrong_sign had turned past 180 degrees and pointed the short way
+    (0.75/3 once, 0/3 in every other run). The first tick after the release is driven by the last
+    command sent while held: judged from it, every phase and every gap gives the verdict of the
+    whole recording. (Judged from the first recorded command, wrong_sign passed here.)"""
+    for kind in ("wrong_sign", "correct", "degrees"):
+        want = set()
+        for phase in np.arange(0.0005, 0.03, 0.005):
+            frames = simulate([(0.2, 2.0, 7.0)], law(kind), 6.0, start=(5.5, 5.5, 0.0), ctrl_phase=phase, hold_s=0.15)
+            full = check(get("turn_direction")(frames, {}))
+            want.add(full.status)
+            for gap in (0.3, 0.55, 0.8):            # commands recorded only from T0 + 0.2 + gap
+                cut = dict(frames)
+                cmd = frames["/turtle1/cmd_vel"]
+                cut["/turtle1/cmd_vel"] = cmd[cmd["pub_t"] > T0 + 0.2 + gap]
+                f = check(get("turn_direction")(cut, {}))
+                row = f.evidence["goals"][0]
+                assert f.status == full.status and row["basis"] == "first tick", (kind, phase, gap, row)
+        assert want == ({"fail"} if kind == "wrong_sign" else {"pass"}), (kind, want)
+
+
 def test_a_turn_of_more_than_half_a_circle_per_tick_is_judged_by_its_command() -> None:
     """theta_e in degrees with K_2 = 2: 270 rad/s for a 135 degree left turn, 4.3 rad per 16 ms
     tick, which the poses show as a 2 rad turn to the right. The command says left: the short
