@@ -199,6 +199,8 @@ def main() -> int:
     ap.add_argument("--side-by-side", action="store_true",
                     help="grade the runs at the same time, each a process of its own (each run is load for the others)")
     ap.add_argument("--only-run", type=int, default=None, help=argparse.SUPPRESS)   # a side-by-side child
+    ap.add_argument("--compare-only", action="store_true",
+                    help="grade nothing: compare the runs already in --keep (e.g. labs graded by two invocations)")
     ap.add_argument("--keep", type=Path, default=None, help="keep the class and the outputs here")
     ap.add_argument("--report", type=Path, default=None, help="write every differing item here (JSON)")
     args = ap.parse_args()
@@ -220,13 +222,18 @@ def main() -> int:
         return 0
     try:
         made: dict[str, list[dict]] = {}
-        if not args.fixtures:
+        if args.compare_only:
+            runs = [json.loads(f.read_text()) if (f := work / f"run{n}" / "run.json").exists() else {"wall_s": float("nan")}
+                    for n in range(1, len(jobs) + 1)]
+        elif not args.fixtures:
             per_lab = {lab: args.per_lab or PER_LAB[lab] for lab in labs}
             shutil.rmtree(work / "class", ignore_errors=True)
             made = make_class(work / "class", labs, per_lab, args.seed)
             for lab in labs:
                 print(f"class {lab}: {len(made[lab])} submissions", flush=True)
-        if args.side_by_side:
+        if args.compare_only:
+            pass
+        elif args.side_by_side:
             argv = [sys.executable, str(Path(__file__).resolve()), "--keep", str(work),
                     "--labs", *labs, "--jobs", *map(str, jobs), "--load", *map(str, loads)]
             argv += ["--fixtures"] if args.fixtures else []
