@@ -71,6 +71,7 @@ EVIDENCE = {
     "malformed_line": ("malformed line typed", ""),
     "t_malformed": ("typed at", TIME),
     "exit_events": ("process exits", ""),
+    "after_malformed": ("typed after a malformed line that stopped the node", ""),
     "returncode": ("exit code", ""),
     "traceback_lines": ("error output", ""),
     "undelivered_lines": ("lines that could not be typed (process gone)", ""),
@@ -92,12 +93,22 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
     expected = []
     for e in lines:
         xy = parse_xy_line(e.get("line", ""))
-        if xy is not None:
+        if xy is not None and e.get("delivered") is not False:
             expected.append({"x": xy[0], "y": xy[1], "t": e["t"], "line": e.get("line")})
     if not expected:
         expected = [{"x": float(a), "y": float(b), "t": -np.inf, "line": f"{a},{b}"} for a, b in p["expected"]]
     msgs = _goal_msgs(frames, p["goal_topic"])
-    ev: dict = {"process": proc, "expected": [[g["x"], g["y"]] for g in expected]}
+    ev: dict = {"process": proc}
+    # goals typed after a malformed line the node did not survive are goal_publisher_robust's
+    # business: whether the next line still reached the dying process is a matter of a few
+    # milliseconds (bench_flake: 1 of 2 goals in one run of three, 1 of 1 in the others)
+    bad = [e for e in lines if parse_xy_line(e.get("line", "")) is None]
+    if bad and _stopped_by(frames, proc, bad[0], p):
+        after = [g for g in expected if g["t"] > bad[0]["t"]]
+        if after:
+            expected = [g for g in expected if g["t"] <= bad[0]["t"]]
+            ev["after_malformed"] = {"line": bad[0].get("line"), "not_counted": [g["line"] for g in after]}
+    ev["expected"] = [[g["x"], g["y"]] for g in expected]
     if msgs is None:
         return Finding.fail(missing_topic_feedback(frames, p["goal_topic"], "std_msgs/msg/Float32MultiArray [x, y]")
                             + " Publish each typed goal with your node's send_goal(x, y).", ev)
@@ -119,6 +130,9 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
     extra = ""
     if len(ev["lengths_seen"]) and ev["lengths_seen"] != [2]:
         extra = f" Messages had {ev['lengths_seen']} values; publish exactly [x, y]."
+    if "after_malformed" in ev:
+        extra += (f" (The node stopped on the malformed line '{ev['after_malformed']['line']}': the goals typed "
+                  "after it count in the robustness item, not here.)")
     if k == len(expected):
         return Finding(value, 1.0, "pass",
                        f"All {k} typed goals were published on {p['goal_topic']} in order.{extra}", ev)
@@ -133,6 +147,23 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
         return Finding(value, p["partial_credit"], "partial",
                        f"Only {k} of {len(expected)} typed goals were published.{hint}{extra}", ev)
     return Finding(value, 0.0, "fail", f"None of the typed goals were published correctly.{hint}{extra}", ev)
+
+
+def _stopped_by(frames: Frames, proc: str | None, bad: dict, p: dict) -> bool:
+    """The process stopped on its own after the malformed line ``bad`` (an exit with an error,
+    or a traceback in its output) and published none of the goals typed after it. Timing-free:
+    when the exit came (before or after the next line was typed) does not matter."""
+    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") == proc and e["t"] >= bad["t"]
+             and not e.get("stopped_by_grader") and e.get("returncode") not in (0, None)]
+    out = stdout_lines(frames)
+    tb = False
+    if len(out):
+        mine = out[(out["process"] == str(proc)) & (out["time"] >= bad["t"] - 0.05)]
+        tb = any(_TRACEBACK.match(s) for s in mine["raw"].tolist())
+    if not (exits or tb):
+        return False
+    msgs = _goal_msgs(frames, p["goal_topic"])
+    return msgs is None or not bool(np.any(msgs[0] > bad["t"]))
 
 
 _TRACEBACK = re.compile(r"^\s*(Traceback \(most recent call last\)|\w+(Error|Exception)\b.*)")

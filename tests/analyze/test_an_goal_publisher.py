@@ -43,11 +43,37 @@ def test_both_goals_in_order() -> None:
 
 
 def test_crash_on_malformed_line() -> None:
+    """A crash on the malformed line costs the robustness item; the goals typed after it are not
+    also counted against publishing (the lab text's own goal publisher crashes there)."""
     fr = _frames(GOOD[:1], exit_t=T0 + 4.1, traceback=True)
     f = check(get("goal_publisher")(fr, {}))
-    assert f.status == "partial" and f.fraction == 0.5 and "8, 3" in f.feedback
+    assert f.status == "pass" and f.evidence["expected"] == [[2.0, 7.0]], f.evidence
+    assert f.evidence["after_malformed"] == {"line": "hello", "not_counted": ["8.0,3.0"]}
+    assert "stopped on the malformed line 'hello'" in f.feedback
     f = check(get("goal_publisher_robust")(fr, {}))
     assert f.status == "fail" and "ValueError" in f.feedback and "try/except" in f.feedback
+
+
+def test_a_dying_node_gets_one_grade_whenever_the_next_line_reaches_it() -> None:
+    """Issue 22 (bench_flake): the node crashed on the malformed line; the next line, typed 1 s
+    later, reached it while it was still dying in one run (1 of 2 goals: partial) and found it gone
+    in the others (pass). Wherever the exit falls against the next line, both items agree."""
+    seen = set()
+    for exit_t in (T0 + 4.3, T0 + 5.9, T0 + 6.2, T0 + 7.5):
+        for delivered in (True, False):
+            fr = _frames(GOOD[:1], exit_t=exit_t, traceback=True, lines=LINES[:2])
+            extra = events_frame([(T0 + 6.0, "stdin_line", {"process": "goal_publisher", "line": "8.0,3.0",
+                                                            "delivered": delivered})])
+            fr["/grader/events"] = pd.concat([fr["/grader/events"], extra]).sort_index()
+            a = check(get("goal_publisher")(fr, {}))
+            b = check(get("goal_publisher_robust")(fr, {}))
+            seen.add((a.status, a.fraction, b.status, b.fraction))
+    assert seen == {("pass", 1.0, "fail", 0.0)}, seen
+
+
+def test_a_node_that_survives_the_malformed_line_owes_the_next_goal() -> None:
+    f = check(get("goal_publisher")(_frames(GOOD[:1]), {}))
+    assert f.status == "partial" and "8, 3" in f.feedback and "after_malformed" not in f.evidence
 
 
 def test_crash_seen_only_in_the_exit_event() -> None:
