@@ -66,6 +66,7 @@ EVIDENCE = {
     "expected_z": ("correct z", ""), "line": ("printed line", ""),
     "pairs": None,
     "pass_ratio": ("share needed", SHARE),
+    "min_ratio": ("share below which matches earn nothing (chance and noise)", SHARE),
     "min_outputs": ("printed values needed", ""),
     # boxmuller_logging
     "rosout_loggers": ("ROS loggers seen", ""),
@@ -88,6 +89,9 @@ EVIDENCE = {
     **COMMON_DEFAULTS,
     "min_outputs": 10,       # fewer numeric lines -> not enough evidence
     "pass_ratio": 0.9,       # matched / expected at or above this -> full credit
+    "min_ratio": 0.02,       # below this (after the chance correction): no credit. A wrong formula
+                             # matched 1 of 524 pairs by chance, and the chance estimate of that
+                             # run's timing made it 0 points in one run and 0.01 in another (issue 22)
     "bug_min_ratio": 0.8,    # a named mistake must explain at least this share to be reported
     "max_chance": 0.5,       # not passing, and a random input would match this share: "print more decimals"
     "tail_grace_s": 2.0,     # inputs in the last seconds of the bag may go unanswered
@@ -142,13 +146,15 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
     if ex:
         detail = (f" For example, for u1={ex['u1']:.6g}, u2={ex['u2']:.6g} you printed {ex['printed']:.6g} "
                   f"but z = {ex['expected_z']:.6g}.")
-    if cp.ratio > 0:
+    if cp.ratio >= p["min_ratio"]:
         frac = cp.ratio
         return Finding(value, frac, "partial",
                        f"Only {cp.matched} of {cp.expected} published pairs got a correct z printed "
                        f"(missing or wrong lines).{detail}", ev)
+    few = (f" (only {cp.matched} of {cp.expected} matched: less than {p['min_ratio']:.0%} more than chance "
+           "alone would give)") if cp.matched else ""
     return Finding(value, 0.0, "fail",
-                   "Your printed values do not match z = sqrt(-2 ln u1)·cos(2πu2) nor a common variant of it."
+                   f"Your printed values do not match z = sqrt(-2 ln u1)·cos(2πu2) nor a common variant of it{few}."
                    + detail, ev)
 
 
