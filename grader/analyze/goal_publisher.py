@@ -149,24 +149,31 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
     return Finding(value, 0.0, "fail", f"None of the typed goals were published correctly.{hint}{extra}", ev)
 
 
+_TRACEBACK = re.compile(r"^\s*(Traceback \(most recent call last\)|\w+(Error|Exception)\b.*)")
+
+
+def _exits_and_traceback(frames: Frames, proc: str | None, bad: dict) -> tuple[list[dict], list[str]]:
+    """The process's own exits (not the grader's stopping it) from the malformed line ``bad`` on,
+    and the traceback lines it printed from then."""
+    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") == proc and e["t"] >= bad["t"]
+             and not e.get("stopped_by_grader")]
+    out = stdout_lines(frames)
+    tb: list[str] = []
+    if len(out):
+        mine = out[(out["process"] == str(proc)) & (out["time"] >= bad["t"] - 0.05)]
+        tb = [s for s in mine["raw"].tolist() if _TRACEBACK.match(s)]
+    return exits, tb
+
+
 def _stopped_by(frames: Frames, proc: str | None, bad: dict, p: dict) -> bool:
     """The process stopped on its own after the malformed line ``bad`` (an exit with an error,
     or a traceback in its output) and published none of the goals typed after it. Timing-free:
     when the exit came (before or after the next line was typed) does not matter."""
-    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") == proc and e["t"] >= bad["t"]
-             and not e.get("stopped_by_grader") and e.get("returncode") not in (0, None)]
-    out = stdout_lines(frames)
-    tb = False
-    if len(out):
-        mine = out[(out["process"] == str(proc)) & (out["time"] >= bad["t"] - 0.05)]
-        tb = any(_TRACEBACK.match(s) for s in mine["raw"].tolist())
-    if not (exits or tb):
+    exits, tb = _exits_and_traceback(frames, proc, bad)
+    if not (tb or any(e.get("returncode") not in (0, None) for e in exits)):
         return False
     msgs = _goal_msgs(frames, p["goal_topic"])
     return msgs is None or not bool(np.any(msgs[0] > bad["t"]))
-
-
-_TRACEBACK = re.compile(r"^\s*(Traceback \(most recent call last\)|\w+(Error|Exception)\b.*)")
 
 
 @register("goal_publisher_robust", evidence={**EVIDENCE, "value": ("after a malformed line", "")},
@@ -194,15 +201,9 @@ def goal_publisher_robust(frames: Frames, p: dict) -> Finding:
     later = [e for e in lines if e["t"] > b["t"]]
     next_t = later[0]["t"] if later else np.inf
     ev: dict = {"process": proc, "malformed_line": b.get("line"), "t_malformed": b["t"]}
-    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") == proc and e["t"] >= b["t"]
-             and not e.get("stopped_by_grader")]
+    exits, tb = _exits_and_traceback(frames, proc, b)
     crash_exit = [e for e in exits if e["t"] < next_t + 0.5]
     undelivered = [e for e in later if e.get("delivered") is False]
-    out = stdout_lines(frames)
-    tb = []
-    if len(out):
-        mine = out[(out["process"] == str(proc)) & (out["time"] >= b["t"] - 0.05)]
-        tb = [s for s in mine["raw"].tolist() if _TRACEBACK.match(s)]
     ev.update({"exit_events": [{"t": e["t"], "returncode": e.get("returncode")} for e in exits],
                "traceback_lines": tb[:6], "undelivered_lines": [e.get("line") for e in undelivered]})
     good_later = [parse_xy_line(e.get("line", "")) for e in later]
