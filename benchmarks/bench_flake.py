@@ -222,17 +222,15 @@ def main() -> int:
         return 0
     try:
         made: dict[str, list[dict]] = {}
-        if args.compare_only:
-            runs = [json.loads(f.read_text()) if (f := work / f"run{n}" / "run.json").exists() else {"wall_s": float("nan")}
-                    for n in range(1, len(jobs) + 1)]
-        elif not args.fixtures:
+        if not args.fixtures and not args.compare_only:
             per_lab = {lab: args.per_lab or PER_LAB[lab] for lab in labs}
             shutil.rmtree(work / "class", ignore_errors=True)
             made = make_class(work / "class", labs, per_lab, args.seed)
             for lab in labs:
                 print(f"class {lab}: {len(made[lab])} submissions", flush=True)
         if args.compare_only:
-            pass
+            runs = [json.loads(f.read_text()) if (f := work / f"run{n}" / "run.json").exists() else {"wall_s": float("nan")}
+                    for n in range(1, len(jobs) + 1)]
         elif args.side_by_side:
             argv = [sys.executable, str(Path(__file__).resolve()), "--keep", str(work),
                     "--labs", *labs, "--jobs", *map(str, jobs), "--load", *map(str, loads)]

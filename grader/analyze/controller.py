@@ -372,7 +372,8 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             during_hold: Any = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
             after = np.nonzero(turning & (ct > t_from) & (ct <= g.t_end))[0]
             unrecorded = t_release is not None and not ((ct > g.t) & (ct <= t_from)).any()
-            first_move = _first_move(t, th, t_from, g.t_end) if unrecorded else 0
+            # the first tick that moved the heading at all (a held pose is exactly constant)
+            first_move = _first_turn(t, th, t_from, g.t_end, FIRST_TICK_DEG) if unrecorded else 0
             if len(during_hold):
                 w_judged, row["command_sent_s"] = float(w[during_hold[-1]]), float(ct[during_hold[-1]] - g.t)
             elif first_move:
@@ -426,6 +427,8 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
 
 
 _TURN_WORDS = {1: "left (CCW)", -1: "right (CW)", 0: "none"}
+#: a heading change this large (1e-4 rad) is a tick's motion, not float32 noise of a held pose
+FIRST_TICK_DEG = math.degrees(1e-4)
 
 
 def _first_turn(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, detect_deg: float) -> int:
@@ -435,16 +438,6 @@ def _first_turn(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, dete
     dth = np.unwrap(th[m1]) - th[i1]
     over = np.nonzero(np.abs(dth) >= math.radians(detect_deg))[0]
     return int(np.sign(dth[over[0]])) if len(over) else 0
-
-
-def _first_move(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, eps: float = 1e-4) -> int:
-    """Which way the heading moved at the first pose after ``t_from`` that differs from the pose
-    there (+1 left, -1 right, 0 none): a held turtle's first tick after its release."""
-    i1 = min(int(np.searchsorted(t, t_from, side="left")), len(t) - 1)
-    m1 = (t >= t[i1]) & (t <= t_end)
-    dth = np.unwrap(th[m1]) - th[i1]
-    moved = np.nonzero(np.abs(dth) > eps)[0]
-    return int(np.sign(dth[moved[0]])) if len(moved) else 0
 
 
 def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,
