@@ -31,7 +31,8 @@ from scipy import stats
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import ROSOUT, Frames, meta_row, stdout_lines, thin, topic
 from grader.analyze.evidence import SHARE
-from grader.analyze.boxmuller_pairing import (COMMON_DEFAULTS, FORMULAS, _examples, _inputs, _no_output_finding, _pair_series, _sources, select)
+from grader.analyze.boxmuller_pairing import (COMMON_DEFAULTS, FORMULAS, _examples, _inputs, _no_output_finding, _pair_series,
+                                              _sources, _unanswered, select)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -63,6 +64,7 @@ EVIDENCE = {
     "bug": None,
     "examples": ("examples", ""),
     "u1": ("u1", ""), "u2": ("u2", ""), "printed": ("printed", ""),
+    "unanswered": ("pairs no printed line answers", ""), "sent_s": ("sent, into the replay", "s"),
     "expected_z": ("correct z", ""), "line": ("printed line", ""),
     "pairs": None,
     "pass_ratio": ("share needed", SHARE),
@@ -140,14 +142,25 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
         return Finding(value, 0.0, "fail",
                        f"Your values are printed too coarsely to be checked (a random number would match "
                        f"{cp.chance:.0%} of them): print z with at least 4 decimals, e.g. f\"{{z:.6f}}\".", ev)
-    ev["examples"] = _examples(sel, cp, 5, only_unmatched=cp.matched > 0) or _examples(sel, cp, 5)
-    ex = next(iter(ev["examples"]), None)
+    wrong = _examples(sel, cp, 5, only_unmatched=True)
+    n_missing, missing = _unanswered(sel, cp)
+    ev["unanswered"] = n_missing
+    ev["examples"] = wrong or missing or _examples(sel, cp, 5)
     detail = ""
-    if ex:
+    if wrong:
+        ex = wrong[0]
         detail = (f" For example, for u1={ex['u1']:.6g}, u2={ex['u2']:.6g} you printed {ex['printed']:.6g} "
                   f"but z = {ex['expected_z']:.6g}.")
     if cp.ratio >= p["min_ratio"]:
         frac = cp.ratio
+        if not wrong and missing:
+            # every value printed is right: the shortfall is pairs that got no line at all
+            ex = missing[0]
+            return Finding(value, frac, "partial",
+                           f"Only {cp.matched} of {cp.expected} published pairs got a z printed: every value "
+                           f"you printed is correct, but {n_missing} pairs got no line (for example u1={ex['u1']:.6g}, "
+                           f"u2={ex['u2']:.6g}, sent {ex['sent_s']:.2f} s into the replay: z = {ex['expected_z']:.6g}). "
+                           "Log one value for every message your callback receives.", ev)
         return Finding(value, frac, "partial",
                        f"Only {cp.matched} of {cp.expected} published pairs got a correct z printed "
                        f"(missing or wrong lines).{detail}", ev)

@@ -224,6 +224,7 @@ class Pairing:
     first_i: int | None
     lag_window: tuple[float, float] = (0.0, 0.0)   # accepted (output time - input time), s
     chance: float = 0.0                            # share of lines a random input would match
+    span: tuple[float, float] = (0.0, 0.0)         # input times counted in ``expected``
 
     @property
     def raw_ratio(self) -> float:
@@ -375,7 +376,7 @@ def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred: Any, p: dic
             t0 = float(src.time[0]) - p["max_lag_s"] if len(src.time) else float("inf")
         expected = int(((inp.t >= t0 - 1e-9) & (inp.t <= cut)).sum())
         expected = max(expected, len(matched_i))
-        cand = Pairing(src, pos, formula, pairs, len(matched_i), expected, first_i, lag, chance)
+        cand = Pairing(src, pos, formula, pairs, len(matched_i), expected, first_i, lag, chance, (t0, cut))
         if best is None or (cand.ratio > best.ratio and measured is not None
                             and measured <= p["max_chance_full"]):
             best = cand
@@ -450,6 +451,24 @@ def _examples(sel: Selection, pairing: Pairing, k: int = 5, only_unmatched: bool
         if len(out) >= k:
             break
     return out
+
+
+def _unanswered(sel: Selection, pairing: Pairing, k: int = 5) -> tuple[int, list[dict]]:
+    """Inputs counted in ``expected`` that no printed line answers: how many, and the first
+    ``k`` (a node that received them printed nothing for them, or never received them)."""
+    inp = sel.inputs
+    assert inp is not None
+    answered = {i for _, i, m in pairing.pairs if m}
+    t0, cut = pairing.span
+    idx = [i for i in np.flatnonzero((inp.t >= t0 - 1e-9) & (inp.t <= cut)) if int(i) not in answered]
+    zc = FORMULAS["correct"][1]
+    out = []
+    for i in idx[:k]:
+        with np.errstate(all="ignore"):
+            z = float(zc(np.array([inp.u1[i]]), np.array([inp.u2[i]]))[0])
+        out.append({"u1": float(inp.u1[i]), "u2": float(inp.u2[i]), "expected_z": z,
+                    "sent_s": round(float(inp.t[i] - inp.t[0]), 3)})
+    return len(idx), out
 
 
 def _pair_series(sel: Selection, pairing: Pairing, max_points: int = 300) -> dict:

@@ -10,9 +10,9 @@ second and passed everything (0.10 at load 20 with nothing else of ours running)
 
 The simulator is the probe: the grader's own process with the same small load in every scenario,
 so its wait share says how starved the run was whatever the student's code does (a student's
-node may spin a core on purpose). Above ``WAIT_SHARE_MAX`` the recording is made again, up to
-``RETRIES`` times ``PAUSE_S`` apart; a scenario starved every time keeps its last recording,
-and the result says so in its problems (re-grade that submission when the machine is quiet).
+node may spin a core on purpose); without a simulator, the scenario process is (``PROBES``).
+Above the probe's limit the recording is made again, up to ``RETRIES`` times ``PAUSE_S``
+apart; a scenario starved every time keeps its last recording, and the result says so in its problems (re-grade that submission when the machine is quiet).
 """
 
 from __future__ import annotations
@@ -23,20 +23,28 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-#: the simulator may wait at most this share of its lifetime for a CPU (s per s)
-WAIT_SHARE_MAX = 0.5
 RETRIES = 2
 PAUSE_S = 5.0
-PROBE = "turtlesim"
+#: the probe process of ``cpu_wait`` (the first present is used), what to call it, and the
+#: largest share of its lifetime it may wait for a CPU (s per s, summed over its threads). A
+#: scenario without a simulator (Lab 3's subscriber, fed by a replay) has the grader's own
+#: scenario process, whose threads (executor, recorder) wait more for the same load: measured
+#: over 502 overloaded recordings that have both, it waited a median 1.4 s per s (10th-90th
+#: percentile 0.94-1.67) when the simulator waited 0.4-0.6
+PROBES = {"turtlesim": ("the simulator", 0.5), "scenario": ("the grader's scenario process", 1.5)}
 
 
 def starved(record: dict[str, Any]) -> str | None:
     """Why the recording is not a measurement of the code (None: it is)."""
-    probe = (record.get("cpu_wait") or {}).get(PROBE) or {}
-    share = probe.get("wait_share")
-    if isinstance(share, (int, float)) and share > WAIT_SHARE_MAX:
-        return (f"the machine was too busy: the simulator waited {share:.2f} s per second for a CPU "
-                f"(at most {WAIT_SHARE_MAX:g})")
+    waits = record.get("cpu_wait") or {}
+    name = next((n for n in PROBES if n in waits), None)
+    if name is None:
+        return None
+    what, most = PROBES[name]
+    share = (waits[name] or {}).get("wait_share")
+    if isinstance(share, (int, float)) and share > most:
+        return (f"the machine was too busy: {what} waited {share:.2f} s per second for a CPU "
+                f"(at most {most:g})")
     return None
 
 

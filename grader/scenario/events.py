@@ -42,7 +42,7 @@ class Event(StrEnum):
     TURTLES_HELD = "turtles_held"            # step, ok (the simulator holds every turtle still)
     TURTLES_RELEASED = "turtles_released"    # step, ok, held_s (the turtles move again)
     REPLAY_START = "replay_start"            # step, topics, count, rate_hz, bag
-    REPLAY_END = "replay_end"                # step, count, outputs, paced, duration_s
+    REPLAY_END = "replay_end"                # step, count, outputs, paced, resyncs, waited_s, duration_s
     # processes
     NODE_STARTED = "node_started"            # process, of (rubric process), argv (whole), node_name
     NODE_UNAVAILABLE = "node_unavailable"    # process, of, error (why it could not be started), node_name

@@ -196,7 +196,8 @@ class Replay(Model):
     fixed pace; absent = the recorded timing. ``count``: the first N messages. ``lead``: never
     more than this many messages ahead of the student's output lines (a subscriber that logs
     one line per message is paced instead of losing messages in its QoS history; a node that
-    prints nothing per message gets the plain pace after a few messages).
+    prints nothing per message gets the plain pace after a few messages). How long it waits for
+    an answer: ``lead_wait_s`` and ``lead_budget_s`` (:mod:`grader.scenario.pacing`).
     """
 
     bag: LaxPath = Field(description="a bag folder, relative to the rubric")
@@ -206,6 +207,12 @@ class Replay(Model):
     count: PositiveInt | None = Field(None, description="the first N messages (absent: all)")
     lead: PositiveInt | None = Field(None, description="at most this many messages ahead of the "
                                      "student's output lines")
+    lead_wait_s: PositiveFloat = Field(2.0, description="with lead: wall s to wait for the student's "
+                                       "answer before counting the messages as not answered (a "
+                                       "starved node pauses, then answers everything queued)")
+    lead_budget_s: NonNegativeFloat = Field(10.0, description="with lead: wall s of such waits beyond "
+                                            "0.25 s each, over the whole replay (a node that answers only "
+                                            "some messages)")
 
     @field_validator("bag", mode="before")
     @classmethod

@@ -21,6 +21,7 @@ from typing import Any, Callable, cast
 from grader.scenario import model as m
 from grader.scenario.driver import Driver, fill, import_type, to_plain
 from grader.scenario.events import Event
+from grader.scenario.pacing import Pacer
 
 
 @dataclass
@@ -319,33 +320,35 @@ def _replay(rt: Runtime, step: m.Step, spec: m.Replay, state: StepState) -> dict
     n = len(p.payloads) if spec.count is None else min(spec.count, len(p.payloads))
     driver.event(Event.REPLAY_START, step=step.id, topics=topics, count=n, rate_hz=spec.rate_hz,
                  bag=str(spec.bag))
-    base = driver.output_count()
-    paced = spec.lead is not None
+    pacer = None if spec.lead is None else Pacer(spec.lead, spec.lead_wait_s, spec.lead_budget_s,
+                                                 driver.output_count())
 
     def offset(k: int) -> float:
         """Seconds from the first message to message ``k`` on the replay's schedule."""
         return k / spec.rate_hz if spec.rate_hz else (p.times[k] - p.times[0]) / 1e9
 
+    def wait(predicate: Callable[[], bool], timeout: float) -> tuple[bool, float]:
+        # the student's processing takes wall time: it gets the 1x allowance at any speed
+        t = time.monotonic()
+        met = driver.wait_until(predicate, timeout, poll=0.002, wall=True)
+        return met, time.monotonic() - t
+
     clock = driver.clock
     t_start = t0 = clock.now()
+    base = driver.output_count()
     for i in range(n):
         pubs[p.pubs[i]].publish(p.payloads[i])
         if i + 1 < n:
             clock.sleep_until(t0 + offset(i + 1))
-        if paced and spec.lead is not None:
-            ahead = i + 1 - spec.lead
-            # the student's processing takes wall time: it gets the 1x allowance at any speed
-            if not driver.wait_until(lambda: driver.output_count() - base >= ahead, 0.25, poll=0.002,  # noqa: B023 - called here
-                                     wall=True):
-                base = driver.output_count() - (i + 1)   # inputs lost or ignored: re-sync
-            if i == 4 * spec.lead and driver.output_count() == base:
-                paced = False       # it prints nothing per message: the plain schedule from here on
+        if pacer is not None:
+            pacer.after(i, driver.output_count, wait, rt.students_gone)
         if i + 1 < n:
             t0 = max(t0, clock.now() - offset(i + 1))   # no burst after waiting for the student
     driver.last_output = time.monotonic()
     state.replay_done = True
     driver.event(Event.REPLAY_END, step=step.id, count=n, outputs=driver.output_count() - base,
-                 paced=paced, duration_s=round(clock.now() - t_start, 3))
+                 **(pacer.summary() if pacer is not None else {"paced": False}),
+                 duration_s=round(clock.now() - t_start, 3))
     return {"topics": topics, "count": n}
 
 

@@ -103,6 +103,26 @@ def test_many_missing_lines_is_partial() -> None:
     assert f.status == "partial" and 0.5 < f.fraction < 0.9, f.evidence
 
 
+def test_missing_lines_are_named_as_missing_never_as_wrong_values() -> None:
+    # every printed value right, some pairs unanswered: the feedback shows a pair that got no
+    # line (a CI run's said "you printed -1.36168 but z = -1.36168", a matched pair as "wrong")
+    f = check(get("boxmuller")(_frames(drop=tuple(range(10, 60, 3))), {}))
+    assert f.status == "partial" and f.evidence["unanswered"] == 17, f.evidence
+    assert "every value you printed is correct, but 17 pairs got no line" in f.feedback
+    assert "you printed" not in f.feedback.replace("you printed is", "")
+    ex = f.evidence["examples"][0]
+    assert "printed" not in ex and ex["sent_s"] == pytest.approx(10.0, abs=0.05)
+    # a wrong value among them: the example is that value
+    fr = _frames(drop=tuple(range(10, 60, 3)))
+    ro = fr["/rosout"].copy()
+    row = ro.index[ro["name"] == "simple_subscriber"][5]
+    ro.loc[row, "msg"] = "Normal random number: 7.0000"
+    fr["/rosout"] = ro
+    fr.pop("/grader/stdout")
+    f = check(get("boxmuller")(fr, {}))
+    assert f.status == "partial" and "you printed 7 but z = " in f.feedback, f.feedback
+
+
 def test_number_position_is_found_when_inputs_are_printed_too() -> None:
     f = check(get("boxmuller")(_frames(fmt="{0:.5f} from u1={u1:.3f} u2={u2:.3f}", prefix="z="), {}))
     assert f.status == "pass" and f.evidence["number_position"] == 0

@@ -17,7 +17,12 @@ def rec(share: float | None) -> dict:
 def test_the_simulator_is_the_probe() -> None:
     assert starved(rec(0.2)) is None                       # a student's node spinning a core is its own business
     assert "1.02 s per second" in starved(rec(1.02))
-    assert starved(rec(None)) is None                      # no simulator in the scenario: nothing to judge by
+    assert starved(rec(None)) is None                      # no probe in the record: nothing to judge by
+    # no simulator (a replay into a subscriber): the grader's scenario process is the probe
+    assert "scenario process waited 1.70 s" in starved({"cpu_wait": {"scenario": {"wait_share": 1.7},
+                                                                       "subscriber": {"wait_share": 0.1}}})
+    assert starved({"cpu_wait": {"scenario": {"wait_share": 1.2}}}) is None
+    assert starved({"cpu_wait": {"turtlesim": {"wait_share": 0.2}, "scenario": {"wait_share": 0.9}}}) is None
 
 
 def test_a_starved_recording_is_made_again_until_one_is_not(tmp_path: Path) -> None:
