@@ -71,7 +71,7 @@ def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path, time_scal
     from the teleport on are the placement itself, tick after tick, until the release. The
     teleport is recorded as the driver's own service call. (Before the hold, the turtle moved on
     with its last command between the teleport and the action, by a different amount each run.)"""
-    from grader.scenario.steps import PLACE_HANDOFF_S
+    from grader.scenario.placement import PLACE_HANDOFF_S
 
     scenario = Scenario.model_validate({"steps": [
         {"id": "go", "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
