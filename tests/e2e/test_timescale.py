@@ -2,7 +2,9 @@
 says how each scenario ran (4x, or 1x and why).
 
 A small batch (the reference, a controller bug, a publisher at the wrong rate, whose scenario the
-watchdog sends back to 1x) keeps this test at about two minutes; the full comparison (every Lab 3
+watchdog sends back to 1x) keeps this test at about two minutes (``heavy``: CI's ``make
+test-heavy``; ``make test`` keeps the faster run's own tests, tests/scenario/
+test_scenario_timescale.py); the full comparison (every Lab 3
 fixture at 1x once and at 4x twice, per-item results identical) is
 ``benchmarks/bench_timescale.py --fixtures`` (~15 min on a busy 2-core machine).
 """
@@ -42,6 +44,7 @@ def result(batch: Path, name: str) -> dict:
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 @pytest.mark.ros
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("name", FIXTURES)
@@ -58,6 +61,7 @@ def test_fixture_at_4x_grades_as_at_1x(batch: Path, name: str) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 @pytest.mark.ros
 @pytest.mark.timeout(900)
 def test_each_scenario_says_how_it_ran(batch: Path) -> None:
@@ -84,6 +88,7 @@ def test_each_scenario_says_how_it_ran(batch: Path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 @pytest.mark.ros
 @pytest.mark.timeout(900)
 def test_regrade_reads_the_bags_in_simulated_time(batch: Path, tmp_path: Path) -> None:
@@ -97,6 +102,7 @@ def test_regrade_reads_the_bags_in_simulated_time(batch: Path, tmp_path: Path) -
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 @pytest.mark.ros
 @pytest.mark.timeout(900)
 def test_check_at_4x_reuses_scaled_recordings_and_says_so(batch: Path, tmp_path: Path, capsys) -> None:

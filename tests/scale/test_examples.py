@@ -81,6 +81,7 @@ def _items(out: Path) -> dict[str, list]:
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 @pytest.mark.ros
 def test_sbatch_array_tasks_and_merge_grade_like_one_run(tmp_path: Path) -> None:
     subs = tmp_path / "subs"
@@ -204,6 +205,7 @@ def test_classroom_runner_result_is_what_the_reporter_reads(tmp_path: Path) -> N
 
 
 @pytest.mark.slow
+@pytest.mark.heavy
 @pytest.mark.ros
 @pytest.mark.timeout(1200)
 def test_classroom_workflow_steps_report_the_points(tmp_path: Path) -> None:
