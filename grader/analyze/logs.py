@@ -20,8 +20,8 @@ import pandas as pd
 
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SHARE
-from grader.analyze._common import (Frames, events, missing_topic_feedback, rosout_lines, stdout_lines,
-                                    times, topic, traceback_mask)
+from grader.analyze._common import (EVENTS, Frames, events, missing_topic_feedback, rosout_lines,
+                                    stdout_lines, times, topic, traceback_mask)
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -33,6 +33,8 @@ EVIDENCE = {
     "heard": ("lines logged as heard", ""), "first_heard": ("first heard", ""), "share": ("share heard", SHARE),
     "foreign": ("logged but never published", ""), "published_while_listening": ("published while it listened", ""),
     "min_share": ("share needed", SHARE), "logged_by": ("matching lines logged by other nodes", ""),
+    "after_step": ("judged from the start of step", ""), "max_messages": ("messages judged, at most", ""),
+    "judged": ("messages judged", ""),
 }
 
 
@@ -152,11 +154,24 @@ def logged(frames: Frames, p: dict) -> Finding:
     "pattern": REQUIRED,           # required: regex every message must match; group 1 = the counter
     "min_count": 3,            # messages needed
     "counting": False,         # the counter (group 1) goes up by one per message
+    "after_step": None,        # judge only messages sent after this step began (None: all)
+    "max_messages": None,      # ... and only the first this many of them (None: all)
 })
 def text_messages(frames: Frames, p: dict) -> Finding:
+    """Every message on ``topic`` matches ``pattern`` (and counts up). With ``after_step`` and
+    ``max_messages``, the same share of a run is judged in every run: a publisher's first
+    messages reach the bag or not depending on when the recorder matched it (a counter that
+    counts down matched the pattern with its first message only, graded 0.27 of 3 points in two
+    runs and 0 in the third, bench_flake), so only messages sent after a step that begins once
+    the recorder has matched the publisher count, and only as many as the step waits for."""
     df = topic(frames, p["topic"])
     if df is None or "data" not in df.columns:
         return Finding.fail(missing_topic_feedback(frames, p["topic"], "string messages"))
+    judged = _judged(frames, df, p)
+    if judged is None:
+        return Finding.error(f"The scenario has no step {p['after_step']!r} to judge {p['topic']} from "
+                             "(a rubric problem).", {"after_step": p["after_step"]})
+    df = judged
     pattern = re.compile(p["pattern"])
     texts = [str(v) for v in df["data"]]
     matches = [pattern.fullmatch(t) or pattern.search(t) for t in texts]
@@ -164,8 +179,12 @@ def text_messages(frames: Frames, p: dict) -> Finding:
     ev: dict[str, Any] = {"messages": len(texts), "matching": int(sum(ok)), "first": texts[:5],
           "not_matching": [t for t, k in zip(texts, ok) if not k][:5]}
     problems = []
+    if p.get("after_step"):
+        ev["judged"] = f"sent after step {p['after_step']!r} began" + (
+            f", the first {p['max_messages']}" if p.get("max_messages") else "")
     if len(texts) < p["min_count"]:
-        problems.append(f"only {len(texts)} message(s) on {p['topic']} (needs {p['min_count']})")
+        when = " while the grader listened" if p.get("after_step") else ""
+        problems.append(f"only {len(texts)} message(s) on {p['topic']}{when} (needs {p['min_count']})")
     if not all(ok):
         problems.append(f"{len(texts) - sum(ok)} message(s) do not match {p['pattern']!r}, e.g. "
                         f"{ev['not_matching'][0]!r}")
@@ -182,6 +201,39 @@ def text_messages(frames: Frames, p: dict) -> Finding:
     frac = frac if len(texts) >= p["min_count"] else 0.0
     return Finding(value, frac if frac < 1 else 0.5, graded(frac if frac < 1 else 0.5),
                    "; ".join(problems).capitalize() + ".", ev)
+
+
+def _judged(frames: Frames, df: pd.DataFrame, p: dict) -> pd.DataFrame | None:
+    """The messages of ``df`` sent after step ``after_step`` began (send time when the bag has
+    it, else receive time; the step's start event likewise), the first ``max_messages`` of them.
+    None when the bag has no such step."""
+    if p.get("after_step"):
+        starts = [e for e in events(frames, Event.STEP_START) if e.get("step") == p["after_step"]]
+        if not starts:
+            return None
+        t0 = float(starts[0]["t"])
+        sent = times(df)
+        if "pub_t" in df.columns:
+            pt = df["pub_t"].to_numpy(float)
+            sent = np.where(np.isfinite(pt), pt, sent)
+            ev_t = _event_sent(frames, starts[0])
+            t0 = ev_t if ev_t is not None else t0
+        df = df[sent >= t0]
+    if p.get("max_messages"):
+        df = df.iloc[:int(p["max_messages"])]
+    return df
+
+
+def _event_sent(frames: Frames, event: dict) -> float | None:
+    """The send time of one /grader/events message (None when the bag has none for it)."""
+    ev = topic(frames, EVENTS)
+    if ev is None or "pub_t" not in ev.columns:
+        return None
+    row = np.flatnonzero(times(ev) == event["t"])
+    if not len(row):
+        return None
+    v = float(ev["pub_t"].to_numpy(float)[row[0]])
+    return v if np.isfinite(v) else None
 
 
 @register("heard_messages", evidence={**EVIDENCE, "value": ('messages heard', '')},

@@ -74,7 +74,8 @@ class Messages(Model):
 
 
 class Advertised(Model):
-    """A student node offers the topic (and the recorder subscribes to it), service or action."""
+    """A student node offers the topic (and the recorder has matched every publisher of it, so
+    what is published from then on is recorded), service or action."""
 
     condition: Literal["advertised"]
     topic: RosName | None = None

@@ -336,9 +336,10 @@ def _advertised(rt: Runtime, cond: m.Advertised, state: StepState) -> Predicate:
     driver = rt.driver
     if cond.topic is not None:
         topic = cond.topic
-        # advertised *and* recorded: the recorder's subscription must be in place too
+        # advertised *and* recorded: the recorder's subscription in place and matched with
+        # every publisher of the topic (the graph shows it before DDS has matched them)
         return lambda: driver.student_publishes(topic) and all(
-            driver.recorder_matched(n) for n in driver.student_nodes())
+            driver.recorder_matched(n) for n in driver.student_nodes()) and driver.topic_recorded(topic)
     if cond.service is not None:
         service = cond.service
         return lambda: driver.service_type(service) is not None
