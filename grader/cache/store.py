@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 import re
 import shutil
 import time
@@ -318,7 +319,7 @@ def record_batch(cache: Path, uses: Iterable[dict[str, int]], pruned: Pruned | N
                    held_entries=len(pruned.busy), size_after=pruned.size_after)
     cache = Path(cache)
     cache.mkdir(parents=True, exist_ok=True)
-    tmp = cache / f".{LAST_BATCH}.{os.getpid()}.tmp"
+    tmp = cache / f".{LAST_BATCH}.{os.getpid()}.{threading.get_ident()}.tmp"   # batches in threads too
     tmp.write_text(json.dumps(doc, indent=1))
     os.replace(tmp, cache / LAST_BATCH)
     return doc

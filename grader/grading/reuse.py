@@ -30,6 +30,7 @@ import contextlib
 import hashlib
 import json
 import os
+import threading
 import re
 import shutil
 import time
@@ -147,7 +148,7 @@ class RecordingCache:
 
     def put(self, key: str, folder: Path, submission: str) -> None:
         """Keep a finished scenario folder (atomically: a half-copied entry is never used)."""
-        tmp = self.root / f".{key}.{os.getpid()}.tmp"
+        tmp = self.root / f".{key}.{os.getpid()}.{threading.get_ident()}.tmp"   # scenarios run in threads
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
         for name in RECORDING:

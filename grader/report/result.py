@@ -11,6 +11,7 @@ import csv
 import io
 import json
 import os
+import threading
 import re
 from pathlib import Path
 from typing import Any, Mapping
@@ -177,7 +178,7 @@ def read_result(path: str | os.PathLike[str], *, verify: bool = True) -> tuple[s
 def atomic_write(path: Path, text: str) -> None:
     """Write via a temporary file + rename so a crash never leaves half a report."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path)
 

@@ -189,3 +189,28 @@ def test_sizes_are_read_like_people_write_them() -> None:
 def test_the_cap_comes_from_the_environment(monkeypatch) -> None:
     monkeypatch.setenv(store.MAX_SIZE_ENV, "2G")
     assert store.max_size() == 2 * 10**9 and store.max_size("1G") == 10**9
+
+
+def test_batches_in_threads_of_one_process_each_write_a_whole_last_batch(tmp_path: Path) -> None:
+    # the Python API grades labs side by side in threads (tests/e2e/test_lab_fixtures.py): a
+    # temporary file named by the process alone was renamed away under another thread
+    # (FileNotFoundError in 13 tests when four of five labs had nothing to grade)
+    start = threading.Barrier(8)
+    errors: list[BaseException] = []
+
+    def one(k: int) -> None:
+        start.wait()
+        try:
+            for _ in range(50):
+                store.record_batch(tmp_path, [{"builds_hit": k}], None)
+        except BaseException as exc:  # noqa: BLE001 - collected for the assert
+            errors.append(exc)
+
+    threads = [threading.Thread(target=one, args=(k,)) for k in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors[:1]
+    assert json.loads((tmp_path / "last_batch.json").read_text())["submissions"] == 1
+    assert not list(tmp_path.glob(".*.tmp"))
