@@ -42,7 +42,7 @@ EVIDENCE = {
     "left_color": ("colour left of the line", ""), "max_delay_s": ("time allowed after a crossing", "s"),
     "min_pixels": ("pixels needed per colour", ""), "min_share": ("share needed on its side", SHARE),
     "t": ("time", SINCE_START), "service": ("service", ""), "pose_topic": ("pose topic", ""),
-    "y": ("at y", "m"), "path": None,
+    "y": ("at y", "m"), "path": None, "share_by_direction": ("share right per direction", SHARE),
     "start_calls": ("calls before the first crossing that may set the colour of the side the turtle is on", ""),
     "start_call": ("call before the first crossing, with the colour of the side the turtle was on", ""),
     "side": ("side of the line", ""),
@@ -152,7 +152,6 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
     if end == end:
         extra = [e for e in extra if e["t"] + t0 < end - p["max_delay_s"] - 0.05]
     matched = sum(1 for r in rows if r["ok"])
-    denominator = len(rows) + len(extra)
     ev = {"crossings": rows[:40], "extra_calls": extra[:20], "calls": len(calls), "split_x": p["split_x"]}
     if starts:
         ev["start_call"] = [{**c, "t": c["t"] - t0} for c in starts]
@@ -162,7 +161,9 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
     if not cross:
         return Finding.fail(f"The turtle never crossed x = {p['split_x']:g}, so the pen colour change could not "
                             "be checked.", ev, value="no crossings")
-    frac = matched / denominator if denominator else 0.0
+    frac = _credit(rows, len(extra))
+    ev["share_by_direction"] = {d: round(sum(r["ok"] for r in rs) / len(rs), 4)
+                                for d in ("right", "left") if (rs := [r for r in rows if r["direction"] == d])}
     value = f"{matched}/{len(rows)} crossings" + (f", {len(extra)} extra call(s)" if extra else "")
     if frac >= 1.0:
         times_ = "once" if len(starts) == 1 else f"{len(starts)} times"
@@ -180,6 +181,18 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
         problems.append(f"{len(extra)} set_pen call(s) not at a crossing (first at t = {extra[0]['t']:.1f} s, "
                         f"colour {extra[0]['color']})")
     return Finding(value, frac, graded(frac), "; ".join(problems) + ".", ev)
+
+
+def _credit(rows: list[dict], extra: int) -> float:
+    """The share of crossings answered right, each direction weighing half (one direction only:
+    all of it), times the share of calls that answered a crossing. A node that sets the wrong
+    colour one way gets 0.5 however many crossings its path had: judged per crossing it got
+    6/13, 7/14 or 5/11 in three runs of the same code (bench_flake, issue 22)."""
+    shares = [sum(r["ok"] for r in rs) / len(rs)
+              for d in ("right", "left") if (rs := [r for r in rows if r["direction"] == d])]
+    if not shares:
+        return 0.0
+    return float(np.mean(shares)) * len(rows) / (len(rows) + extra)
 
 
 @register("canvas_colours", evidence={**EVIDENCE, "value": ('colours on the canvas', '')},

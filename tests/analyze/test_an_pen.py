@@ -98,3 +98,17 @@ def test_a_start_call_needs_a_crossing_to_be_graded() -> None:
                                 linear_velocity=0.0, angular_velocity=0.0)
     f = check(get("pen_on_crossings")(fr, dict(get("pen_on_crossings").defaults)))
     assert f.status == "fail" and "never crossed" in f.feedback
+
+
+def test_one_direction_always_wrong_gets_half_whatever_the_number_of_crossings() -> None:
+    # blue both ways: every leftward crossing wrong. Per crossing it was 6/13, 7/14 or 5/11 in
+    # three runs of the same code (issue 22); per direction it is 0.5 in each
+    got = set()
+    for duration in (28.0, 33.0, 38.0):          # 5, 6 and 7 crossings
+        t, x = _poses(duration)
+        calls = [(tc + 0.02, BLUE) for tc, _d in _crossings(t, x)]
+        fr = _frames(calls, duration)
+        f = check(get("pen_on_crossings")(fr, get("pen_on_crossings").defaults))
+        assert f.status == "partial" and f.evidence["share_by_direction"] == {"right": 1.0, "left": 0.0}
+        got.add((f.fraction, len(f.evidence["crossings"])))
+    assert {g[0] for g in got} == {0.5} and len({g[1] for g in got}) == 3, got
