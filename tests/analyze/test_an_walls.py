@@ -92,3 +92,23 @@ def test_a_placement_hold_is_not_a_stall() -> None:
     frames["/grader/events"] = held if events is None else pd.concat([events, held]).sort_index()
     finding = check(analyze.run("keeps_moving", frames, params))
     assert finding.status == "pass", finding.feedback
+
+
+def test_the_coast_after_the_scenario_ended_is_not_the_students() -> None:
+    # the grader stops the node at the end and the turtle coasts on its last command (up to 1 s
+    # in turtlesim): the lab text's node, heading south at 5 m/s, reached the wall 0.7 s after the
+    # end of drive_north in 2 of 3 runs and failed (bench_flake, issue 22)
+    import pandas as pd
+    from analyze_synth import T0, events_frame
+
+    frames = run(lambda *_: (5.0, 0.0), start=(5.5, 5.5, -math.pi / 2), duration=1.5)   # wall at ~1.1 s
+
+    def ended_at(t_end: float) -> dict:
+        fr = dict(frames)
+        fr["/grader/events"] = pd.concat([fr["/grader/events"], events_frame([(T0 + t_end, "scenario_end", {})])])
+        return fr
+
+    assert walls(frames).status == "fail"                    # no end event: the whole bag counts
+    coasting = walls(ended_at(0.8))
+    assert coasting.status == "pass" and coasting.evidence["min_clearance_m"] < 2.0, coasting.feedback
+    assert walls(ended_at(1.3)).status == "fail"             # the contact before the end still counts
