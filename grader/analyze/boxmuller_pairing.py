@@ -435,19 +435,22 @@ def select(frames: Frames, p: dict, sources: list[Source] | None = None) -> Sele
     return Selection(inp, srcs, bp, cp, counts)
 
 
+def _correct_z(inp: Inputs, i: int) -> float:
+    """The correct z of input ``i`` (NaN where the formula has none, e.g. u1 = 0)."""
+    with np.errstate(all="ignore"):
+        return float(FORMULAS["correct"][1](np.array([inp.u1[i]]), np.array([inp.u2[i]]))[0])
+
+
 def _examples(sel: Selection, pairing: Pairing, k: int = 5, only_unmatched: bool = False) -> list[dict]:
     inp = sel.inputs
     assert inp is not None
     v, _ = pairing.source.column(pairing.pos)
-    zc = FORMULAS["correct"][1]
     out = []
     for j, i, m in pairing.pairs:
         if only_unmatched and m:
             continue
-        with np.errstate(all="ignore"):
-            z = float(zc(np.array([inp.u1[i]]), np.array([inp.u2[i]]))[0])
         out.append({"u1": float(inp.u1[i]), "u2": float(inp.u2[i]), "printed": float(v[j]),
-                    "line": pairing.source.text[j][:120], "expected_z": z, "matched": bool(m)})
+                    "line": pairing.source.text[j][:120], "expected_z": _correct_z(inp, i), "matched": bool(m)})
         if len(out) >= k:
             break
     return out
@@ -460,14 +463,9 @@ def _unanswered(sel: Selection, pairing: Pairing, k: int = 5) -> tuple[int, list
     assert inp is not None
     answered = {i for _, i, m in pairing.pairs if m}
     t0, cut = pairing.span
-    idx = [i for i in np.flatnonzero((inp.t >= t0 - 1e-9) & (inp.t <= cut)) if int(i) not in answered]
-    zc = FORMULAS["correct"][1]
-    out = []
-    for i in idx[:k]:
-        with np.errstate(all="ignore"):
-            z = float(zc(np.array([inp.u1[i]]), np.array([inp.u2[i]]))[0])
-        out.append({"u1": float(inp.u1[i]), "u2": float(inp.u2[i]), "expected_z": z,
-                    "sent_s": round(float(inp.t[i] - inp.t[0]), 3)})
+    idx = [int(i) for i in np.flatnonzero((inp.t >= t0 - 1e-9) & (inp.t <= cut)) if int(i) not in answered]
+    out = [{"u1": float(inp.u1[i]), "u2": float(inp.u2[i]), "expected_z": _correct_z(inp, i),
+            "sent_s": round(float(inp.t[i] - inp.t[0]), 3)} for i in idx[:k]]
     return len(idx), out
 
 
