@@ -30,7 +30,7 @@ lint: bootstrap $(VENV)/.lint-tools
 	$(VENV)/bin/ruff check grader tests
 	$(VENV)/bin/mypy
 
-# everything but the heavy tests (~25 min on 2 cores; 29 before three batches became heavy); CI (.ci/run) runs test-heavy after it
+# everything but the heavy tests (27 min measured on 2 cores; 29 before three batches became heavy); CI (.ci/run) runs test-heavy after it
 test: bootstrap
 	$(VENV)/bin/python -m pytest -m "not heavy" $(PYTEST_ARGS)
 
