@@ -165,9 +165,9 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
     if not cross:
         return Finding.fail(f"The turtle never crossed x = {p['split_x']:g}, so the pen colour change could not "
                             "be checked.", ev, value="no crossings")
-    frac = _credit(rows, len(extra))
-    ev["share_by_direction"] = {d: round(sum(r["ok"] for r in rs) / len(rs), 4)
-                                for d in ("right", "left") if (rs := [r for r in rows if r["direction"] == d])}
+    shares = _direction_shares(rows)
+    frac = _credit(shares, len(rows), len(extra))
+    ev["share_by_direction"] = {d: round(v, 4) for d, v in shares.items()}
     value = f"{matched}/{len(rows)} crossings" + (f", {len(extra)} extra call(s)" if extra else "")
     if frac >= 1.0:
         times_ = "once" if len(starts) == 1 else f"{len(starts)} times"
@@ -189,16 +189,20 @@ def pen_on_crossings(frames: Frames, p: dict) -> Finding:
     return Finding(value, frac, graded(frac), "; ".join(problems) + ".", ev)
 
 
-def _credit(rows: list[dict], extra: int) -> float:
+def _direction_shares(rows: list[dict]) -> dict[str, float]:
+    """Per direction the turtle crossed in, the share of its crossings answered right."""
+    return {d: sum(r["ok"] for r in rs) / len(rs)
+            for d in ("right", "left") if (rs := [r for r in rows if r["direction"] == d])}
+
+
+def _credit(shares: dict[str, float], crossings: int, extra: int) -> float:
     """The share of crossings answered right, each direction weighing half (one direction only:
     all of it), times the share of calls that answered a crossing. A node that sets the wrong
     colour one way gets 0.5 however many crossings its path had: judged per crossing it got
     6/13, 7/14 or 5/11 in three runs of the same code (bench_flake, issue 22)."""
-    shares = [sum(r["ok"] for r in rs) / len(rs)
-              for d in ("right", "left") if (rs := [r for r in rows if r["direction"] == d])]
     if not shares:
         return 0.0
-    return float(np.mean(shares)) * len(rows) / (len(rows) + extra)
+    return float(np.mean(list(shares.values()))) * crossings / (crossings + extra)
 
 
 @register("canvas_colours", evidence={**EVIDENCE, "value": ('colours on the canvas', '')},

@@ -310,7 +310,7 @@ class Driver:
         n = self.node.count_publishers(topic)
         if sub is None or n == 0 or sub.get_publisher_count() < n:
             return False
-        return self.recording_matched is None or self.recording_matched(topic, n)
+        return self.topic_recorded(topic)
 
     def topic_recorded(self, topic: str) -> bool:
         """Every publisher the graph shows on ``topic`` is matched by the recorder's
