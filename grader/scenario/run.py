@@ -52,6 +52,8 @@ CLOCK_MATCH_S = 5.0
 #: and for the new nodes to take the held /clock (and the recorder to match their publishers:
 #: DDS matching lags the graph) before the clock runs again
 FIRST_CLOCK_S = 0.3
+#: wall seconds the driver waits for the simulator to hold the turtles at the scenario's end
+END_HOLD_WAIT_S = 2.0
 #: the simulator's own record of its poses, beside the bag until the recorder takes it in
 SIM_RECORD = "sim_poses.record"
 
@@ -261,6 +263,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                     driver.count_messages(expect.topic, None, wait_s=0.0)
             if sim is not None:
                 driver.watch_pose()
+                driver.prepare_turtle_hold()     # the hold at the scenario's end (below)
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
@@ -330,6 +333,12 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             # how starved the run was (before anything is stopped): see grader.scenario.cpuwait
             record["cpu_wait"] = cpu_wait({"scenario": os.getpid(), "turtlesim": sim.pid if sim is not None else None,
                                            **{n: p.pid for n, p in students.items() if p.alive()}})
+            # the scenario is over: the turtles are held still before the student's processes
+            # stop, or a turtle coasts on its last command (turtlesim's 1 s command timeout)
+            # after the scenario, drawing on the canvas the grade reads (bench_flake: a canvas
+            # item 2.5/5/2.5 over three runs of the same code, by how far the coast went)
+            if sim is not None and driver is not None and sim.alive() and not record.get("interrupted"):
+                driver.hold_turtles(True, "scenario_end", wait_s=END_HOLD_WAIT_S)
             # on simulated time the shutdown's wall time must not run the simulation on
             if scale and driver is not None and not driver.clock.stop():
                 record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "

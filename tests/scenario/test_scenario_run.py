@@ -45,7 +45,7 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
     assert pose["y"].iloc[-1] == pytest.approx(6.9389896, abs=0.05)
     events = [json.loads(d) for d in frames["/grader/events"]["data"]]
     names = [e["event"] for e in events]
-    assert names[0] == "scenario_start" and "service_call" in names and names[-1] == "scenario_end"
+    assert names[0] == "scenario_start" and "service_call" in names and names[-2:] == ["scenario_end", "turtles_held"]
     assert not any(e.get("forged") for e in events)
     assert "/turtle1/set_pen/_service_event" in frames
     assert Path(record["canvas"]).exists()
@@ -98,7 +98,9 @@ def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path, time_scal
     events = [json.loads(d) for d in frames["/grader/events"]["data"]]
     order = [e["event"] for e in events if e["event"] in ("turtles_held", "service_call", "message_sent",
                                                          "turtles_released")]
-    assert order == ["message_sent", "turtles_held", "service_call", "message_sent", "turtles_released"]
+    # ... and held again at the scenario's end (test_the_turtle_is_held_at_the_scenarios_end)
+    assert order == ["message_sent", "turtles_held", "service_call", "message_sent", "turtles_released",
+                     "turtles_held"]
     assert all(e["ok"] for e in events if e["event"] in ("turtles_held", "turtles_released"))
     calls = [e for e in events if e["event"] == "service_call"]
     assert [c["service"] for c in calls] == ["/turtle1/teleport_absolute"]
@@ -108,6 +110,36 @@ def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path, time_scal
     assert len(calls[0]["client_gid"]) == 16, calls[0]
     assert [c.by for c in provenance.calls(frames, "/turtle1/teleport_absolute")] == [provenance.GRADER]
 
+
+@pytest.mark.ros
+def test_the_turtle_is_held_at_the_scenarios_end(tmp_path: Path) -> None:
+    """Once the scenario is over the simulator holds the turtle still before the student's
+    processes are stopped: a turtle still driving would otherwise coast on its last command for
+    turtlesim's 1 s command timeout, by however far the shutdown took, and draw that on the
+    canvas a grade reads (a canvas item got 2.5, 5 and 2.5 points for the same code)."""
+    import numpy as np
+
+    from grader.analyze._common import events as ev
+    from grader.bag.frames import load_frames
+
+    scenario = Scenario.model_validate({"steps": [
+        {"id": "drive", "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
+                                    "msg": {"linear": {"x": 1.0}}, "count": 15, "rate_hz": 10}, "timeout": 1.5},
+    ], "limits": {"wall_s": 30}})
+    record = run_scenario(resolve("end", scenario, None), tmp_path / "end")
+    assert record["errors"] == [], record
+    frames = load_frames(tmp_path / "end" / "bag")
+    t_end = ev(frames, "scenario_end")[0]["t"]
+    truth = frames["/grader/sim_record/turtle1/pose"]
+    t = truth.index.to_numpy(float)
+    x = truth["x"].to_numpy(float)
+    assert x[t < t_end].max() > 6.5                   # it was driving at 1 m/s when the scenario ended
+    after = t > t_end + 0.15                          # the hold's call and the next tick
+    assert after.sum() >= 3, "the simulator recorded poses after the scenario's end"
+    assert np.ptp(x[after]) == 0.0 and (truth["linear_velocity"].to_numpy(float)[after] == 0).all(), \
+        f"the turtle went on {np.ptp(x[after]):.3f} m after the scenario's end"
+    held = ev(frames, "turtles_held")
+    assert [(e["step"], e["ok"]) for e in held] == [("scenario_end", True)]
 
 @pytest.mark.ros
 def test_a_scenario_starts_only_once_the_simulators_poses_are_recorded(tmp_path: Path, monkeypatch) -> None:
