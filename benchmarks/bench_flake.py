@@ -44,8 +44,8 @@ sys.path.insert(0, str(REPO))
 
 #: lab folder under fixtures/submissions -> rubric file under rubrics/
 LABS = {"enee467_lab3": "enee467_lab3.yaml", "goal_setter": "goal_setter.yaml",
-        "wall_pen": "wall_pen.yaml", "first_nodes": "first_nodes.yaml"}
-PER_LAB = {"enee467_lab3": 40, "goal_setter": 20, "wall_pen": 20, "first_nodes": 20}
+        "wall_pen": "wall_pen.yaml", "first_nodes": "first_nodes.yaml", "chase": "chase.yaml"}
+PER_LAB = {"enee467_lab3": 40, "goal_setter": 20, "wall_pen": 20, "first_nodes": 20, "chase": 20}
 #: hand-written variants no operator makes: (name, source fixture, file, old text, new text)
 EXTRA = {
     "enee467_lab3": [
