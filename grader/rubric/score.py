@@ -295,17 +295,22 @@ def _block(rubric: Rubric, items: list[ItemResult], mismatches: tuple[Mismatch, 
 
 
 def _gate(items: list[ItemResult]) -> list[ItemResult]:
-    """Items with ``requires`` earn their points only when every required item passed."""
+    """Items with ``requires`` earn their points only once every required item earned some
+    (passed, or partly: Lab 3's server that reaches two of three goals has written the control
+    loop, so its advertised action and its rejection of an out-of-bounds goal are its own work).
+    The gate keeps given code from earning points; "passes fully" made one chaotic goal of a
+    buggy server cost six more points in one run of three (bench_flake, issue 22)."""
+    earned = {i.id: (i.points or 0) > 0 and i.status in ("pass", "partial") for i in items}
     status = {i.id: i.status for i in items}
     out = []
     for item in items:
-        unmet = [r for r in item.requires if status.get(r) != "pass"]
+        unmet = [r for r in item.requires if not earned.get(r)]
         if not unmet or not item.points:
             out.append(item)
             continue
         names = ", ".join(f"{r} ({status.get(r, 'missing')})" for r in unmet)
         text = (f"No points yet: this item counts once {' and '.join(unmet)} "
-                f"{'passes' if len(unmet) == 1 else 'pass'} (now: {names}). " + item.feedback).strip()
+                f"{'earns' if len(unmet) == 1 else 'earn'} points (now: {names}). " + item.feedback).strip()
         out.append(replace(item, points=0.0, status="fail", feedback=text,
                            evidence={**item.evidence, "gated_by": unmet, "own_status": item.status,
                                      "own_points": item.points}))

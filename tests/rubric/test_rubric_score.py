@@ -199,3 +199,38 @@ def test_worst_finding():
     assert worst_finding([a, b, c]) is b
     assert worst_finding([a, None, c]) is c
     assert worst_finding([None, None]) is None
+
+
+GATED = """
+lab: gate-lab
+title: Gate
+sections:
+  - {section: {exercise: 3}, points: 6}
+scenarios:
+  s: {steps: [{id: run, wait: 1}]}
+items:
+  - {id: goals, title: Goals, section: {exercise: 3}, points: 4, scenario: s, analyzer: topic_type}
+  - {id: advertised, title: Advertised, section: {exercise: 3}, points: 2, scenario: s, analyzer: topic_type,
+     partial: none, requires: [goals]}
+"""
+
+
+@pytest.mark.parametrize("fraction, status, earns", [
+    (1.0, "pass", True),
+    # two of three goals reached: the loop is the student's own, the given parts count (a
+    # chaotic goal must not cost the gated items too: issue 22)
+    (2 / 3, "partial", True),
+    (0.0, "fail", False),          # the handout: every goal aborts
+    (0.0, "error", False),
+])
+def test_requires_gates_until_the_required_item_earns_points(write_rubric, fraction, status, earns):
+    rubric = load_rubric(write_rubric(GATED))
+    result = score(rubric, {"goals": FakeFinding(fraction=fraction, status=status),
+                            "advertised": FakeFinding(status="pass")})
+    adv = {i.id: i for i in result.items}["advertised"]
+    if earns:
+        assert (adv.status, adv.points) == ("pass", 2.0) and "gated_by" not in adv.evidence
+    else:
+        assert (adv.status, adv.points) == ("fail", 0.0)
+        assert adv.evidence["gated_by"] == ["goals"] and adv.evidence["own_status"] == "pass"
+        assert adv.feedback.startswith("No points yet: this item counts once goals earns points")
