@@ -263,7 +263,7 @@ def test_driving_turtle1_is_no_chase() -> None:
 def test_no_turtle2_fails_every_chase_item_with_the_reason() -> None:
     found = grade(simulate(p_law(1.0, 4.0), spawns=0))
     assert {k: f.status for k, f in found.items()} == dict.fromkeys(ALL_PASS, "fail")
-    assert "never called /spawn" in found["spawn.turtle2"].feedback
+    assert "/spawn got no request from your node" in found["spawn.turtle2"].feedback
     assert all("no turtle2" in found[k].feedback for k in ("chase.catches", "chase.short_way", "chase.follows"))
 
 
