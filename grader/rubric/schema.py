@@ -222,8 +222,8 @@ class Item(Model):
     ``scenario``: the recordings its analyzer reads; with several, the analyzer runs on each and
     the worst finding counts (integrity checks that must hold in every run). ``requires``: items
     that must earn points (pass, or partly) before this one does (e.g. a server that advertises
-    its action earns nothing until it also reaches a goal). ``hidden_params``: parameters (thresholds) not shown
-    in the student view. ``handout_credit``: why the lab's handed-out code may earn this item
+    its action earns nothing until it also reaches a goal). ``hidden_params``: parameters
+    (thresholds) not shown in the student view. ``handout_credit``: why the lab's handed-out code may earn this item
     (the handout test fails on any scored item the handout passes without it).
     """
 

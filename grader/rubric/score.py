@@ -299,7 +299,7 @@ def _gate(items: list[ItemResult]) -> list[ItemResult]:
     (passed, or partly: Lab 3's server that reaches two of three goals has written the control
     loop, so its advertised action and its rejection of an out-of-bounds goal are its own work).
     The gate keeps given code from earning points; "passes fully" made one chaotic goal of a
-    buggy server cost six more points in one run of three (bench_flake, issue 22)."""
+    buggy server cost five more points in one run of three (bench_flake, issue 22)."""
     earned = {i.id: (i.points or 0) > 0 and i.status in ("pass", "partial") for i in items}
     status = {i.id: i.status for i in items}
     out = []
