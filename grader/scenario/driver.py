@@ -355,7 +355,8 @@ class Driver:
     # -- holding the turtles still (grader.sim: ~/hold_turtles) --------------------------------
     def prepare_turtle_hold(self) -> None:
         """Create the client of the simulator's ``hold_turtles`` service before the scenario
-        starts (only scenarios that place the turtle use it), so it is discovered in time."""
+        starts (every scenario with a simulator: placements, and the hold at its end), so it is
+        discovered in time."""
         if self._hold_client is None:
             from std_srvs.srv import SetBool
 

@@ -263,7 +263,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                     driver.count_messages(expect.topic, None, wait_s=0.0)
             if sim is not None:
                 driver.watch_pose()
-                driver.prepare_turtle_hold()     # the hold at the scenario's end (below)
+                driver.prepare_turtle_hold()     # placements' holds and the one at the end (below)
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])

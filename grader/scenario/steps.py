@@ -282,7 +282,6 @@ def prepare(rt: Runtime) -> None:
             rt.driver.watch_pose(step.until.pose_topic)
         if step.place is not None:
             rt.driver.watch_pose(placement_topic(step.place))
-            rt.driver.prepare_turtle_hold()      # its client discovered before it is needed
             rt.driver.watch_commands(handoff_topic(step.place))
 
 

@@ -141,6 +141,7 @@ def test_the_turtle_is_held_at_the_scenarios_end(tmp_path: Path) -> None:
     held = ev(frames, "turtles_held")
     assert [(e["step"], e["ok"]) for e in held] == [("scenario_end", True)]
 
+
 @pytest.mark.ros
 def test_a_scenario_starts_only_once_the_simulators_poses_are_recorded(tmp_path: Path, monkeypatch) -> None:
     """The recorder is a DDS participant of its own: on a loaded machine it can discover the
