@@ -18,7 +18,7 @@ from grader.bag import cdr
 from grader.bag.msgdefs import (DefinitionNotFound, DefinitionSource, from_rosbag2_service_definition,
                                  normalize_type)
 from grader.bag.reader import Bag, TopicData, open_bag
-from grader.bag.timebase import CLOCK_TOPIC, TIMEBASE, bag_time_scale, time_map
+from grader.bag.timebase import CLOCK_TOPIC, TIMEBASE, bag_lockstep, bag_time_scale, time_map
 from grader.errors import GraderError
 
 
@@ -85,19 +85,21 @@ def load_frames(bag_dir: Path | str, topics: list[str] | None = None, *,
             have = ", ".join(sorted(open_bag(bag_dir).topics)) or "none"
             raise GraderError(f"bag {bag_dir} has no topic {', '.join(missing)} (topics: {have}).")
     frames = {name: topic_frame(bag, td) for name, td in bag.topics.items()}
+    custom = bag.metadata.custom_data if bag.metadata else None
     if time_scale is None:
-        time_scale = bag_time_scale(bag.metadata.custom_data if bag.metadata else None)
-    if time_scale > 1:
-        _to_simulated_time(frames, bag, time_scale)
+        time_scale = bag_time_scale(custom)
+    lockstep = bag_lockstep(custom)
+    if time_scale > 1 or lockstep:
+        _to_simulated_time(frames, bag, time_scale, lockstep)
     return frames
 
 
-def _to_simulated_time(frames: dict[str, Any], bag: Bag, scale: float) -> None:
+def _to_simulated_time(frames: dict[str, Any], bag: Bag, scale: float, stepwise: bool = False) -> None:
     clock = frames.get(CLOCK_TOPIC)
     if clock is None and CLOCK_TOPIC in open_bag(bag.path).topics:
         clock_bag = open_bag(bag.path, [CLOCK_TOPIC])
         clock = topic_frame(clock_bag, clock_bag.topics[CLOCK_TOPIC])
-    tmap = time_map(clock, scale)
+    tmap = time_map(clock, scale, stepwise)
     if tmap is None:
         raise GraderError(f"bag {bag.path} was recorded on simulated time ({scale:g}x) but holds no "
                           f"{CLOCK_TOPIC} messages, so its times cannot be mapped; grade it again.")

@@ -144,6 +144,9 @@ class Recorder:
         if args.time_scale is not None:
             from grader.bag.timebase import TIME_SCALE_KEY
             custom[TIME_SCALE_KEY] = repr(float(args.time_scale))
+        if args.lockstep:
+            from grader.bag.timebase import LOCKSTEP_KEY
+            custom[LOCKSTEP_KEY] = "true"
         self.writer = BagWriter(args.output, chunk_size=args.chunk_size, chunk_age_s=args.chunk_age,
                                 custom_data=custom)
         self.defs = DefinitionSource()
@@ -406,6 +409,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(receive times come from DDS, so they are unchanged; default 0.05)")
     p.add_argument("--node-name", default="grader_recorder")
     p.add_argument("--verbose", "-v", action="store_true", help="log publisher changes to stderr")
+    p.add_argument("--lockstep", action="store_true",
+                   help="the graph runs on the simulator's lockstep clock: noted in the bag's custom_data "
+                        "(each time maps to the tick of the last /clock before it)")
     p.add_argument("--time-scale", type=float, default=None, metavar="K",
                    help="the graph runs on simulated time K times faster than the wall clock: "
                         "noted in the bag's custom_data (log times stay wall clock; /clock maps "

@@ -11,6 +11,11 @@ sent a third of the way through a tick gets a third of a tick. Analyzers then se
 seconds, the time base in which the student's timers ran, and measure exactly what they measure
 at 1x.
 
+A bag of a lockstep run (:mod:`grader.scenario.lockstep`, noted under :data:`LOCKSTEP_KEY`)
+maps each time to the tick of the last ``/clock`` sent before it instead: there every message of
+a tick is sent after its ``/clock`` and before the next, and the wall time in between says only
+how busy the machine was, which must not move a time by a fraction of a tick.
+
 ``load_frames`` applies the map to every frame's index and ``pub_t`` and leaves it in the
 frames under :data:`TIMEBASE`, so helpers that read wall-clock stamps out of message fields
 (``_common.rosout_lines``, ``stdout_lines``) map those too (:func:`to_scenario_time`).
@@ -27,6 +32,8 @@ from grader.sim.clock import CLOCK_TOPIC
 
 #: custom_data key of the recorder's metadata: the run's time scale (absent: wall clock, 1x)
 TIME_SCALE_KEY = "grader.time_scale"
+#: custom_data key noting a lockstep run ("true")
+LOCKSTEP_KEY = "grader.lockstep"
 #: key of the :class:`TimeMap` in a frames dict loaded from a bag on simulated time
 TIMEBASE = "__timebase__"
 
@@ -39,17 +46,23 @@ class TimeMap:
     wall: np.ndarray
     sim: np.ndarray
     scale: float
+    #: lockstep: the simulated time of the last ``/clock`` sent at or before ``t``
+    stepwise: bool = False
 
     def __call__(self, t: Any) -> np.ndarray:
         t = np.asarray(t, dtype=float)
-        out = np.interp(t, self.wall, self.sim)
+        if self.stepwise:
+            i = np.searchsorted(self.wall, t, side="right") - 1
+            out = self.sim[np.clip(i, 0, len(self.sim) - 1)]
+        else:
+            out = np.interp(t, self.wall, self.sim)
         before = t < self.wall[0]
         after = t > self.wall[-1]
         out = np.where(before, self.sim[0] - (self.wall[0] - t) * self.scale, out)
         return np.where(after, self.sim[-1] + (t - self.wall[-1]) * self.scale, out)
 
 
-def time_map(clock: Any, scale: float) -> TimeMap | None:
+def time_map(clock: Any, scale: float, stepwise: bool = False) -> TimeMap | None:
     """The map of a bag's ``/clock`` frame (wall-clock index and ``pub_t``, fields
     ``clock.sec``/``clock.nanosec``); None when it holds no message."""
     if clock is None or not len(clock) or "clock.sec" not in clock.columns:
@@ -62,7 +75,7 @@ def time_map(clock: Any, scale: float) -> TimeMap | None:
     order = np.argsort(wall, kind="stable")
     wall, sim = wall[order], np.maximum.accumulate(sim[order])
     keep = np.concatenate([[True], np.diff(wall) > 0])   # np.interp needs increasing x
-    return TimeMap(wall[keep], sim[keep], float(scale))
+    return TimeMap(wall[keep], sim[keep], float(scale), stepwise)
 
 
 def to_scenario_time(frames: Mapping[str, Any], t: Any) -> np.ndarray:
@@ -81,5 +94,10 @@ def bag_time_scale(custom_data: dict[str, str] | None) -> float:
         return 1.0
 
 
-__all__ = ["CLOCK_TOPIC", "TIME_SCALE_KEY", "TIMEBASE", "TimeMap", "time_map", "to_scenario_time",
+def bag_lockstep(custom_data: dict[str, str] | None) -> bool:
+    """Whether a bag's metadata notes a lockstep run."""
+    return (custom_data or {}).get(LOCKSTEP_KEY) == "true"
+
+
+__all__ = ["CLOCK_TOPIC", "TIME_SCALE_KEY", "LOCKSTEP_KEY", "bag_lockstep", "TIMEBASE", "TimeMap", "time_map", "to_scenario_time",
            "bag_time_scale"]

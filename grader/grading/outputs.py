@@ -82,7 +82,7 @@ def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public
     if rubric.analyzers:        # the rubric's own analyzer files: a page redrawn later draws their figures
         extra["analyzer_files"] = [str(p) for p in rubric.analyzers]
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
-    if time_scales:                 # --time-scale: how each scenario ran, and why not faster
+    if time_scales:                 # --time-scale or lockstep: how each scenario ran, and why not
         extra["time_scale"] = time_scales
     out_dir, sid = graded.out.parent, graded.out.name
     write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
@@ -160,8 +160,10 @@ def print_contract(rubric: Rubric) -> None:
 def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:
     """How the scenarios ran under --time-scale: the fast ones in one line, each fallback with
     its reason."""
-    from grader.grading.timescale import describe
+    from grader.grading.timescale import describe, describe_lockstep
 
+    locked = {sc: ts for sc, ts in time_scales.items() if ts.get("clock") == "lockstep"}
+    time_scales = {sc: ts for sc, ts in time_scales.items() if sc not in locked}
     fast = sorted(sc for sc, ts in time_scales.items() if float(ts.get("used", 1)) > 1)
     notes = []
     if fast:
@@ -170,7 +172,7 @@ def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:
         notes.append(f"scenario{'s' if len(fast) > 1 else ''} {', '.join(fast)} ran {speed} than real time "
                      "(on simulated time)")
     notes += [describe(sc, ts) for sc, ts in sorted(time_scales.items()) if float(ts.get("used", 1)) <= 1]
-    return notes
+    return notes + [describe_lockstep(sc, ts) for sc, ts in sorted(locked.items())]
 
 
 def _wrap(text: str, width: int) -> list[str]:

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, cast
 
 from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
-from grader.grading.repeat import median_finding, run_folders, run_until_settled, settles_check
+from grader.grading.repeat import exact_lockstep, median_finding, run_folders, run_until_settled, settles_check
 from grader.scenario.events import Event
 
 if TYPE_CHECKING:
@@ -247,7 +247,8 @@ def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
                 else:
                     per_run.append(analyze_item(item, frames))
             planned = rubric.scenarios[sc].repeat if sc in rubric.scenarios else 1
-            per_scenario.append(median_finding(per_run, planned))
+            per_scenario.append(median_finding(per_run, planned,
+                                               lockstep=exact_lockstep(sub_out / SCENARIOS_DIR / sc)))
         findings[item.id] = combine_findings(item, per_scenario)
     mismatches = {}
     for sc, frames in frames_cache.items():
@@ -352,6 +353,8 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
                 reused[sc_id] = record["reused"]
             if time_scale > 1 and record.get("time_scale"):
                 time_scales[sc_id] = record["time_scale"]
+            if record.get("lockstep"):        # how a lockstep scenario's clock ran (and why not)
+                time_scales[sc_id] = {"clock": "lockstep", **record["lockstep"]}
     timings["scenarios_wall_s"] = round(time.monotonic() - t1, 2)
     recordings_made = scenario_recordings(out)
 

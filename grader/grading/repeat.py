@@ -11,6 +11,9 @@ Runs stop early once the median is settled: when more than half of the planned r
 every item of the scenario, further runs cannot move the median (``repeat: 3`` costs two runs
 when they agree, three when they do not).
 
+A scenario that ran on lockstep simulated time with every tick quiet (:mod:`grader.scenario.lockstep`)
+is not run again: its runs would be the same run. Its items say ``decided``: one lockstep run.
+
 Folders: run 1 is ``scenarios/<id>/`` as for any scenario; run k is ``scenarios/<id>.run<k>/``
 (a scenario id has no dot), so a regrade finds every run on disk.
 """
@@ -79,6 +82,22 @@ def settles_check(items: list, planned: int) -> Callable[[list[Path]], bool] | N
     return check
 
 
+def lockstep_record_exact(record: dict) -> bool:
+    """A record of a lockstep run with every tick quiet: running it again repeats it exactly."""
+    ls = record.get("lockstep") or {}
+    return bool(ls.get("used")) and not ls.get("quiet_timeouts") and not record.get("errors")
+
+
+def exact_lockstep(folder: Path) -> bool:
+    """Whether the recorded run in ``folder`` (its scenario.json) was an exact lockstep run."""
+    import json
+
+    try:
+        return lockstep_record_exact(json.loads((Path(folder) / "scenario.json").read_text()))
+    except (OSError, ValueError):
+        return False
+
+
 def run_until_settled(record_one: Callable[[int, Path], dict], scenarios_dir: Path, sc_id: str, planned: int,
                       settles: Callable[[list[Path]], bool] | None) -> dict:
     """Record run 1, 2, ... of a scenario (``record_one(k, folder)``) until ``planned`` runs, or
@@ -87,6 +106,8 @@ def run_until_settled(record_one: Callable[[int, Path], dict], scenarios_dir: Pa
     records: list[dict] = []
     for k in range(1, planned + 1):
         records.append(record_one(k, run_folder(scenarios_dir, sc_id, k)))
+        if k == 1 and lockstep_record_exact(records[0]):
+            break
         if settles is not None and 2 * k > planned and k < planned and \
                 settles([run_folder(scenarios_dir, sc_id, i) for i in range(1, k + 1)]):
             break
@@ -100,12 +121,14 @@ def run_until_settled(record_one: Callable[[int, Path], dict], scenarios_dir: Pa
     return first
 
 
-def median_finding(findings: Sequence[Any], planned: int) -> Any:
+def median_finding(findings: Sequence[Any], planned: int, lockstep: bool = False) -> Any:
     """The median of one item's findings over its runs (by fraction, then status: fail <
     partial < error < pass), with ``decided`` saying how it was decided. One finding: itself,
-    ``decided`` = one run."""
+    ``decided`` = one run (``lockstep``: one exact lockstep run, which a repetition repeats)."""
     from grader.rubric.score import _RANK
 
+    if len(findings) == 1 and lockstep:
+        return replace(findings[0], decided={"by": "one lockstep run", "runs": 1, "stable": True})
     if len(findings) == 1 and planned <= 1:
         return replace(findings[0], decided={"by": "one run", "runs": 1})
     order = sorted(range(len(findings)),

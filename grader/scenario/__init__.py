@@ -103,7 +103,7 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
     if env is None:
         from grader.rosenv import child_env
         env = child_env(prefixes=[Path(p) for p in run.prefixes])
-    limit = run.scenario.time_limit_s + GRACE_S
+    limit = run.wall_limit_s + GRACE_S
     if CANCELLED.is_set():
         raise KeyboardInterrupt
     t0 = time.monotonic()

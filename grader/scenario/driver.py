@@ -77,13 +77,16 @@ class Driver:
     """Owns an rclpy context on the scenario's domain and a background executor thread.
 
     ``time_scale`` > 1: the node runs with ``use_sim_time`` and ``clock`` measures scenario time
-    on the ``/clock`` of ``clock_node`` (see :mod:`grader.scenario.simtime`).
+    on the ``/clock`` of ``clock_node`` (see :mod:`grader.scenario.simtime`). ``lockstep``: the
+    simulator's clock advances only when this driver's waits step it
+    (:mod:`grader.scenario.lockstep`); the callable gives the processes each tick waits for.
     """
 
     def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim",
                  *, time_scale: float = 1.0, clock_node: str | None = None,
                  sink: Callable[[str, bytes], None] | None = None,
-                 recording_matched: Callable[[str, int], bool] | None = None) -> None:
+                 recording_matched: Callable[[str, int], bool] | None = None,
+                 lockstep: Callable[[], list[int]] | None = None) -> None:
         import rclpy
         from rclpy.clock import Clock, ClockType
         from rclpy.parameter import Parameter
@@ -96,12 +99,18 @@ class Driver:
         self.sim_node = sim_node
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx, domain_id=domain_id)
-        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if time_scale > 1 else []
+        sim_time = time_scale > 1 or lockstep is not None
+        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if sim_time else []
         self.node = rclpy.create_node("grader_driver", context=self.ctx, parameter_overrides=overrides)
         # its service clients are made here, before the executor spins, and send while it is paused
+        stepper = None
+        if lockstep is not None:
+            from grader.scenario.lockstep import Stepper
+
+            stepper = Stepper(self.ctx, sim_node, lockstep)
         self.clock = ScenarioClock(time_scale, self.node,
                                    f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
-                                   paused=self.executor_paused)
+                                   paused=self.executor_paused, stepper=stepper)
         self.String = String
         #: writes a serialized message of EVENTS_TOPIC / STDOUT_TOPIC straight into the bag
         self.sink = sink
@@ -390,9 +399,10 @@ class Driver:
         return ok
 
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float, poll: float = 0.02,
-                   *, wall: bool = False) -> bool:
-        """Poll until ``predicate()`` or ``timeout_s`` of scenario time (``wall``: wall seconds)."""
-        return self.clock.wait_until(predicate, timeout_s, poll, wall=wall)
+                   *, wall: bool = False, react: bool = False) -> bool:
+        """Poll until ``predicate()`` or ``timeout_s`` of scenario time (``wall``: wall seconds;
+        ``react``: a wall wait that ticks in lockstep, see ScenarioClock.wait_until)."""
+        return self.clock.wait_until(predicate, timeout_s, poll, wall=wall, react=react)
 
     def graph_snapshot(self) -> None:
         """Publish the nodes, and who publishes, subscribes and serves what (with the types):
@@ -509,5 +519,7 @@ class Driver:
                 self._stopping = True
             self._spin.join(timeout=2.0)
             self.executor.shutdown(timeout_sec=1.0)
+            if self.clock.stepper is not None:
+                self.clock.stepper.close()
             self.node.destroy_node()
             self.rclpy.try_shutdown(context=self.ctx)

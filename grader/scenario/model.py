@@ -337,6 +337,10 @@ class Scenario(Model):
     limits: Limits = Limits()
     real_time: bool = Field(False, description="run at 1x even with --time-scale (the scenario judges "
                             "wall-clock behaviour; say why in a comment)")
+    lockstep: bool = Field(False, description="run on lockstep simulated time: the clock advances a 16 ms tick "
+                           "only once every process has handled the last one, so the same code gets the "
+                           "same poses in every run (a chaotic path; say why in a comment). Nodes paced by "
+                           "the wall clock run on it instead, and the result says why")
     repeat: int = Field(1, ge=1, le=9, description="run it this many times (odd) and grade each of its items "
                         "by the median run (an item that stays timing-sensitive; say why in a comment)")
 
@@ -346,6 +350,14 @@ class Scenario(Model):
         if value % 2 == 0:
             raise ValueError(f"must be odd (1, 3, 5...): the median of {value} runs would not be one run's result")
         return value
+
+    @model_validator(mode="after")
+    def _lockstep(self) -> "Scenario":
+        if self.lockstep and not self.sim:
+            raise ValueError("lockstep needs the simulator (sim: true): it is the simulator's clock that steps")
+        if self.lockstep and self.real_time:
+            raise ValueError("lockstep and real_time exclude each other: lockstep runs on simulated time")
+        return self
 
     @model_validator(mode="after")
     def _goal_publishing(self) -> "Scenario":
@@ -446,7 +458,8 @@ class PackageFacts(Model):
 class ScenarioRun(Model):
     """What crosses to the scenario child: the rubric's scenario as it is, plus what the parent
     resolved against the build (argv of every process, install prefixes, the simulator's name)
-    and how fast to run it (``time_scale`` > 1: on simulated time, see grader.scenario.simtime)."""
+    and how fast to run it (``time_scale`` > 1: on simulated time, see grader.scenario.simtime;
+    ``lockstep``: on the simulator's lockstep clock, see grader.scenario.lockstep)."""
 
     id: str
     scenario: Scenario
@@ -459,6 +472,16 @@ class ScenarioRun(Model):
     notes: dict[str, Annotated[tuple[str, ...], Field(strict=False)]] = {}  # process -> remarks (launch)
     launch_installed: dict[str, bool] = {}   # process -> its launch file is in the package's share
     time_scale: Annotated[float, Field(ge=1.0, le=16.0, strict=False)] = 1.0   # 1: the wall clock
+    lockstep: bool = False                   # run on the simulator's lockstep clock (grader.scenario.lockstep)
     expected_rates: Annotated[tuple[RateExpectation, ...], Field(strict=False)] = ()   # watchdog
     packages: dict[str, PackageFacts] = {}   # the build's packages (``packages`` event: contract names)
     launch_files: dict[str, str] = {}        # process -> the launch file found for its ``launch:``
+
+    @property
+    def wall_limit_s(self) -> float:
+        """Wall seconds the scenario's processes may run: the scenario's limit, times
+        ``LOCKSTEP_WALL_FACTOR`` in lockstep (a tick may take longer than 16 ms of wall time
+        on a busy machine; a process that keeps it from ticking ends the lockstep run first)."""
+        from grader.scenario.simtime import LOCKSTEP_WALL_FACTOR
+
+        return self.scenario.time_limit_s * (LOCKSTEP_WALL_FACTOR if self.lockstep else 1.0)

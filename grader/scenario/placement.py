@@ -101,7 +101,8 @@ def _hand_over(rt: Runtime, step: m.Step, state: StepState, before: tuple[int, A
     driver = rt.driver
     t0 = time.monotonic()
     driver.clock.sleep(PLACE_HANDOFF_S)
-    time.sleep(max(0.0, t0 + PLACE_HANDOFF_S - time.monotonic()))
+    if not driver.clock.lockstep:     # in lockstep nothing happens between ticks
+        time.sleep(max(0.0, t0 + PLACE_HANDOFF_S - time.monotonic()))
     entry = driver.commands.get(handoff_topic(cast(m.Placement, step.place)), [0, None])   # (a placed step)
     seen: list[int] = []
 
@@ -110,7 +111,7 @@ def _hand_over(rt: Runtime, step: m.Step, state: StepState, before: tuple[int, A
             seen.append(entry[0])           # the first command that differs (the new goal's)
         return bool(seen) and entry[0] > seen[0]
 
-    ok = driver.wait_until(taken, HANDOFF_MAX_S, poll=0.002, wall=True)
+    ok = driver.wait_until(taken, HANDOFF_MAX_S, poll=0.002, wall=True, react=True)
     state.detail["handoff"] = {"new_command": ok, "commands": entry[0] - before[0],
                                "held_s": round(time.monotonic() - t0, 3)}
 
@@ -122,7 +123,7 @@ def _command_at_placement(rt: Runtime, step: m.Step) -> tuple[int, Any]:
     driver = rt.driver
     entry = driver.commands.get(handoff_topic(cast(m.Placement, step.place)), [0, None])   # (a placed step)
     start = entry[0]
-    driver.wait_until(lambda: entry[0] >= start + 2, PLACE_SETTLE_S, poll=0.002, wall=True)
+    driver.wait_until(lambda: entry[0] >= start + 2, PLACE_SETTLE_S, poll=0.002, wall=True, react=True)
     return entry[0], entry[1]
 
 

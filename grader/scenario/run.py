@@ -35,6 +35,7 @@ from grader.errors import GraderError
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
 from grader.scenario.cpuwait import cpu_wait
 from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.scenario.lockstep import LockstepFailed
 from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
 from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
@@ -191,12 +192,12 @@ class Launcher:
         gate = threading.Event() if script else None
         before = driver.student_nodes()
         argv = list(lp.argv)
-        if self.run.time_scale > 1:     # every node of the process follows /clock
+        if self.run.time_scale > 1 or self.run.lockstep:     # every node of the process follows /clock
             argv += ["--ros-args", "-p", "use_sim_time:=true"]
         managed = self.graph.start(ProcessSpec(
             lp.name, argv, env={**proc.env, **lp.env} or None,
             stdin=script if (script or proc.stdin is not None) else None,
-            close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.scenario.time_limit_s),
+            close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.wall_limit_s),
             nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0, untrusted=True),
             process_class=_EventedProcess, stdin_gate=gate)
         managed.driver = driver  # type: ignore[attr-defined]  # (an _EventedProcess)
@@ -216,13 +217,18 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     from grader.scenario.steps import Runtime, action_name, prepare, run_step
 
     spec = run.scenario
-    scale = run.time_scale if run.time_scale > 1 else None
-    clock_node = (run.sim_node if spec.sim else CLOCK_NODE) if scale else None
+    scale = run.time_scale if run.time_scale > 1 and not run.lockstep else None
+    sim_time = bool(scale) or run.lockstep     # on simulated time: the clock is the simulator's
+    clock_node = (run.sim_node if spec.sim else CLOCK_NODE) if sim_time else None
+    #: where the record says how the clock ran (and why it fell back)
+    clock_key = "lockstep" if run.lockstep else "time_scale"
     out.mkdir(parents=True, exist_ok=True)
     record: dict[str, Any] = {"scenario": run.id, "steps": [], "processes": {}, "errors": [],
                               "bag": str(out / "bag"), "canvas": None}
     if scale:
         record["time_scale"] = {"used": scale}
+    if run.lockstep:
+        record["lockstep"] = {"used": True}
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
     driver = recorder = sim = None
@@ -234,13 +240,14 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
         _discover_like(graph)
         try:
             topics = None if spec.record == "all" else list(spec.record) + ["/grader/events", "/grader/stdout"]
-            if topics is not None and scale:
+            if topics is not None and sim_time:
                 topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
             with _interrupt_after():
                 # the driver's events and output lines go into the bag in process (local topics):
                 # a student node publishing "/grader/events" adds nothing to the recording
                 recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id,
-                                          extra=["--time-scale", repr(scale)] if scale else (),
+                                          extra=["--time-scale", repr(scale)] if scale else
+                                          ["--lockstep"] if run.lockstep else (),
                                           local=(EVENTS_TOPIC, STDOUT_TOPIC))
             # on simulated time the clock owner starts alongside the recorder: the clock is held
             # below until the recorder records it, so nothing is missed
@@ -253,11 +260,14 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 sim = _start_clock_owner(graph, run, out, record, scale)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
                             clock_node=clock_node, sink=recorder.post,
-                            recording_matched=recorder.matched)
+                            recording_matched=recorder.matched,
+                            lockstep=(lambda: [p.pid for p in [sim, *students.values()]
+                                               if p is not None and p.alive()]) if run.lockstep else None)
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
-            if scale:
+            if sim_time:
                 if not driver.clock.wait_for_clock(SIM_READY_S):
                     raise RuntimeError(f"no {CLOCK_TOPIC} from the grader's clock within {SIM_READY_S:.0f}s")
+            if scale:
                 driver.watchdog = RateWatchdog(run.expected_rates, clock_owner=cast(str, clock_node))
                 for expect in run.expected_rates:
                     driver.count_messages(expect.topic, None, wait_s=0.0)
@@ -269,7 +279,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
                 _wait_recorded(driver, recorder, record, topics)
             start_hold = contextlib.ExitStack()
-            if scale:
+            if sim_time:
                 # the clock is held from here until the autostarted processes are up: a recorder
                 # still discovering the clock owner's topics would miss K times more of the start
                 start_hold.enter_context(driver.clock.held())
@@ -315,8 +325,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             _check_watchdog(driver)
             driver.graph_snapshot()
             driver.event(Event.SCENARIO_END, scenario=run.id)
-        except _FallBack as exc:
-            record["time_scale"]["fallback"] = str(exc)
+        except (_FallBack, LockstepFailed) as exc:
+            record[clock_key]["fallback"] = str(exc)
         except KeyboardInterrupt:
             # SIGTERM from the parent (batch Ctrl-C or time limit): stop, but keep what was recorded
             record["errors"].append("interrupted: the scenario was stopped before it finished")
@@ -353,6 +363,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 if scale:
                     record["time_scale"].update(sim_s=round(driver.clock.sim_s(), 3),
                                                 held_s=round(driver.clock.held_s, 3))
+                if driver.clock.stepper is not None:
+                    record["lockstep"].update(driver.clock.stepper.summary())
                 driver.shutdown()
             graph.stop_all()
             if recorder is not None:
@@ -403,7 +415,7 @@ def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dic
         record["canvas"] = str(canvas)
         return graph.start(ProcessSpec("turtlesim", sim_argv(
             canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale,
-            pose_record=out / SIM_RECORD)))
+            pose_record=out / SIM_RECORD, lockstep=run.lockstep)))
     if scale:
         graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
     return None

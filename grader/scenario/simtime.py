@@ -8,6 +8,13 @@ measures for the same scenario (at 1x a process's start-up costs wall time too),
 ``timeout: 10`` means the same thing at every speed, and a starting node never has to come up
 in a quarter of the time.
 
+Lockstep (a scenario's ``lockstep: true``, :mod:`grader.scenario.lockstep`): scenario time is
+simulated time alone, and it only advances when a wait of this clock steps it, one tick after
+another with the step's condition checked between ticks. A process starting costs no simulated
+time: nothing ticks while it comes up. Waits on work rather than time (``wall=True``: discovery)
+do not tick; waits for a node's answer to what it was sent (``react=True``) tick, as it needs its
+timers to answer.
+
 Every wait also ends after its timeout in *wall* seconds: the scenario clock normally runs at
 least as fast as the wall clock, so that bound only matters when the clock stalls (a dead
 simulator) and a step would otherwise wait forever.
@@ -24,6 +31,10 @@ from grader.sim.clock import HOLD_SERVICE, STOP_SERVICE
 
 #: wall seconds to wait for the clock owner's hold service and for the clock to reach the hold
 HOLD_WAIT_S = 10.0
+#: lockstep: a wait of T seconds of simulated time ends after T * this + LOCKSTEP_WALL_EXTRA_S
+#: of wall time at the latest (a tick takes 10-20 ms of wall time on a busy 2-core machine)
+LOCKSTEP_WALL_FACTOR = 10.0
+LOCKSTEP_WALL_EXTRA_S = 10.0
 
 
 class ScenarioClock:
@@ -36,9 +47,12 @@ class ScenarioClock:
     """
 
     def __init__(self, time_scale: float = 1.0, node: Any = None, hold_service: str | None = None,
-                 paused: Callable[[], Any] | None = None) -> None:
+                 paused: Callable[[], Any] | None = None, stepper: Any = None) -> None:
         self.time_scale = float(time_scale)
-        self.simulated = self.time_scale > 1.0
+        #: lockstep: the :class:`grader.scenario.lockstep.Stepper` that advances the clock
+        self.stepper = stepper
+        self.lockstep = stepper is not None
+        self.simulated = self.time_scale > 1.0 or self.lockstep
         self.node = node
         self.hold_service = hold_service
         self.held_s = 0.0                       # wall seconds the clock was held, finished holds
@@ -49,7 +63,7 @@ class ScenarioClock:
         self._paused = paused or contextlib.nullcontext
         self._client: Any = None
         self._stop_client: Any = None
-        if self.simulated and hold_service is not None:
+        if self.simulated and hold_service is not None and not self.lockstep:
             from std_srvs.srv import SetBool, Trigger
 
             self._client = node.create_client(SetBool, hold_service)
@@ -60,11 +74,15 @@ class ScenarioClock:
         """Simulated seconds (0 until the first ``/clock``); the wall clock at 1x."""
         if not self.simulated:
             return time.monotonic()
+        if self.stepper is not None:
+            return self.stepper.now_ns / 1e9
         return self.node.get_clock().now().nanoseconds / 1e9
 
     def now(self) -> float:
         """Scenario seconds: at 1x the wall clock less the time held (student processes
         starting); scaled, simulated time plus the wall time held."""
+        if self.lockstep:
+            return self.sim_s()
         since = self._held_since
         if not self.simulated:
             return time.monotonic() - self.held_s - (time.monotonic() - since if since is not None else 0.0)
@@ -76,10 +94,13 @@ class ScenarioClock:
 
     # -- waiting ------------------------------------------------------------------------------
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float, poll: float = 0.02,
-                   *, wall: bool = False) -> bool:
+                   *, wall: bool = False, react: bool = False) -> bool:
         """Poll ``predicate`` until it holds or ``timeout_s`` pass (scenario time, and never
         longer than ``timeout_s`` wall seconds). ``wall``: wall seconds only, for waits on
-        work rather than on time (discovery, a student's processing of inputs)."""
+        work rather than on time (discovery, a student's processing of inputs); ``react``: a
+        wall wait for a node's answer, which in lockstep needs ticks (its timers) to come."""
+        if self.stepper is not None and (react or not wall) and not self._holds:
+            return self._step_until(predicate, timeout_s)
         wall_end = time.monotonic() + timeout_s
         if wall or not self.simulated:
             while time.monotonic() < wall_end:
@@ -94,6 +115,16 @@ class ScenarioClock:
                 return True
             time.sleep(step)
         return predicate()
+
+    def _step_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
+        """Lockstep: tick until ``predicate`` holds or ``timeout_s`` of simulated time passed."""
+        end_ns = self.stepper.now_ns + round(timeout_s * 1e9)
+        wall_end = time.monotonic() + timeout_s * LOCKSTEP_WALL_FACTOR + LOCKSTEP_WALL_EXTRA_S
+        while not predicate():
+            if self.stepper.now_ns >= end_ns or time.monotonic() >= wall_end:
+                return predicate()
+            self.stepper.tick()
+        return True
 
     def sleep(self, seconds: float, stop: Callable[[], bool] | None = None) -> bool:
         """Sleep ``seconds`` of scenario time; True when ``stop()`` became true first."""
@@ -116,6 +147,11 @@ class ScenarioClock:
     def wait_for_clock(self, timeout_s: float) -> bool:
         """Wait (wall seconds) for the first ``/clock``: before it ``now()`` reads zero."""
         if not self.simulated:
+            return True
+        if self.stepper is not None:      # the first tick is the first /clock
+            if not self.stepper.ready(timeout_s):
+                return False
+            self.stepper.tick()
             return True
         return self.wait_until(lambda: self.sim_s() > 0, timeout_s, poll=0.01, wall=True)
 
@@ -141,8 +177,19 @@ class ScenarioClock:
                         self.held_s += time.monotonic() - self._held_since
                         self._held_since = None
             return
-        if self.hold_service is None:
+        if self.hold_service is None and not self.lockstep:
             yield
+            return
+        if self.lockstep:                 # nothing ticks in the block; it starts on the grid
+            with self._lock:
+                self._holds += 1
+                if self._holds == 1:
+                    self.stepper.to_grid()
+            try:
+                yield
+            finally:
+                with self._lock:
+                    self._holds -= 1
             return
         with self._lock:
             self._holds += 1
@@ -159,7 +206,7 @@ class ScenarioClock:
     def stop(self) -> bool:
         """Stop the clock for good (the scenario ended; a no-op at 1x). False when the clock
         owner served more hold requests than this driver made: someone else held the clock."""
-        if not self.simulated or self.hold_service is None:
+        if not self.simulated or self.hold_service is None or self.lockstep:
             return True
         from std_srvs.srv import Trigger
 
@@ -195,6 +242,8 @@ class ScenarioClock:
 
     def clock_readers(self) -> int | None:
         """While held: how many ``/clock`` readers the clock owner has matched (None otherwise)."""
+        if self.stepper is not None:
+            return self.stepper.clock_readers() if self._holds else None
         if not self.simulated or self._held_since is None:
             return None
         reply = self._call(True)

@@ -220,7 +220,7 @@ def _replay(rt: Runtime, step: m.Step, spec: m.Replay, state: StepState) -> dict
     def wait(predicate: Callable[[], bool], timeout: float) -> tuple[bool, float]:
         # the student's processing takes wall time: it gets the 1x allowance at any speed
         t = time.monotonic()
-        met = driver.wait_until(predicate, timeout, poll=0.002, wall=True)
+        met = driver.wait_until(predicate, timeout, poll=0.002, wall=True, react=True)
         return met, time.monotonic() - t
 
     clock = driver.clock

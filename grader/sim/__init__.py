@@ -71,14 +71,16 @@ def all_service_event_topics(turtles: Iterable[str] = ("turtle1",)) -> list[str]
 def sim_args(canvas_out: str | Path | None = None, *, holonomic: bool = False,
              background: Sequence[int] | None = None,
              ros_args: Sequence[str] = (), time_scale: float | None = None,
-             clock_only: bool = False, pose_record: str | Path | None = None) -> list[str]:
+             clock_only: bool = False, pose_record: str | Path | None = None,
+             lockstep: bool = False) -> list[str]:
     """Command-line arguments of ``python -m grader.sim`` (without the interpreter part).
 
     ``time_scale``: the simulator owns simulated time and publishes ``/clock`` (see
     :mod:`grader.sim.clock`); ``clock_only``: only that clock, no turtles; ``pose_record``: where
-    the simulator writes its own record of the poses it publishes (:mod:`grader.sim.record`).
+    the simulator writes its own record of the poses it publishes (:mod:`grader.sim.record`);
+    ``lockstep``: simulated time advances only when the scenario driver steps it.
     """
-    args: list[str] = []
+    args: list[str] = ["--lockstep"] if lockstep else []
     if pose_record is not None:
         args += ["--pose-record", str(pose_record)]
     if time_scale is not None:
@@ -99,14 +101,16 @@ def sim_args(canvas_out: str | Path | None = None, *, holonomic: bool = False,
 def sim_argv(canvas_out: str | Path | None = None, extra: Sequence[str] = (), *,
              holonomic: bool = False, background: Sequence[int] | None = None,
              ros_args: Sequence[str] = (), time_scale: float | None = None,
-             clock_only: bool = False, pose_record: str | Path | None = None) -> list[str]:
+             clock_only: bool = False, pose_record: str | Path | None = None,
+             lockstep: bool = False) -> list[str]:
     """argv that starts the simulator as a separate process with this interpreter.
 
     ``extra`` is appended verbatim (e.g. ``["--ros-args", "-r", "__ns:=/sim1"]``).
     """
     return [sys.executable, "-m", "grader.sim",
             *sim_args(canvas_out, holonomic=holonomic, background=background, ros_args=ros_args,
-                      time_scale=time_scale, clock_only=clock_only, pose_record=pose_record),
+                      time_scale=time_scale, clock_only=clock_only, pose_record=pose_record,
+                      lockstep=lockstep),
             *extra]
 
 

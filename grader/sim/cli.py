@@ -27,6 +27,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pose-record", type=Path, metavar="FILE",
                         help="also write every pose published to FILE (the simulator's own record, "
                              "see grader.sim.record)")
+    parser.add_argument("--lockstep", action="store_true",
+                        help="own simulated time and advance it only when asked: ~/step_clock "
+                             "(a tick of time on /clock), then ~/step_world (the world's step, poses)")
     parser.add_argument("--clock-only", action="store_true",
                         help="with --time-scale: no turtles, only /clock (node grader_clock)")
     parser.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=[],
@@ -71,7 +74,7 @@ def run_from_args(args: argparse.Namespace) -> int:
     from grader.sim.node import run  # noqa: PLC0415 - rclpy only when actually running
 
     return run(ros_argv(args), canvas_out=args.canvas_out, time_scale=args.time_scale,
-               clock_only=args.clock_only, pose_record=args.pose_record)
+               clock_only=args.clock_only, pose_record=args.pose_record, lockstep=args.lockstep)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

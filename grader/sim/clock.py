@@ -20,6 +20,13 @@ is held sees that time first; rcl fires its timers once at that first ``/clock``
 on on their grid from zero, so a timer whose period divides 2 s (1 s, 0.5 s, 0.1 s...) keeps a
 first interval within one tick of its period instead of a random fraction of it.
 
+Lockstep (``--lockstep``): no timer at all. The scenario driver advances time, one tick per
+pair of calls: ``~/step_clock`` (16 ms more, published on ``/clock``), then, once every process
+has handled that (:mod:`grader.scenario.quiescence`), ``~/step_world`` (the world's step at
+that time with the commands taken so far, its poses published), then again once they are
+handled. Each node sees the same messages at the same simulated times in every run, however
+busy the machine: the same code draws the same path (:mod:`grader.scenario.lockstep`).
+
 The sim-time run starts at 0 (like Gazebo and ``ros2 bag play --clock``), so a node that kept a
 ``now()`` from before its first ``/clock`` (which reads 0) is off by seconds, not by decades.
 """
@@ -35,6 +42,10 @@ CLOCK_TOPIC = "/clock"
 HOLD_SERVICE = "hold_clock"
 #: ``std_srvs/srv/Trigger``: stop the clock at once, for good (the scenario has ended)
 STOP_SERVICE = "stop_clock"
+#: lockstep (``std_srvs/srv/Trigger``): simulated time advances one tick, published on ``/clock``
+STEP_CLOCK_SERVICE = "step_clock"
+#: lockstep: the world's step at that time, its poses published
+STEP_WORLD_SERVICE = "step_world"
 #: node name of the clock publisher of scenarios without a simulator (``sim: false``)
 CLOCK_NODE = "grader_clock"
 TICK_NS = TICK_MS * 1_000_000
@@ -118,7 +129,7 @@ class SimClock:
         """``message``: "<time it holds at (or runs from), ns> <matched /clock readers>": the
         driver asks again while holding until a starting node's reader is matched."""
         self.requests += 1
-        res.message = f"{self.hold(bool(req.data))} {self._pub.get_subscription_count()}"
+        res.message = f"{self.hold(bool(req.data))} {self.readers()}"
         res.success = True
         return res
 
@@ -128,6 +139,10 @@ class SimClock:
         res.message = f"{self.stop()} {self.requests}"
         res.success = True
         return res
+
+    def readers(self) -> int:
+        """``/clock`` readers matched by the publisher."""
+        return int(self._pub.get_subscription_count())
 
     def publish(self) -> None:
         stamp = self._msg.clock

@@ -48,7 +48,7 @@ from rclpy.service_introspection import ServiceIntrospectionState
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.validate_full_topic_name import validate_full_topic_name
-from std_srvs.srv import Empty, SetBool
+from std_srvs.srv import Empty, SetBool, Trigger
 from turtlesim.action import RotateAbsolute
 from turtlesim.msg import Color, Pose
 from turtlesim.srv import Kill, SetPen, Spawn, TeleportAbsolute, TeleportRelative
@@ -56,7 +56,7 @@ from turtlesim.srv import Kill, SetPen, Spawn, TeleportAbsolute, TeleportRelativ
 from grader.executors import make_executor as shared_make_executor
 from grader.sim import HOLD_TURTLES_SERVICE, truth_pose_topic
 from grader.sim.canvas import Canvas
-from grader.sim.clock import SimClock, make_clock_node
+from grader.sim.clock import STEP_CLOCK_SERVICE, STEP_WORLD_SERVICE, SimClock, make_clock_node
 from grader.sim.record import PoseRecord, record_topic
 from grader.sim.physics import DEFAULT_BACKGROUND, METER, TICK_MS, RotateGoal, Turtle, World
 
@@ -106,13 +106,14 @@ class TurtlesimNode(Node):
 
     def __init__(self, *, context: rclpy.context.Context | None = None,
                  canvas_out: str | Path | None = None, node_name: str = "turtlesim",
-                 time_scale: float | None = None, pose_record: str | Path | None = None) -> None:
+                 time_scale: float | None = None, pose_record: str | Path | None = None,
+                 lockstep: bool = False) -> None:
         super().__init__(node_name, context=context)
         self.canvas_out = Path(canvas_out) if canvas_out else None
         #: the simulator's own record of every pose it publishes (None: no record)
         self.pose_record = PoseRecord(pose_record) if pose_record else None
         #: simulated time (``--time-scale``), or None: the wall clock, as the real turtlesim
-        self.sim_clock = SimClock(time_scale) if time_scale is not None else None
+        self.sim_clock = SimClock(time_scale or 1.0) if time_scale is not None or lockstep else None
         self._declare_parameters()
         self._sim_goals: dict[bytes, RotateGoal] = {}      # active goals by goal id
         self._sim_results: dict[bytes, Future] = {}        # result futures not yet awaited
@@ -142,7 +143,14 @@ class TurtlesimNode(Node):
         self._grid_slot = -1
         self.caught_up_ticks = 0   # ticks run late after the timer skipped periods
         self.resynced_ticks = 0    # ticks dropped after long stalls
-        if self.sim_clock is not None:
+        if lockstep:
+            assert self.sim_clock is not None
+            self.sim_clock.attach(self)
+            # no timer: the driver steps the world (grader.sim.clock, "Lockstep")
+            self._world_ns = 0
+            self.create_service(Trigger, f"~/{STEP_CLOCK_SERVICE}", self._on_step_clock)
+            self.create_service(Trigger, f"~/{STEP_WORLD_SERVICE}", self._on_step_world)
+        elif self.sim_clock is not None:
             self.sim_clock.attach(self)
             self._tick_timer = self.create_timer(self.sim_clock.period_s, self._on_sim_tick,
                                                  clock=self._steady_clock)
@@ -369,6 +377,28 @@ class TurtlesimNode(Node):
             self._bury()
         self.sim_clock.publish()
 
+    def _on_step_clock(self, _req: Trigger.Request, res: Trigger.Response) -> Any:
+        """Lockstep, first half of a tick: simulated time advances 16 ms (not while held) and
+        goes out on ``/clock``; ``message``: "<time, ns> <matched /clock readers>"."""
+        assert self.sim_clock is not None
+        res.success = self.sim_clock.tick() is not None
+        self.sim_clock.publish()
+        res.message = f"{self.sim_clock.now_ns} {self.sim_clock.readers()}"
+        return res
+
+    def _on_step_world(self, _req: Trigger.Request, res: Trigger.Response) -> Any:
+        """Lockstep, second half: the world's step at that time with the commands taken so far
+        (those the nodes sent on its ``/clock`` included), its poses published."""
+        assert self.sim_clock is not None
+        self._debug = self._sim_logger.is_enabled_for(LoggingSeverity.DEBUG)
+        if self.sim_clock.now_ns > self._world_ns:
+            self._world_ns = self.sim_clock.now_ns
+            if self.world.tick(self._world_ns, self._publish) and self._sim_graveyard:
+                self._bury()
+        res.success = True
+        res.message = str(self._world_ns)
+        return res
+
     def _missed_ticks(self) -> int:
         """Timer periods skipped since the previous callback (rcl drops periods when a callback
         runs more than one period late, e.g. when the machine is busy).
@@ -461,7 +491,7 @@ def make_executor(context: rclpy.context.Context) -> Any:
 
 def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = None,
         time_scale: float | None = None, clock_only: bool = False,
-        pose_record: str | Path | None = None) -> int:
+        pose_record: str | Path | None = None, lockstep: bool = False) -> int:
     """Run the node until SIGINT/SIGTERM or ROS shutdown; save the canvas; return 0.
 
     ``args`` is the full argv for rclpy (ROS arguments after ``--ros-args``). ``time_scale``:
@@ -485,7 +515,7 @@ def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = No
             node = make_clock_node(context, time_scale or 1.0)
         else:
             node = TurtlesimNode(context=context, canvas_out=canvas_out, time_scale=time_scale,
-                                 pose_record=pose_record)
+                                 pose_record=pose_record, lockstep=lockstep)
         executor = make_executor(context)
         executor.add_node(node)
         while not stop["flag"] and context.ok():

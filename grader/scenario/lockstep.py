@@ -1,0 +1,141 @@
+"""Lockstep simulated time: the driver advances the clock, one tick once everybody is done.
+
+A scenario marked ``lockstep: true`` runs every node on simulated time that only the driver
+moves (the simulator's ``--lockstep``, :mod:`grader.sim.clock`). A tick is two calls: time
+advances and goes out on ``/clock`` (the nodes' timers fire), then once every process is quiet
+(:mod:`grader.scenario.quiescence`) the world steps with the commands those timers sent and
+publishes its poses, and once the processes are quiet again the next tick may follow. Between
+ticks the driver checks its step's condition. So a node paced by ROS time receives the same
+messages at the same simulated times in every run and answers them the same way, however loaded
+the machine is: a chaotic controller (a missing angle wrap, a wall it touches) draws the same
+path every time, where on the wall clock a command one tick late sends it elsewhere
+(``benchmarks/bench_flake.py``, issue 22).
+
+The cost is the wall time of the quiet checks: measured with a no-wrap chaser on a 2-core
+machine busy with the test suite, 13.5 ms of wall time per 16 ms tick (4 ms in the two calls,
+9.5 ms waiting for quiet); the same 400 ticks hashed identically in every run, while two runs on
+the free-running clock differed (416 and 419 poses, different paths).
+
+Not quiet within ``QUIET_WAIT_S`` (a node busy-looping, a process starting up): the tick goes on
+and is counted in ``quiet_timeouts``; a run with any is not guaranteed to repeat, and after
+``MAX_QUIET_TIMEOUTS`` of them the run ends (:class:`LockstepFailed`) and the scenario runs again
+on the wall clock, the record saying why (:func:`grader.grading.timescale.run_at_scale`).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from typing import Any, Callable
+
+from grader.scenario.quiescence import Quiescence
+from grader.sim.clock import HOLD_SERVICE, STEP_CLOCK_SERVICE, STEP_WORLD_SERVICE, TICK_NS, hold_point
+
+#: wall seconds a tick waits for every process to be quiet before it goes on regardless
+QUIET_WAIT_S = 2.0
+#: wall seconds for the simulator's answer to a step
+STEP_WAIT_S = 10.0
+#: ticks that went on without quiet before the lockstep run is given up
+MAX_QUIET_TIMEOUTS = 5
+
+
+class LockstepFailed(RuntimeError):
+    """The lockstep run cannot go on as lockstep (the record's ``lockstep.fallback``)."""
+
+
+class LockstepError(LockstepFailed):
+    """The simulator did not answer a step: the clock cannot advance."""
+
+
+class Stepper:
+    """Advances the simulator's lockstep clock from a node of its own in the driver's context.
+
+    The node is spun only by the thread that steps, while it waits for the simulator's answer:
+    through the driver's executor (spinning in another thread with a 50 ms timeout, and paused
+    for each request) a tick took 106 ms of wall time instead of ~15.
+    ``pids()``: the processes to wait for (the simulator's and the students'); the driver's own
+    process is always waited for too, except the calling thread (its subscriptions must have
+    taken what a tick sent before a condition is checked).
+    """
+
+    def __init__(self, context: Any, sim_node: str, pids: Callable[[], list[int]]) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from std_srvs.srv import SetBool, Trigger
+
+        node = rclpy.create_node("grader_lockstep", context=context, start_parameter_services=False)
+        self.node = node
+        self._executor = SingleThreadedExecutor(context=context)
+        self._executor.add_node(node)
+        self._hold = node.create_client(SetBool, f"/{sim_node}/{HOLD_SERVICE}")
+        self._clock = node.create_client(Trigger, f"/{sim_node}/{STEP_CLOCK_SERVICE}")
+        self._world = node.create_client(Trigger, f"/{sim_node}/{STEP_WORLD_SERVICE}")
+        self._request = Trigger.Request()
+        self._pids = pids
+        self.now_ns = 0
+        self.ticks = 0
+        self.quiet = Quiescence([])
+
+    def close(self) -> None:
+        self._executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+
+    def ready(self, timeout_s: float) -> bool:
+        return bool(self._clock.wait_for_service(timeout_sec=timeout_s)
+                    and self._world.wait_for_service(timeout_sec=timeout_s))
+
+    def _call(self, client: Any, request: Any = None) -> str:
+        future = client.call_async(self._request if request is None else request)
+        end = time.monotonic() + STEP_WAIT_S
+        while not future.done() and time.monotonic() < end:
+            self._executor.spin_once(timeout_sec=0.05)
+        if not future.done() or future.result() is None:
+            raise LockstepError(f"the simulator did not answer {client.srv_name} within {STEP_WAIT_S:g} s")
+        return str(future.result().message)
+
+    def _settle(self) -> None:
+        roots = [os.getpid(), *self._pids()]
+        if roots != self.quiet.roots:
+            self.quiet.roots = roots
+            self.quiet.refresh()
+        self.quiet.exclude = {threading.get_native_id()}
+        if not self.quiet.wait(QUIET_WAIT_S) and self.quiet.timeouts > MAX_QUIET_TIMEOUTS:
+            raise LockstepFailed(f"a process did not come to rest within {QUIET_WAIT_S:g} s after "
+                                 f"{self.quiet.timeouts} ticks (busy without pause): lockstep needs every "
+                                 "node to wait for its next message or timer")
+
+    def clock_readers(self) -> int | None:
+        """How many ``/clock`` readers the simulator has matched (a starting node's must be, before
+        the next tick), from its ``hold_clock`` service (a release: nothing is held in lockstep)."""
+        from std_srvs.srv import SetBool
+
+        try:
+            return int(self._call(self._hold, SetBool.Request(data=False)).split()[1])
+        except (LockstepError, IndexError, ValueError):
+            return None
+
+    def tick(self) -> int:
+        """One tick: time on ``/clock``, quiet, the world's step, quiet. Returns the new time."""
+        self.now_ns = int(self._call(self._clock).split()[0])
+        self._settle()
+        self._call(self._world)
+        self._settle()
+        self.ticks += 1
+        return self.now_ns
+
+    def to_grid(self) -> None:
+        """Advance to the next hold point (one tick after a multiple of 2 s, as the free clock's
+        holds: a node started there keeps its timers' phase)."""
+        target = hold_point(self.now_ns)
+        while self.now_ns < target:
+            self.tick()
+
+    @property
+    def quiet_timeouts(self) -> int:
+        return self.quiet.timeouts
+
+    def summary(self) -> dict[str, Any]:
+        return {"ticks": self.ticks, "sim_s": round(self.now_ns / 1e9, 3),
+                "quiet_waits": self.quiet.waits, "quiet_scans": self.quiet.scans,
+                "quiet_timeouts": self.quiet.timeouts, "tick_ns": TICK_NS}
