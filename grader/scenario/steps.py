@@ -346,6 +346,12 @@ def _advertised(rt: Runtime, cond: m.Advertised, state: StepState) -> Predicate:
     return lambda: driver.action_available(action)
 
 
+#: conditions on the ROS graph (discovery), not on what happens in simulated time
+GRAPH_CONDITIONS = (m.Advertised, m.Subscribed)
+#: lockstep: wall seconds after a graph condition holds before the next tick (DDS matches the
+#: endpoints the graph shows a little later; every participant hears of them at the same time)
+GRAPH_SETTLE_S = 0.3
+
 CONDITIONS: dict[type, Callable[[Runtime, Any, StepState], Predicate]] = {
     m.GoalReached: _goal_reached,
     m.ActionDone: lambda rt, cond, state: (lambda: state.action_done),
@@ -398,7 +404,13 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
         if predicate is None:
             ended_by = "students_exited" if driver.wait_until(rt.students_gone, remaining) else "done"
         else:
-            driver.wait_until(lambda: predicate() or rt.students_gone(), remaining)
+            # in lockstep a wait on discovery does not tick (wall seconds): how long DDS takes
+            # must not decide at which tick the scenario goes on; then a moment for the
+            # endpoints the graph shows to be matched, still without a tick
+            graph = driver.clock.lockstep and isinstance(step.until, GRAPH_CONDITIONS)
+            driver.wait_until(lambda: predicate() or rt.students_gone(), remaining, wall=graph)
+            if graph:
+                time.sleep(GRAPH_SETTLE_S)
             ended_by = "condition" if predicate() else ("students_exited" if rt.students_gone() else "timeout")
     if isinstance(action, m.ActionGoal) and ended_by == "timeout" and state.goal_handle is not None:
         state.goal_handle.cancel_goal_async()

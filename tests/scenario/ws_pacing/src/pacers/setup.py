@@ -12,5 +12,6 @@ setup(
         "timer_node = pacers.timer_node:main",
         "spin_node = pacers.spin_node:main",
         "meddler = pacers.meddler:main",
+        "chaser_node = pacers.chaser_node:main",
     ]},
 )

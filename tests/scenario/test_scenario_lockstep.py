@@ -1,0 +1,184 @@
+"""Lockstep simulated time (``lockstep: true``): the same code draws the same path in every run.
+
+Unit tests for the pieces (quiescence from /proc, the stepwise time map, the model's rules, a
+repeated scenario that a lockstep run settles at once); live tests run real scenario children
+with a chaotic controller (``ws_pacing``'s ``chaser_node``: no angle wrap, a target circling
+the canvas) twice, once with CPU burners beside it, and require the simulator's own records of
+the turtle's poses to be byte for byte the same.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from grader.bag.timebase import TimeMap
+from grader.grading.repeat import lockstep_record_exact, median_finding, run_until_settled
+from grader.scenario.model import Scenario
+from grader.scenario.quiescence import Quiescence
+
+HERE = Path(__file__).resolve().parent
+
+
+# -- quiescence ------------------------------------------------------------------------------------
+
+def test_a_sleeping_process_is_quiet_and_a_busy_one_is_not() -> None:
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.3)                       # both started (the interpreter's start-up is busy)
+        quiet = Quiescence([sleeper.pid])
+        assert quiet.wait(timeout_s=2.0) and quiet.timeouts == 0
+        noisy = Quiescence([busy.pid])
+        t0 = time.monotonic()
+        assert not noisy.wait(timeout_s=0.3)
+        assert noisy.timeouts == 1 and time.monotonic() - t0 >= 0.3
+    finally:
+        for p in (sleeper, busy):
+            p.kill()
+            p.wait()
+
+
+def test_a_busy_child_of_a_quiet_process_keeps_the_tree_busy() -> None:
+    """A launch file's nodes are children of its process: the tree is waited for, not the root."""
+    parent = subprocess.Popen([sys.executable, "-c",
+                               "import subprocess, sys, time\n"
+                               "subprocess.Popen([sys.executable, '-c', 'while True: pass'])\n"
+                               "time.sleep(30)\n"])
+    try:
+        time.sleep(0.5)
+        assert not Quiescence([parent.pid]).wait(timeout_s=0.3)
+    finally:
+        subprocess.run(["pkill", "-P", str(parent.pid)], check=False)
+        parent.kill()
+        parent.wait()
+
+
+# -- the time map of a lockstep bag ----------------------------------------------------------------
+
+def test_a_lockstep_bag_maps_each_time_to_the_last_tick_sent() -> None:
+    """Interpolated, a pose sent late in a tick (a busy machine) would get a fraction of a tick;
+    stepwise it gets the tick's time, whenever within the tick it was sent."""
+    wall = np.array([100.0, 100.5, 100.6])
+    sim = np.array([0.016, 0.032, 0.048])
+    step = TimeMap(wall, sim, 1.0, stepwise=True)
+    assert list(step([100.0, 100.1, 100.49, 100.5, 100.59, 100.7])) == pytest.approx(
+        [0.016, 0.016, 0.016, 0.032, 0.032, 0.048 + 0.1])
+    assert step([99.9])[0] == pytest.approx(0.016 - 0.1)     # before the first tick: wall seconds
+    assert TimeMap(wall, sim, 1.0)([100.25])[0] == pytest.approx(0.024)   # interpolated otherwise
+
+
+# -- the rubric's word -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("extra,message", [
+    ({"sim": False}, "lockstep needs the simulator"),
+    ({"real_time": True}, "lockstep and real_time exclude each other"),
+])
+def test_lockstep_needs_the_simulator_and_simulated_time(extra: dict, message: str) -> None:
+    with pytest.raises(ValidationError, match=message):
+        Scenario.model_validate({"lockstep": True, "steps": [{"id": "s", "wait": 1.0}], **extra})
+
+
+def test_an_exact_lockstep_run_settles_a_repeated_scenario_at_once(tmp_path: Path) -> None:
+    exact = {"lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0}, "errors": []}
+    loose = {"lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 2}, "errors": []}
+    fell_back = {"lockstep": {"used": False, "fallback": "wall-clock pacing"}, "errors": []}
+    assert lockstep_record_exact(exact)
+    assert not lockstep_record_exact(loose) and not lockstep_record_exact(fell_back)
+    for record, runs in ((exact, 1), (loose, 3), (fell_back, 3)):
+        made: list[int] = []
+        run_until_settled(lambda k, _folder, r=record: made.append(k) or dict(r), tmp_path, "drive", 3,
+                          settles=lambda folders: False)
+        assert len(made) == runs, record
+
+
+def test_an_item_of_a_lockstep_run_says_so() -> None:
+    from grader.analyze import Finding
+
+    one = Finding(value=1.0, fraction=1.0, status="pass", feedback="", evidence={})
+    assert median_finding([one], 3, lockstep=True).decided == {"by": "one lockstep run", "runs": 1, "stable": True}
+    assert median_finding([one], 1).decided == {"by": "one run", "runs": 1}
+
+
+# -- live: the same path in every run ---------------------------------------------------------------
+
+def chase_scenario() -> Scenario:
+    return Scenario.model_validate({
+        "lockstep": True,
+        "processes": [{"name": "chaser", "package": "pacers", "executable": "chaser_node"}],
+        "steps": [{"id": "up", "until": {"condition": "subscribed", "topic": "/turtle1/pose"}, "timeout": 10},
+                  {"id": "run", "wait": 8}],
+        "limits": {"wall_s": 60}})
+
+
+@pytest.fixture(scope="module")
+def chaser_build(tmp_path_factory):
+    from grader.workspace import build_workspace
+
+    build = build_workspace(HERE / "ws_pacing", cache_dir=tmp_path_factory.mktemp("cache"))
+    assert build.ok, build.failed
+    return build
+
+
+def _poses(folder: Path) -> tuple[bytes, int]:
+    """The simulator's record of /turtle1/pose in the bag: all its CDR bytes, and how many."""
+    from grader.bag.reader import open_bag
+    from grader.sim.record import record_topic
+
+    topic = record_topic("/turtle1/pose")
+    bag = open_bag(folder / "bag", [topic])
+    data = [bytes(m.data) for m in bag.messages([topic])]
+    return b"".join(data), len(data)
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(chaser_build, tmp_path: Path) -> None:
+    from grader.grading.pipeline import scenario_frames
+    from grader.grading.timescale import run_at_scale
+    from grader.scenario import resolve
+
+    run = resolve("chase", chase_scenario(), chaser_build)
+    quiet = run_at_scale(run, tmp_path / "quiet", 1.0, chaser_build)
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(3)]
+    try:
+        busy = run_at_scale(run, tmp_path / "busy", 1.0, chaser_build)
+    finally:
+        for b in burners:
+            b.kill()
+            b.wait()
+    for record in (quiet, busy):
+        assert record["errors"] == [] and record["lockstep"]["used"] is True, record
+        assert record["lockstep"]["quiet_timeouts"] == 0 and record["lockstep"]["sim_s"] >= 8.0
+    first, n = _poses(tmp_path / "quiet")
+    assert n >= 8 * 62 and _poses(tmp_path / "busy") == (first, n)
+    # the bag reads in simulated time: a pose every tick, on the tick
+    pose = scenario_frames(tmp_path / "quiet")["/turtle1/pose"]
+    assert np.allclose(np.diff(pose.index.to_numpy()), 0.016, atol=1e-6)
+    saved = json.loads((tmp_path / "quiet" / "scenario.json").read_text())
+    assert saved["lockstep"]["ticks"] == quiet["lockstep"]["ticks"]
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+@pytest.mark.timeout(400)
+def test_a_wall_paced_node_runs_on_the_wall_clock_and_says_why(chaser_build, tmp_path: Path) -> None:
+    from grader.grading.timescale import describe_lockstep, run_at_scale
+    from grader.scenario import resolve
+
+    scenario = chase_scenario().model_copy(update={"processes": (
+        chase_scenario().processes[0].model_copy(update={"package": "sleepers", "executable": "sleep_node"}),)})
+    record = run_at_scale(resolve("chase", scenario, chaser_build), tmp_path / "wall", 1.0, chaser_build)
+    ls = record["lockstep"]
+    assert ls["used"] is False and "time.sleep()" in ls["fallback"] and "attempt" not in ls
+    assert describe_lockstep("chase", ls).startswith("scenario chase ran on the wall clock instead of lockstep")
+    saved = json.loads((tmp_path / "wall" / "scenario.json").read_text())
+    assert saved["lockstep"]["used"] is False
