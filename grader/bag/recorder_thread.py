@@ -117,6 +117,11 @@ class RecorderThread:
         self.messages: int | None = None
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
 
+    @property
+    def native_id(self) -> int | None:
+        """The recording thread's kernel id (lockstep does not wait for its writing)."""
+        return self._thread.native_id
+
     def _run(self) -> None:
         try:
             self.recorder.run(on_ready=self.ready.set)

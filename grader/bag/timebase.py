@@ -46,7 +46,8 @@ class TimeMap:
     wall: np.ndarray
     sim: np.ndarray
     scale: float
-    #: lockstep: the simulated time of the last ``/clock`` sent at or before ``t``
+    #: lockstep: the simulated time of the last ``/clock`` sent at or before ``t`` (after the
+    #: last one: its time; before the first: wall seconds before it)
     stepwise: bool = False
 
     def __call__(self, t: Any) -> np.ndarray:
@@ -59,6 +60,8 @@ class TimeMap:
         before = t < self.wall[0]
         after = t > self.wall[-1]
         out = np.where(before, self.sim[0] - (self.wall[0] - t) * self.scale, out)
+        if self.stepwise:       # the clock ticks no more: what follows its last tick is in it
+            return out
         return np.where(after, self.sim[-1] + (t - self.wall[-1]) * self.scale, out)
 
 

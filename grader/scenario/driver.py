@@ -79,14 +79,16 @@ class Driver:
     ``time_scale`` > 1: the node runs with ``use_sim_time`` and ``clock`` measures scenario time
     on the ``/clock`` of ``clock_node`` (see :mod:`grader.scenario.simtime`). ``lockstep``: the
     simulator's clock advances only when this driver's waits step it
-    (:mod:`grader.scenario.lockstep`); the callable gives the processes each tick waits for.
+    (:mod:`grader.scenario.lockstep`); the callable gives the processes each tick waits for,
+    ``lockstep_exclude`` threads of this process it does not.
     """
 
     def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim",
                  *, time_scale: float = 1.0, clock_node: str | None = None,
                  sink: Callable[[str, bytes], None] | None = None,
                  recording_matched: Callable[[str, int], bool] | None = None,
-                 lockstep: Callable[[], list[int]] | None = None) -> None:
+                 lockstep: Callable[[], list[int]] | None = None,
+                 lockstep_exclude: Callable[[], set[int]] = set) -> None:
         import rclpy
         from rclpy.clock import Clock, ClockType
         from rclpy.parameter import Parameter
@@ -107,7 +109,7 @@ class Driver:
         if lockstep is not None:
             from grader.scenario.lockstep import Stepper
 
-            stepper = Stepper(self.ctx, sim_node, lockstep)
+            stepper = Stepper(self.ctx, sim_node, lockstep, lockstep_exclude)
         self.clock = ScenarioClock(time_scale, self.node,
                                    f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
                                    paused=self.executor_paused, stepper=stepper)

@@ -27,6 +27,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections import Counter
 from typing import Any, Callable
 
 from grader.scenario.quiescence import Quiescence
@@ -55,11 +56,13 @@ class Stepper:
     through the driver's executor (spinning in another thread with a 50 ms timeout, and paused
     for each request) a tick took 106 ms of wall time instead of ~15.
     ``pids()``: the processes to wait for (the simulator's and the students'); the driver's own
-    process is always waited for too, except the calling thread (its subscriptions must have
-    taken what a tick sent before a condition is checked).
+    process is always waited for too, except the calling thread and ``exclude()`` (the
+    recorder's writing thread, whose work changes nothing anyone receives): its subscriptions
+    must have taken what a tick sent before a condition is checked.
     """
 
-    def __init__(self, context: Any, sim_node: str, pids: Callable[[], list[int]]) -> None:
+    def __init__(self, context: Any, sim_node: str, pids: Callable[[], list[int]],
+                 exclude: Callable[[], set[int]] = set) -> None:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from std_srvs.srv import SetBool, Trigger
@@ -73,9 +76,11 @@ class Stepper:
         self._world = node.create_client(Trigger, f"/{sim_node}/{STEP_WORLD_SERVICE}")
         self._request = Trigger.Request()
         self._pids = pids
+        self._exclude = exclude
         self.now_ns = 0
         self.ticks = 0
-        self.quiet = Quiescence([])
+        #: the waits after ``/clock`` (False) and after the world's step (True, this process too)
+        self.quiet = {False: Quiescence([]), True: Quiescence([])}
 
     def close(self) -> None:
         self._executor.shutdown(timeout_sec=1.0)
@@ -94,15 +99,18 @@ class Stepper:
             raise LockstepError(f"the simulator did not answer {client.srv_name} within {STEP_WAIT_S:g} s")
         return str(future.result().message)
 
-    def _settle(self) -> None:
-        roots = [os.getpid(), *self._pids()]
-        if roots != self.quiet.roots:
-            self.quiet.roots = roots
-            self.quiet.refresh()
-        self.quiet.exclude = {threading.get_native_id()}
-        if not self.quiet.wait(QUIET_WAIT_S) and self.quiet.timeouts > MAX_QUIET_TIMEOUTS:
+    def _settle(self, own: bool) -> None:
+        """Wait until the processes are quiet; ``own``: this process too (its subscriptions),
+        which only the world's step concerns (nobody here answers ``/clock``)."""
+        quiet = self.quiet[own]
+        roots = [*([os.getpid()] if own else []), *self._pids()]
+        if roots != quiet.roots:
+            quiet.roots = roots
+            quiet.refresh()
+        quiet.exclude = {threading.get_native_id(), *self._exclude()}
+        if not quiet.wait(QUIET_WAIT_S) and self.quiet_timeouts > MAX_QUIET_TIMEOUTS:
             raise LockstepFailed(f"a process did not come to rest within {QUIET_WAIT_S:g} s after "
-                                 f"{self.quiet.timeouts} ticks (busy without pause): lockstep needs every "
+                                 f"{self.quiet_timeouts} ticks (busy without pause): lockstep needs every "
                                  "node to wait for its next message or timer")
 
     def clock_readers(self) -> int | None:
@@ -118,9 +126,9 @@ class Stepper:
     def tick(self) -> int:
         """One tick: time on ``/clock``, quiet, the world's step, quiet. Returns the new time."""
         self.now_ns = int(self._call(self._clock).split()[0])
-        self._settle()
+        self._settle(own=False)
         self._call(self._world)
-        self._settle()
+        self._settle(own=True)
         self.ticks += 1
         return self.now_ns
 
@@ -133,9 +141,12 @@ class Stepper:
 
     @property
     def quiet_timeouts(self) -> int:
-        return self.quiet.timeouts
+        return sum(q.timeouts for q in self.quiet.values())
 
     def summary(self) -> dict[str, Any]:
+        both = self.quiet.values()
+        blockers = sum((q.blockers for q in both), Counter())
         return {"ticks": self.ticks, "sim_s": round(self.now_ns / 1e9, 3),
-                "quiet_waits": self.quiet.waits, "quiet_scans": self.quiet.scans,
-                "quiet_timeouts": self.quiet.timeouts, "tick_ns": TICK_NS}
+                "quiet_waits": sum(q.waits for q in both), "quiet_scans": sum(q.scans for q in both),
+                "quiet_timeouts": self.quiet_timeouts, "tick_ns": TICK_NS,
+                "blockers": dict(blockers.most_common(5))}

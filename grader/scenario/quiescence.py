@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 
 #: thread states that do nothing until something wakes them (``D``, uninterruptible I/O, works on)
@@ -32,6 +33,10 @@ def _read(path: str) -> str | None:
             return f.read()
     except OSError:                          # exited between listing and reading
         return None
+
+
+def _comm(pid: int, tid: int) -> str:
+    return (_read(f"/proc/{pid}/task/{tid}/comm") or "?").strip()
 
 
 def descendants(roots: list[int]) -> list[int]:
@@ -56,9 +61,10 @@ def descendants(roots: list[int]) -> list[int]:
     return out
 
 
-def scan(pids: list[int], exclude: set[int] | frozenset[int] = frozenset()) -> tuple[bool, dict[int, int]]:
+def scan(pids: list[int], exclude: set[int] | frozenset[int] = frozenset(),
+         busy: list[tuple[int, int]] | None = None) -> tuple[bool, dict[int, int]]:
     """One pass: (every thread idle, each thread's count of times scheduled); threads in
-    ``exclude`` (the caller's own) are left out."""
+    ``exclude`` (the caller's own) are left out; ``busy`` collects (pid, tid) of those awake."""
     idle = True
     counts: dict[int, int] = {}
     for pid in pids:
@@ -76,6 +82,8 @@ def scan(pids: list[int], exclude: set[int] | frozenset[int] = frozenset()) -> t
             state = stat[stat.rindex(")") + 2]
             if state not in _IDLE_STATES:
                 idle = False
+                if busy is not None:
+                    busy.append((pid, int(tid)))
             counts[int(tid)] = int(sched.split()[2])
     return idle, counts
 
@@ -92,6 +100,8 @@ class Quiescence:
     waits: int = 0
     scans: int = 0
     timeouts: int = 0
+    #: "<process>/<thread>" names found awake in waits that timed out, and how often
+    blockers: Counter = field(default_factory=Counter)
     _pids: list[int] = field(default_factory=list)
 
     def refresh(self) -> None:
@@ -106,12 +116,15 @@ class Quiescence:
         end = time.monotonic() + timeout_s
         previous: dict[int, int] | None = None
         while True:
-            idle, counts = scan(self._pids, self.exclude)
+            busy: list[tuple[int, int]] = []
+            idle, counts = scan(self._pids, self.exclude, busy)
             self.scans += 1
             if idle and counts == previous:
                 return True
             previous = counts if idle else None
             if time.monotonic() >= end:
                 self.timeouts += 1
+                for pid, tid in busy:
+                    self.blockers[f"{_comm(pid, pid)}/{_comm(pid, tid)}"] += 1
                 return False
             time.sleep(pause_s)

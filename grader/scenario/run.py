@@ -262,7 +262,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                             clock_node=clock_node, sink=recorder.post,
                             recording_matched=recorder.matched,
                             lockstep=(lambda: [p.pid for p in [sim, *students.values()]
-                                               if p is not None and p.alive()]) if run.lockstep else None)
+                                               if p is not None and p.alive()]) if run.lockstep else None,
+                            lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None})
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
             if sim_time:
                 if not driver.clock.wait_for_clock(SIM_READY_S):
@@ -398,7 +399,9 @@ def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[st
     wanted = [t for t in (pose, truth_pose_topic(pose)) if topics is None or t in topics]
     if not wanted:
         return
-    if not driver.wait_until(lambda: all(recorder.recorded(t) for t in wanted), RECORDER_READY_S, wall=True):
+    # (in lockstep the simulator publishes only on a tick: this wait ticks, before any student starts)
+    if not driver.wait_until(lambda: all(recorder.recorded(t) for t in wanted), RECORDER_READY_S, wall=True,
+                             react=True):
         missing = [t for t in wanted if not recorder.recorded(t)]
         record["errors"].append(f"the recorder recorded nothing on {', '.join(missing)} within "
                                 f"{RECORDER_READY_S:.0f} s of the simulator's first pose")

@@ -22,7 +22,7 @@ from pydantic import ValidationError
 from grader.bag.timebase import TimeMap
 from grader.grading.repeat import lockstep_record_exact, median_finding, run_until_settled
 from grader.scenario.model import Scenario
-from grader.scenario.quiescence import Quiescence
+from grader.scenario.quiescence import Quiescence, descendants
 
 HERE = Path(__file__).resolve().parent
 
@@ -53,7 +53,10 @@ def test_a_busy_child_of_a_quiet_process_keeps_the_tree_busy() -> None:
                                "subprocess.Popen([sys.executable, '-c', 'while True: pass'])\n"
                                "time.sleep(30)\n"])
     try:
-        time.sleep(0.5)
+        deadline = time.monotonic() + 20
+        while len(descendants([parent.pid])) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)                  # the child started (a loaded machine is slow to)
+        time.sleep(0.3)
         assert not Quiescence([parent.pid]).wait(timeout_s=0.3)
     finally:
         subprocess.run(["pkill", "-P", str(parent.pid)], check=False)
@@ -70,7 +73,7 @@ def test_a_lockstep_bag_maps_each_time_to_the_last_tick_sent() -> None:
     sim = np.array([0.016, 0.032, 0.048])
     step = TimeMap(wall, sim, 1.0, stepwise=True)
     assert list(step([100.0, 100.1, 100.49, 100.5, 100.59, 100.7])) == pytest.approx(
-        [0.016, 0.016, 0.016, 0.032, 0.032, 0.048 + 0.1])
+        [0.016, 0.016, 0.016, 0.032, 0.032, 0.048])
     assert step([99.9])[0] == pytest.approx(0.016 - 0.1)     # before the first tick: wall seconds
     assert TimeMap(wall, sim, 1.0)([100.25])[0] == pytest.approx(0.024)   # interpolated otherwise
 
@@ -133,8 +136,7 @@ def _poses(folder: Path) -> tuple[bytes, int]:
     from grader.sim.record import record_topic
 
     topic = record_topic("/turtle1/pose")
-    bag = open_bag(folder / "bag", [topic])
-    data = [bytes(m.data) for m in bag.messages([topic])]
+    data = [bytes(payload) for _t, *_times, payload in open_bag(folder / "bag", [topic]).iter_messages([topic])]
     return b"".join(data), len(data)
 
 
@@ -156,7 +158,7 @@ def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(chase
             b.kill()
             b.wait()
     for record in (quiet, busy):
-        assert record["errors"] == [] and record["lockstep"]["used"] is True, record
+        assert record["errors"] == [] and record["lockstep"]["used"] is True, record.get("lockstep")
         assert record["lockstep"]["quiet_timeouts"] == 0 and record["lockstep"]["sim_s"] >= 8.0
     first, n = _poses(tmp_path / "quiet")
     assert n >= 8 * 62 and _poses(tmp_path / "busy") == (first, n)
