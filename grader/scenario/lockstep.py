@@ -11,10 +11,13 @@ the machine is: a chaotic controller (a missing angle wrap, a wall it touches) d
 path every time, where on the wall clock a command one tick late sends it elsewhere
 (``benchmarks/bench_flake.py``, issue 22).
 
-The cost is the wall time of the quiet checks: measured with a no-wrap chaser on a 2-core
-machine busy with the test suite, 13.5 ms of wall time per 16 ms tick (4 ms in the two calls,
-9.5 ms waiting for quiet); the same 400 ticks hashed identically in every run, while two runs on
-the free-running clock differed (416 and 419 poses, different paths).
+The cost is the wall time of the calls and the quiet checks. Measured on this project's 2-core
+machine: a no-wrap chaser's 400 ticks took 13.5 ms of wall time each with the test suite running
+beside it (4 ms in the two calls, 9.5 ms waiting for quiet), the same 400 ticks hashed alike in
+every run, while two runs on the free-running clock differed (416 and 419 poses, other paths);
+wall_pen's 62 s drive (4033 ticks) took 80 s alone, 83-111 s in a batch at ``--jobs 2``, and
+~440 s with three batches side by side (load 15), where the free clock takes 62 s whatever the
+load and the grade follows the load instead.
 
 Not quiet within ``QUIET_WAIT_S`` (a node busy-looping, a process starting up): the tick goes on
 and is counted in ``quiet_timeouts``; a run with any is not guaranteed to repeat, and after
@@ -39,6 +42,11 @@ QUIET_WAIT_S = 2.0
 STEP_WAIT_S = 10.0
 #: ticks that went on without quiet before the lockstep run is given up
 MAX_QUIET_TIMEOUTS = 5
+#: a lockstep run whose ticks take more than this many times their 16 ms of wall time (from
+#: ``SLOW_AFTER_TICKS`` on) is given up: a node that floods the graph (wall_pen's
+#: chapter.scale_constant makes a new client on every pose) took 637 s for a 62 s drive
+MAX_SLOWDOWN = 8.0
+SLOW_AFTER_TICKS = 250
 
 
 class LockstepFailed(RuntimeError):
@@ -79,6 +87,7 @@ class Stepper:
         self._exclude = exclude
         self.now_ns = 0
         self.ticks = 0
+        self.tick_wall_s = 0.0          # wall time spent in ticks
         #: the waits after ``/clock`` (False) and after the world's step (True, this process too)
         self.quiet = {False: Quiescence([]), True: Quiescence([])}
 
@@ -125,11 +134,17 @@ class Stepper:
 
     def tick(self) -> int:
         """One tick: time on ``/clock``, quiet, the world's step, quiet. Returns the new time."""
+        t0 = time.monotonic()
         self.now_ns = int(self._call(self._clock).split()[0])
         self._settle(own=False)
         self._call(self._world)
         self._settle(own=True)
         self.ticks += 1
+        self.tick_wall_s += time.monotonic() - t0
+        slowdown = self.tick_wall_s / (self.ticks * TICK_NS / 1e9)
+        if self.ticks >= SLOW_AFTER_TICKS and slowdown > MAX_SLOWDOWN:
+            raise LockstepFailed(f"its ticks took {slowdown:.1f} times their simulated time in wall time "
+                                 f"(over {MAX_SLOWDOWN:g}: a process kept waking up the others)")
         return self.now_ns
 
     def to_grid(self) -> None:
@@ -147,6 +162,8 @@ class Stepper:
         both = self.quiet.values()
         blockers = sum((q.blockers for q in both), Counter())
         return {"ticks": self.ticks, "sim_s": round(self.now_ns / 1e9, 3),
+                "tick_wall_s": round(self.tick_wall_s, 3),
                 "quiet_waits": sum(q.waits for q in both), "quiet_scans": sum(q.scans for q in both),
                 "quiet_timeouts": self.quiet_timeouts, "tick_ns": TICK_NS,
+                "processes": self.quiet[True].processes,
                 "blockers": dict(blockers.most_common(5))}

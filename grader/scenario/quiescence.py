@@ -100,6 +100,8 @@ class Quiescence:
     waits: int = 0
     scans: int = 0
     timeouts: int = 0
+    #: the most processes waited for at once (the trees' sizes)
+    processes: int = 0
     #: "<process>/<thread>" names found awake in waits that timed out, and how often
     blockers: Counter = field(default_factory=Counter)
     _pids: list[int] = field(default_factory=list)
@@ -107,6 +109,7 @@ class Quiescence:
     def refresh(self) -> None:
         """Read the trees again (a new process, a launch file's children)."""
         self._pids = descendants(self.roots)
+        self.processes = max(self.processes, len(self._pids))
 
     def wait(self, timeout_s: float = 1.0, pause_s: float = 0.0002) -> bool:
         """Block until quiet (True) or ``timeout_s`` of wall time passed (False, counted)."""

@@ -97,7 +97,7 @@ def test_an_exact_lockstep_run_settles_a_repeated_scenario_at_once(tmp_path: Pat
     assert not lockstep_record_exact(loose) and not lockstep_record_exact(fell_back)
     for record, runs in ((exact, 1), (loose, 3), (fell_back, 3)):
         made: list[int] = []
-        run_until_settled(lambda k, _folder, r=record: made.append(k) or dict(r), tmp_path, "drive", 3,
+        run_until_settled(lambda k, _folder, r=record, m=made: m.append(k) or dict(r), tmp_path, "drive", 3,
                           settles=lambda folders: False)
         assert len(made) == runs, record
 
@@ -160,6 +160,8 @@ def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(chase
     for record in (quiet, busy):
         assert record["errors"] == [] and record["lockstep"]["used"] is True, record.get("lockstep")
         assert record["lockstep"]["quiet_timeouts"] == 0 and record["lockstep"]["sim_s"] >= 8.0
+        # waited for: this scenario process, the simulator, the chaser (and its sandbox's wrapper)
+        assert record["lockstep"]["processes"] >= 3, record["lockstep"]
     first, n = _poses(tmp_path / "quiet")
     assert n >= 8 * 62 and _poses(tmp_path / "busy") == (first, n)
     # the bag reads in simulated time: a pose every tick, on the tick
@@ -184,3 +186,18 @@ def test_a_wall_paced_node_runs_on_the_wall_clock_and_says_why(chaser_build, tmp
     assert describe_lockstep("chase", ls).startswith("scenario chase ran on the wall clock instead of lockstep")
     saved = json.loads((tmp_path / "wall" / "scenario.json").read_text())
     assert saved["lockstep"]["used"] is False
+
+
+def test_the_report_says_how_a_lockstep_scenario_ran() -> None:
+    from grader.grading.outputs import time_scale_notes
+
+    notes = time_scale_notes({
+        "drive": {"clock": "lockstep", "used": True, "ticks": 4033, "quiet_timeouts": 0},
+        "north": {"clock": "lockstep", "used": True, "ticks": 1300, "quiet_timeouts": 2},
+        "other": {"clock": "lockstep", "used": False, "fallback": "wall-clock pacing in node code (x.py:3: time.sleep())"}})
+    assert notes == [
+        "scenario drive ran on lockstep simulated time (4033 ticks; the same code repeats it exactly)",
+        "scenario north ran on lockstep simulated time (1300 ticks; 2 tick(s) went on before every process "
+        "was quiet, so another run may differ)",
+        "scenario other ran on the wall clock instead of lockstep simulated time: wall-clock pacing in node "
+        "code (x.py:3: time.sleep())"]
