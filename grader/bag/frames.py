@@ -74,7 +74,8 @@ def load_frames(bag_dir: Path | str, topics: list[str] | None = None, *,
     like a student who never published). Each frame's ``attrs`` holds ``topic``, ``type``, ``bag``
     and ``finalized`` (False: read from a crashed recording, up to its last complete chunk).
 
-    A bag recorded on simulated time (``time_scale`` > 1; None: what the bag's metadata notes)
+    A bag recorded on simulated time (``time_scale`` > 1; None: what the bag's metadata notes,
+    lockstep included)
     has its times mapped to simulated seconds through its ``/clock`` (:mod:`grader.bag.timebase`);
     the map is left under ``frames[TIMEBASE]``.
     """
@@ -86,9 +87,10 @@ def load_frames(bag_dir: Path | str, topics: list[str] | None = None, *,
             raise GraderError(f"bag {bag_dir} has no topic {', '.join(missing)} (topics: {have}).")
     frames = {name: topic_frame(bag, td) for name, td in bag.topics.items()}
     custom = bag.metadata.custom_data if bag.metadata else None
+    lockstep = False             # a time_scale given (1.0: the times as recorded) is taken as it is
     if time_scale is None:
         time_scale = bag_time_scale(custom)
-    lockstep = bag_lockstep(custom)
+        lockstep = bag_lockstep(custom)
     if time_scale > 1 or lockstep:
         _to_simulated_time(frames, bag, time_scale, lockstep)
     return frames
