@@ -121,15 +121,6 @@ def chase_scenario() -> Scenario:
         "limits": {"wall_s": 60}})
 
 
-@pytest.fixture(scope="module")
-def chaser_build(tmp_path_factory):
-    from grader.workspace import build_workspace
-
-    build = build_workspace(HERE / "ws_pacing", cache_dir=tmp_path_factory.mktemp("cache"))
-    assert build.ok, build.failed
-    return build
-
-
 def _poses(folder: Path) -> tuple[bytes, int]:
     """The simulator's record of /turtle1/pose in the bag: all its CDR bytes, and how many."""
     from grader.bag.reader import open_bag
@@ -143,16 +134,16 @@ def _poses(folder: Path) -> tuple[bytes, int]:
 @pytest.mark.ros
 @pytest.mark.slow
 @pytest.mark.timeout(600)
-def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(chaser_build, tmp_path: Path) -> None:
+def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(pacing_build, tmp_path: Path) -> None:
     from grader.grading.pipeline import scenario_frames
     from grader.grading.timescale import run_at_scale
     from grader.scenario import resolve
 
-    run = resolve("chase", chase_scenario(), chaser_build)
-    quiet = run_at_scale(run, tmp_path / "quiet", 1.0, chaser_build)
+    run = resolve("chase", chase_scenario(), pacing_build)
+    quiet = run_at_scale(run, tmp_path / "quiet", 1.0, pacing_build)
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(3)]
     try:
-        busy = run_at_scale(run, tmp_path / "busy", 1.0, chaser_build)
+        busy = run_at_scale(run, tmp_path / "busy", 1.0, pacing_build)
     finally:
         for b in burners:
             b.kill()
@@ -174,13 +165,13 @@ def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(chase
 @pytest.mark.ros
 @pytest.mark.slow
 @pytest.mark.timeout(400)
-def test_a_wall_paced_node_runs_on_the_wall_clock_and_says_why(chaser_build, tmp_path: Path) -> None:
+def test_a_wall_paced_node_runs_on_the_wall_clock_and_says_why(pacing_build, tmp_path: Path) -> None:
     from grader.grading.timescale import describe_lockstep, run_at_scale
     from grader.scenario import resolve
 
     scenario = chase_scenario().model_copy(update={"processes": (
         chase_scenario().processes[0].model_copy(update={"package": "sleepers", "executable": "sleep_node"}),)})
-    record = run_at_scale(resolve("chase", scenario, chaser_build), tmp_path / "wall", 1.0, chaser_build)
+    record = run_at_scale(resolve("chase", scenario, pacing_build), tmp_path / "wall", 1.0, pacing_build)
     ls = record["lockstep"]
     assert ls["used"] is False and "time.sleep()" in ls["fallback"] and "attempt" not in ls
     assert describe_lockstep("chase", ls).startswith("scenario chase ran on the wall clock instead of lockstep")

@@ -215,13 +215,6 @@ def ticks_scenario(package: str, executable: str) -> Scenario:
         "limits": {"wall_s": 60}})
 
 
-@pytest.fixture(scope="module")
-def pacing_build(tmp_path_factory):
-    from grader.workspace import build_workspace
-
-    build = build_workspace(HERE / "ws_pacing", cache_dir=tmp_path_factory.mktemp("cache"))
-    assert build.ok, build.failed
-    return build
 
 
 @pytest.mark.ros
