@@ -283,6 +283,7 @@ class Driver:
         def on_pose(msg: Any) -> None:
             self.poses[topic] = msg
             log.append((log[-1][0] + 1 if log else 1, msg))
+            self.counts[topic] = self.counts.get(topic, 0) + 1   # `until: messages` on it counts too
             if self.pose_topic == topic:
                 self.pose = msg
 

@@ -87,6 +87,11 @@ class Stepper:
         self._exclude = exclude
         self.now_ns = 0
         self.ticks = 0
+        #: one thread ticks at a time (a step's wait and a stdin line's delay may both wait on
+        #: the clock: each ticking on its own, two waits ran the clock twice as fast and spun
+        #: this node's executor from two threads, "generator already executing")
+        self._ticking = threading.Lock()
+        self._ticked = threading.Condition()
         self.tick_wall_s = 0.0          # wall time spent in ticks
         #: the waits after ``/clock`` (False) and after the world's step (True, this process too)
         self.quiet = {False: Quiescence([]), True: Quiescence([])}
@@ -147,12 +152,30 @@ class Stepper:
                                  f"(over {MAX_SLOWDOWN:g}: a process kept waking up the others)")
         return self.now_ns
 
+    def advance(self) -> None:
+        """Tick, or, while another thread is ticking, wait (asleep, so the quiet checks see it
+        rest) until its tick is done: however many threads wait on the clock, it advances one
+        tick at a time and each sees every tick."""
+        with self._ticked:
+            seen = self.ticks
+        if self._ticking.acquire(blocking=False):
+            try:
+                self.tick()
+            finally:
+                self._ticking.release()
+                with self._ticked:
+                    self._ticked.notify_all()
+            return
+        with self._ticked:
+            self._ticked.wait_for(lambda: self.ticks != seen or not self._ticking.locked(),
+                                  timeout=STEP_WAIT_S)
+
     def to_grid(self) -> None:
         """Advance to the next hold point (one tick after a multiple of 2 s, as the free clock's
         holds: a node started there keeps its timers' phase)."""
         target = hold_point(self.now_ns)
         while self.now_ns < target:
-            self.tick()
+            self.advance()
 
     @property
     def quiet_timeouts(self) -> int:
@@ -164,6 +187,7 @@ class Stepper:
         return {"ticks": self.ticks, "sim_s": round(self.now_ns / 1e9, 3),
                 "tick_wall_s": round(self.tick_wall_s, 3),
                 "quiet_waits": sum(q.waits for q in both), "quiet_scans": sum(q.scans for q in both),
-                "quiet_timeouts": self.quiet_timeouts, "tick_ns": TICK_NS,
+                "quiet_timeouts": self.quiet_timeouts,
+                "quiet_starved_s": round(max(q.starved_s for q in both), 3), "tick_ns": TICK_NS,
                 "processes": self.quiet[True].processes,
                 "blockers": dict(blockers.most_common(5))}

@@ -25,6 +25,11 @@ from dataclasses import dataclass, field
 
 #: thread states that do nothing until something wakes them (``D``, uninterruptible I/O, works on)
 _IDLE_STATES = frozenset("STtZXIP")
+#: a wait that is not quiet gives up once its threads ran this share of its wall time on a CPU
+#: (a busy loop on an idle core: at the wall limit; a thread starved of CPU: later)...
+CPU_SHARE = 0.5
+#: ... or after this many times its wall limit regardless
+STARVED_CAP = 10.0
 
 
 def _read(path: str) -> str | None:
@@ -62,9 +67,11 @@ def descendants(roots: list[int]) -> list[int]:
 
 
 def scan(pids: list[int], exclude: set[int] | frozenset[int] = frozenset(),
-         busy: list[tuple[int, int]] | None = None) -> tuple[bool, dict[int, int]]:
+         busy: list[tuple[int, int]] | None = None,
+         cpu: dict[int, int] | None = None) -> tuple[bool, dict[int, int]]:
     """One pass: (every thread idle, each thread's count of times scheduled); threads in
-    ``exclude`` (the caller's own) are left out; ``busy`` collects (pid, tid) of those awake."""
+    ``exclude`` (the caller's own) are left out; ``busy`` collects (pid, tid) of those awake,
+    ``cpu`` each thread's nanoseconds on a CPU so far."""
     idle = True
     counts: dict[int, int] = {}
     for pid in pids:
@@ -84,7 +91,10 @@ def scan(pids: list[int], exclude: set[int] | frozenset[int] = frozenset(),
                 idle = False
                 if busy is not None:
                     busy.append((pid, int(tid)))
-            counts[int(tid)] = int(sched.split()[2])
+            fields = sched.split()
+            counts[int(tid)] = int(fields[2])
+            if cpu is not None:
+                cpu[int(tid)] = int(fields[0])
     return idle, counts
 
 
@@ -104,6 +114,8 @@ class Quiescence:
     processes: int = 0
     #: "<process>/<thread>" names found awake in waits that timed out, and how often
     blockers: Counter = field(default_factory=Counter)
+    #: the most wall seconds a wait went on past its limit because its threads were starved
+    starved_s: float = 0.0
     _pids: list[int] = field(default_factory=list)
 
     def refresh(self) -> None:
@@ -112,20 +124,36 @@ class Quiescence:
         self.processes = max(self.processes, len(self._pids))
 
     def wait(self, timeout_s: float = 1.0, pause_s: float = 0.0002) -> bool:
-        """Block until quiet (True) or ``timeout_s`` of wall time passed (False, counted)."""
+        """Block until quiet (True) or not quiet after ``timeout_s`` of wall time in which the
+        trees' threads also ran ``timeout_s * CPU_SHARE`` seconds on a CPU (False, counted).
+
+        The CPU condition tells a busy node from a starved one: on a loaded machine a thread
+        woken by the tick may wait seconds for a CPU, which a wall-clock limit alone cannot tell
+        from a busy loop (at load 20, Lab 3's action server ran out of 2 s waits 6 times in
+        5180 ticks, and the run went back to the wall clock). A thread waiting for a CPU runs
+        none; a busy one runs whatever share it gets. ``STARVED_CAP``
+        times ``timeout_s`` of wall time ends the wait in any case."""
         if self.waits % self.refresh_every == 0 or not self._pids:
             self.refresh()
         self.waits += 1
-        end = time.monotonic() + timeout_s
+        start = time.monotonic()
+        end, cap = start + timeout_s, start + timeout_s * STARVED_CAP
         previous: dict[int, int] | None = None
+        first: dict[int, int] = {}
         while True:
             busy: list[tuple[int, int]] = []
-            idle, counts = scan(self._pids, self.exclude, busy)
+            cpu: dict[int, int] = {}
+            idle, counts = scan(self._pids, self.exclude, busy, cpu)
             self.scans += 1
             if idle and counts == previous:
                 return True
             previous = counts if idle else None
-            if time.monotonic() >= end:
+            for tid, ns in cpu.items():
+                first.setdefault(tid, ns)
+            now = time.monotonic()
+            ran_s = sum(ns - first[tid] for tid, ns in cpu.items()) / 1e9
+            if now >= cap or (now >= end and ran_s >= timeout_s * CPU_SHARE):
+                self.starved_s = max(self.starved_s, now - start - timeout_s)
                 self.timeouts += 1
                 for pid, tid in busy:
                     self.blockers[f"{_comm(pid, pid)}/{_comm(pid, tid)}"] += 1

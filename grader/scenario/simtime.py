@@ -123,7 +123,7 @@ class ScenarioClock:
         while not predicate():
             if self.stepper.now_ns >= end_ns or time.monotonic() >= wall_end:
                 return predicate()
-            self.stepper.tick()
+            self.stepper.advance()
         return True
 
     def sleep(self, seconds: float, stop: Callable[[], bool] | None = None) -> bool:
@@ -151,7 +151,7 @@ class ScenarioClock:
         if self.stepper is not None:      # the first tick is the first /clock
             if not self.stepper.ready(timeout_s):
                 return False
-            self.stepper.tick()
+            self.stepper.advance()
             return True
         return self.wait_until(lambda: self.sim_s() > 0, timeout_s, poll=0.01, wall=True)
 

@@ -23,6 +23,7 @@ from typing import Any, Callable, cast
 from grader.scenario import model as m
 from grader.scenario.driver import Driver, fill, import_type, to_plain
 from grader.scenario.events import Event
+from grader.scenario.lockstep import LockstepFailed
 from grader.scenario.pacing import Pacer
 from grader.scenario.placement import handoff_topic, place_and_hold, placement_topic
 
@@ -395,6 +396,8 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
     if action is not None:
         try:
             state.detail = {**state.detail, **HANDLERS[type(action)](rt, step, action, state)}
+        except LockstepFailed:
+            raise                          # the whole run goes to the wall clock, not this step
         except Exception as exc:  # noqa: BLE001 - a bad step must not kill the whole run
             state.detail = {"error": f"{type(exc).__name__}: {exc}"}
             ended_by = "error"

@@ -163,6 +163,24 @@ def test_batch_outputs(batches: dict[str, Path]) -> None:
             assert list(sub.glob("scenarios/*/bag/metadata.yaml")), f"{lab}/{s}: no bags kept"
 
 
+def test_a_reference_meets_every_messages_condition(batches: dict[str, Path]) -> None:
+    """A step waiting for messages (``until: messages``) ends by its condition for the lab's
+    reference. Chase's start-up waited its whole 20 s for poses of turtle2 that were coming: the
+    driver already watched /turtle2/pose for the catches and did not count what arrived there."""
+    waited = {}
+    for lab in LABS:
+        rubric = load_rubric(REPO / "rubrics" / LABS[lab])
+        for sid, scenario in rubric.scenarios.items():
+            steps = {st.id for st in scenario.steps if getattr(st.until, "condition", None) == "messages"}
+            record = batches[lab] / "reference" / "scenarios" / sid / "scenario.json"
+            if not steps or not record.exists():
+                continue
+            for step in json.loads(record.read_text())["steps"]:
+                if step["id"] in steps and step["ended_by"] != "condition":
+                    waited[f"{lab}/{sid}/{step['id']}"] = step["ended_by"]
+    assert not waited, waited
+
+
 def test_scenario_bags_conform(batches: dict[str, Path]) -> None:
     """Every bag a scenario wrote opens the same in rosbags, mcap + mcap-ros2-support and ours."""
     from grader.bag.conformance import check_bag

@@ -46,6 +46,39 @@ def test_a_sleeping_process_is_quiet_and_a_busy_one_is_not() -> None:
             p.wait()
 
 
+def test_a_starved_thread_is_waited_for_and_a_busy_one_is_not() -> None:
+    """A thread that cannot get a CPU (here: SCHED_IDLE beside a busy thread on the same core) is
+    not "busy": the wait goes on past its limit, to ``STARVED_CAP`` times it, while the tree has
+    run less than ``CPU_SHARE`` of the limit on a CPU. A busy loop on a core of its own ends the
+    wait at the limit."""
+    from grader.scenario.quiescence import STARVED_CAP
+
+    pin = "import os\nos.sched_setaffinity(0, {0})\n"
+    burner = subprocess.Popen([sys.executable, "-c", pin + "while True: pass\n"])
+    starved = subprocess.Popen([sys.executable, "-c", pin + "os.sched_setscheduler(0, os.SCHED_IDLE, "
+                                "os.sched_param(0))\nwhile True: pass\n"])
+    try:
+        time.sleep(0.5)
+        waits = Quiescence([starved.pid])
+        t0 = time.monotonic()
+        assert not waits.wait(timeout_s=0.2)
+        took = time.monotonic() - t0
+        assert took >= 0.2 * STARVED_CAP * 0.9 and waits.timeouts == 1 and waits.starved_s > 1.0, took
+        free = subprocess.Popen([sys.executable, "-c", "while True: pass\n"])   # on any core
+        time.sleep(0.5)
+        busy = Quiescence([free.pid])
+        t0 = time.monotonic()
+        assert not busy.wait(timeout_s=0.2)
+        took = time.monotonic() - t0          # its CPU share of the limit, not the cap, ended it
+        assert took < 0.2 * STARVED_CAP * 0.8 and busy.starved_s < waits.starved_s, took
+        free.kill()
+        free.wait()
+    finally:
+        for p in (burner, starved):
+            p.kill()
+            p.wait()
+
+
 def test_a_busy_child_of_a_quiet_process_keeps_the_tree_busy() -> None:
     """A launch file's nodes are children of its process: the tree is waited for, not the root."""
     parent = subprocess.Popen([sys.executable, "-c",
@@ -65,6 +98,50 @@ def test_a_busy_child_of_a_quiet_process_keeps_the_tree_busy() -> None:
 
 
 # -- the time map of a lockstep bag ----------------------------------------------------------------
+
+def test_threads_waiting_on_the_lockstep_clock_share_its_ticks() -> None:
+    """A step's wait and a stdin line's delay wait on the clock at once: it still advances one
+    tick at a time (never two ticks at once, never twice as fast), and each waiter sees every
+    tick. Ticking on their own, two waiters spun the stepper's executor from two threads
+    ("generator already executing") and ran the clock double speed."""
+    import threading
+
+    from grader.scenario.lockstep import Stepper
+
+    stepper = object.__new__(Stepper)          # the tick is the simulator's; here a stand-in
+    stepper.now_ns, stepper.ticks = 0, 0
+    stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
+    inside: list[int] = []
+    overlaps: list[int] = []
+
+    def tick() -> int:
+        inside.append(1)
+        if len(inside) > 1:
+            overlaps.append(stepper.ticks)
+        time.sleep(0.001)
+        stepper.now_ns += 16_000_000
+        stepper.ticks += 1
+        inside.pop()
+        return stepper.now_ns
+
+    stepper.tick = tick                        # type: ignore[method-assign]
+    seen: dict[str, list[int]] = {"a": [], "b": []}
+
+    def wait(name: str, until_ns: int) -> None:
+        while stepper.now_ns < until_ns:
+            stepper.advance()
+            seen[name].append(stepper.now_ns)
+
+    threads = [threading.Thread(target=wait, args=("a", 100 * 16_000_000)),
+               threading.Thread(target=wait, args=("b", 60 * 16_000_000))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    assert not overlaps
+    assert stepper.ticks == 100                # the longer wait's ticks, not the sum of both
+    assert seen["b"][-1] >= 60 * 16_000_000 and max(seen["a"]) == 100 * 16_000_000
+
 
 def test_a_lockstep_bag_maps_each_time_to_the_last_tick_sent() -> None:
     """Interpolated, a pose sent late in a tick (a busy machine) would get a fraction of a tick;

@@ -72,6 +72,7 @@ def test_pacing_reason_names_the_file_and_why(tmp_path: Path) -> None:
     reason = pacing_reason(build, run)
     assert reason.startswith("server_pkg/server.py:4: rclpy.executors.MultiThreadedExecutor(): ")
     assert "whole CPU core" in reason and "wall-clock" not in reason
+    assert pacing_reason(build, run, lockstep=True) is None     # in lockstep it rests between ticks
     (site / "server.py").write_text((site / "server.py").read_text() + "import time\ntime.sleep(1)\n")
     reason = pacing_reason(build, run)
     assert reason.startswith("wall-clock pacing in node code (server_pkg/server.py:6: time.sleep())")
