@@ -143,6 +143,19 @@ def test_threads_waiting_on_the_lockstep_clock_share_its_ticks() -> None:
     assert seen["b"][-1] >= 60 * 16_000_000 and max(seen["a"]) == 100 * 16_000_000
 
 
+def test_a_loaded_machine_allows_slower_ticks_within_a_bound(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A tick waits for CPUs on a loaded machine: the slowdown that ends a lockstep run grows with
+    the load per core (a correct chaser gave up at load 14-20 otherwise), up to a bound that a
+    node flooding the graph still exceeds."""
+    from grader.scenario import lockstep
+
+    monkeypatch.setattr(lockstep.os, "cpu_count", lambda: 2)
+    for load, allowed in ((0.5, lockstep.MAX_SLOWDOWN), (5.0, 2.5 * lockstep.MAX_SLOWDOWN),
+                          (40.0, lockstep.MAX_LOAD_ALLOWANCE * lockstep.MAX_SLOWDOWN)):
+        monkeypatch.setattr(lockstep.os, "getloadavg", lambda load=load: (load, load, load))
+        assert lockstep.slowdown_allowed() == pytest.approx(allowed)
+
+
 def test_a_lockstep_bag_maps_each_time_to_the_last_tick_sent() -> None:
     """Interpolated, a pose sent late in a tick (a busy machine) would get a fraction of a tick;
     stepwise it gets the tick's time, whenever within the tick it was sent."""
