@@ -67,7 +67,7 @@ def load_bag_meta(bag_dir: Path | str) -> BagMeta:
 
 
 def load_frames(bag_dir: Path | str, topics: list[str] | None = None, *,
-                time_scale: float | None = None) -> dict[str, pd.DataFrame]:
+                time_scale: float | None = None, lockstep: bool = False) -> dict[str, pd.DataFrame]:
     """One DataFrame per topic: index ``t`` (receive time, epoch s), ``pub_t``, flattened fields.
 
     ``topics`` selects topics; naming one the bag lacks is an error (a typo would otherwise look
@@ -75,9 +75,9 @@ def load_frames(bag_dir: Path | str, topics: list[str] | None = None, *,
     and ``finalized`` (False: read from a crashed recording, up to its last complete chunk).
 
     A bag recorded on simulated time (``time_scale`` > 1; None: what the bag's metadata notes,
-    lockstep included)
-    has its times mapped to simulated seconds through its ``/clock`` (:mod:`grader.bag.timebase`);
-    the map is left under ``frames[TIMEBASE]``.
+    lockstep included; ``lockstep``: a lockstep run whose bag was never finalised, so its
+    metadata cannot say so) has its times mapped to simulated seconds through its ``/clock``
+    (:mod:`grader.bag.timebase`); the map is left under ``frames[TIMEBASE]``.
     """
     bag = open_bag(bag_dir, topics)
     if topics is not None:
@@ -87,10 +87,10 @@ def load_frames(bag_dir: Path | str, topics: list[str] | None = None, *,
             raise GraderError(f"bag {bag_dir} has no topic {', '.join(missing)} (topics: {have}).")
     frames = {name: topic_frame(bag, td) for name, td in bag.topics.items()}
     custom = bag.metadata.custom_data if bag.metadata else None
-    lockstep = False             # a time_scale given (1.0: the times as recorded) is taken as it is
+    # a time_scale given (1.0: the times as recorded) is taken as it is
     if time_scale is None:
         time_scale = bag_time_scale(custom)
-        lockstep = bag_lockstep(custom)
+        lockstep = lockstep or bag_lockstep(custom)
     if time_scale > 1 or lockstep:
         _to_simulated_time(frames, bag, time_scale, lockstep)
     return frames

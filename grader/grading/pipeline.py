@@ -104,7 +104,9 @@ def scenario_frames(scenario_dir: Path) -> dict:
     # metadata says so (sealed with it); the record speaks only for a bag never finalised
     used = ((record or {}).get("time_scale") or {}).get("used")
     finalized = (bag / "metadata.yaml").exists()
-    frames = load_frames(bag, time_scale=None if finalized or not used else float(used))
+    locked = not finalized and bool(((record or {}).get("lockstep") or {}).get("used"))
+    frames = load_frames(bag, time_scale=None if finalized or not used or locked else float(used),
+                         lockstep=locked)
     meta = load_bag_meta(bag)
     publishers: dict[str, set[str]] = {}
     for ev in events(frames, Event.GRAPH):

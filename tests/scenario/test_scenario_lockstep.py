@@ -250,6 +250,11 @@ def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(pacin
     assert np.allclose(np.diff(pose.index.to_numpy()), 0.016, atol=1e-6)
     saved = json.loads((tmp_path / "quiet" / "scenario.json").read_text())
     assert saved["lockstep"]["ticks"] == quiet["lockstep"]["ticks"]
+    # a recording never finalised (the recorder killed before it wrote metadata.yaml) has no
+    # metadata to say it was lockstep: the record says so, and the times read the same
+    (tmp_path / "quiet" / "bag" / "metadata.yaml").unlink()
+    crashed = scenario_frames(tmp_path / "quiet")["/turtle1/pose"]
+    assert np.allclose(crashed.index.to_numpy()[:len(pose)], pose.index.to_numpy()[:len(crashed)])
 
 
 @pytest.mark.ros
