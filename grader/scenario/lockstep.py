@@ -185,6 +185,19 @@ class Stepper:
             self._ticked.wait_for(lambda: self.ticks != seen or not self._ticking.locked(),
                                   timeout=STEP_WAIT_S)
 
+    def settle(self) -> None:
+        """Wait, without a tick, until every process has handled what was sent since the last
+        tick (a goal, a service request, a teleport): a wait checks its condition only then, so
+        whether the answer is seen before the next tick never depends on the wall time it took.
+        Without it, the tick at which an action server's acceptance or a teleport's answer was
+        seen varied, and Lab 3's second goal was handed over 0-4 ticks later from run to run.
+        While another thread ticks, that tick settles."""
+        if self._ticking.acquire(blocking=False):
+            try:
+                self._settle(own=True)
+            finally:
+                self._ticking.release()
+
     def to_grid(self) -> None:
         """Advance to the next hold point (one tick after a multiple of 2 s, as the free clock's
         holds: a node started there keeps its timers' phase)."""

@@ -120,6 +120,7 @@ class ScenarioClock:
         """Lockstep: tick until ``predicate`` holds or ``timeout_s`` of simulated time passed."""
         end_ns = self.stepper.now_ns + round(timeout_s * 1e9)
         wall_end = time.monotonic() + timeout_s * LOCKSTEP_WALL_FACTOR + LOCKSTEP_WALL_EXTRA_S
+        self.stepper.settle()             # what was just sent is handled before the first check
         while not predicate():
             if self.stepper.now_ns >= end_ns or time.monotonic() >= wall_end:
                 return predicate()

@@ -206,8 +206,14 @@ def chase_scenario() -> Scenario:
     return Scenario.model_validate({
         "lockstep": True,
         "processes": [{"name": "chaser", "package": "pacers", "executable": "chaser_node"}],
+        # a teleport half-way: the wait for its answer must not tick a different number of
+        # times from run to run (it settles first: Stepper.settle)
         "steps": [{"id": "up", "until": {"condition": "subscribed", "topic": "/turtle1/pose"}, "timeout": 10},
-                  {"id": "run", "wait": 8}],
+                  {"id": "run", "wait": 4},
+                  {"id": "jump", "service": {"name": "/turtle1/teleport_absolute",
+                                             "type": "turtlesim/srv/TeleportAbsolute",
+                                             "request": {"x": 3.0, "y": 3.0, "theta": 0.0}}, "timeout": 2},
+                  {"id": "more", "wait": 4}],
         "limits": {"wall_s": 60}})
 
 
