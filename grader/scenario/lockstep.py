@@ -190,8 +190,10 @@ class Stepper:
         tick (a goal, a service request, a teleport): a wait checks its condition only then, so
         whether the answer is seen before the next tick never depends on the wall time it took.
         Without it, the tick at which an action server's acceptance or a teleport's answer was
-        seen varied, and Lab 3's second goal was handed over 0-4 ticks later from run to run.
-        While another thread ticks, that tick settles."""
+        seen varied, and Lab 3's second goal was handed over 0-4 ticks later from run to run;
+        with it, two runs of the reference handed over its second goal at the same tick (its
+        third still 2 ticks apart once: benchmarks/README.md). While another thread ticks, that
+        tick settles."""
         if self._ticking.acquire(blocking=False):
             try:
                 self._settle(own=True)
