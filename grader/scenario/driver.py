@@ -138,6 +138,7 @@ class Driver:
         self.counts: dict[str, int] = {}
         self._subs: dict[str, Any] = {}
         self._pubs: dict[str, Any] = {}
+        self._clients: dict[tuple[str, str], Any] = {}
         self._tail_pos: dict[Path, int] = {}
         self._tail_rest: dict[Path, bytes] = {}
         self._exited: set[str] = set()
@@ -358,6 +359,16 @@ class Driver:
             entry[1] = (msg.linear.x, msg.linear.y, msg.angular.z)
 
         self._subs[topic] = self.node.create_subscription(self._import("geometry_msgs/msg/Twist"), topic, on_cmd, 100)
+
+    def service_client(self, cls: Any, name: str) -> Any:
+        """The driver's client of service ``name`` (one per service and type, made on first use):
+        a new client per call costs a discovery round each time (``wait_for_service`` then sleeps
+        0.25 s of wall time), and in lockstep a request the server has not matched yet waits for
+        DDS to send it again, on the wall clock."""
+        key = (name, f"{cls.__module__}.{cls.__qualname__}")
+        if key not in self._clients:
+            self._clients[key] = self.node.create_client(cls, name)
+        return self._clients[key]
 
     def publisher(self, topic: str, type_name: str):
         if topic not in self._pubs:

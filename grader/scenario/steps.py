@@ -102,7 +102,7 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
                 driver.event(Event.SERVICE_MISSING, step=step.id, service=spec.name)
                 return out | {"available": False}
         cls = import_type(type_name)
-        client = driver.node.create_client(cls, spec.name)
+        client = driver.service_client(cls, spec.name)
         if not client.wait_for_service(timeout_sec=spec.server_timeout):
             driver.event(Event.SERVICE_MISSING, step=step.id, service=spec.name)
             return out | {"available": False}
