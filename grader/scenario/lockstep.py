@@ -191,9 +191,9 @@ class Stepper:
         whether the answer is seen before the next tick never depends on the wall time it took.
         Without it, the tick at which an action server's acceptance or a teleport's answer was
         seen varied, and Lab 3's second goal was handed over 0-4 ticks later from run to run;
-        with it, two runs of the reference handed over its second goal at the same tick (its
-        third still 2 ticks apart once: benchmarks/README.md). While another thread ticks, that
-        tick settles."""
+        with it (and one driver client per service), two runs of the reference drew the same
+        poses at the same ticks (benchmarks/README.md). While another thread ticks, that tick
+        settles."""
         if self._ticking.acquire(blocking=False):
             try:
                 self._settle(own=True)
