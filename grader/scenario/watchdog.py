@@ -51,35 +51,21 @@ BUSY_WINDOW_S = 2.0
 
 def tree_cpu_seconds(pids: dict[str, int]) -> dict[str, float]:
     """CPU seconds (user + system, reaped children included) of each named process and all its
-    descendants, read from /proc (a sandbox's wrapper and the node inside it count as one)."""
+    descendants, read from /proc (a sandbox's wrapper and the node inside it count as one; the
+    tree is the one the lockstep quiet checks wait for, :func:`quiescence.descendants`)."""
+    from grader.scenario.quiescence import descendants
+
     tick = os.sysconf("SC_CLK_TCK")
-    parent: dict[int, int] = {}
-    own: dict[int, float] = {}
-    for entry in os.scandir("/proc"):
-        if not entry.name.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry.name}/stat") as f:
-                stat = f.read()
-        except OSError:
-            continue
-        fields = stat[stat.rindex(")") + 2:].split()
-        pid = int(entry.name)
-        parent[pid] = int(fields[1])
-        own[pid] = sum(int(v) for v in fields[11:15]) / tick
-    children: dict[int, list[int]] = {}
-    for pid, ppid in parent.items():
-        children.setdefault(ppid, []).append(pid)
     out = {}
     for name, root in pids.items():
-        total, todo, seen = 0.0, [root], set()
-        while todo:
-            pid = todo.pop()
-            if pid in seen or pid not in own:
+        total = 0.0
+        for pid in descendants([root]):
+            try:
+                with open(f"/proc/{pid}/stat") as f:
+                    stat = f.read()
+            except OSError:                  # exited meanwhile
                 continue
-            seen.add(pid)
-            total += own[pid]
-            todo += children.get(pid, [])
+            total += sum(int(v) for v in stat[stat.rindex(")") + 2:].split()[11:15]) / tick
         out[name] = total
     return out
 
