@@ -265,6 +265,10 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                                                if p is not None and p.alive()]) if run.lockstep else None,
                             lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None})
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
+            if run.lockstep and (topics is None or CLOCK_TOPIC in topics):
+                # every tick's /clock is recorded, the first included: a pose recorded before any
+                # /clock maps to no tick (CI saw the first pose 13 ms of wall time off its tick)
+                driver.wait_until(lambda: recorder.matched(CLOCK_TOPIC, 1), RECORDER_READY_S, wall=True)
             if sim_time:
                 if not driver.clock.wait_for_clock(SIM_READY_S):
                     raise RuntimeError(f"no {CLOCK_TOPIC} from the grader's clock within {SIM_READY_S:.0f}s")
