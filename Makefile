@@ -30,9 +30,28 @@ lint: bootstrap $(VENV)/.lint-tools
 	$(VENV)/bin/ruff check grader tests
 	$(VENV)/bin/mypy
 
-# everything but the heavy tests (27 min measured on 2 cores; 29 before three batches became heavy); CI (.ci/run) runs test-heavy after it
+# Two pytest sessions side by side, $(1) the marker expression: the fixture batch
+# (tests/e2e/test_lab_fixtures.py, whose lockstep scenarios wait on quiet checks more than they
+# use the CPUs: load 1-3 while it ran alone) and everything else; the fixture batch's log is
+# printed after the other session's, and the target fails when either does.
+SPLIT_TMP ?= $(or $(TMPDIR),/tmp)/grader-test
+define split_sessions
+	@rm -rf $(SPLIT_TMP)/$(2) && mkdir -p $(SPLIT_TMP)/$(2)
+	@$(VENV)/bin/python -m pytest -m "$(1)" tests/e2e/test_lab_fixtures.py --basetemp=$(SPLIT_TMP)/$(2)/fixtures \
+	  $(PYTEST_ARGS) > $(SPLIT_TMP)/$(2)/fixtures.log 2>&1 & fixtures=$$!; \
+	$(VENV)/bin/python -m pytest -m "$(1)" --ignore=tests/e2e/test_lab_fixtures.py --basetemp=$(SPLIT_TMP)/$(2)/rest \
+	  $(PYTEST_ARGS); rest=$$?; \
+	wait $$fixtures; fx=$$?; \
+	echo "---- make $(2): tests/e2e/test_lab_fixtures.py (run beside the above) ----"; \
+	cat $(SPLIT_TMP)/$(2)/fixtures.log; \
+	echo "make $(2): fixtures exit $$fx, the rest exit $$rest"; \
+	test $$fx -eq 0 && test $$rest -eq 0
+endef
+
+# everything but the heavy tests, as two sessions side by side (31 min one after the other on 2
+# cores, the fixture batch 12 of them); CI (.ci/run) runs test-heavy after it
 test: bootstrap
-	$(VENV)/bin/python -m pytest -m "not heavy" $(PYTEST_ARGS)
+	$(call split_sessions,not heavy,test)
 
 test-fast: bootstrap
 	$(VENV)/bin/python -m pytest -m "not slow and not heavy" $(PYTEST_ARGS)
@@ -43,18 +62,8 @@ test-fast: bootstrap
 # ends): 42 min on 2 cores; one after the other they took 81 (the fixture batch 32), over
 # CI's 90 with `make test`; every heavy test passed with another grading batch running beside
 # it (grading is built for a loaded machine: a starved recording is made again)
-HEAVY_TMP ?= $(or $(TMPDIR),/tmp)/grader-test-heavy
 test-heavy: bootstrap
-	@mkdir -p $(HEAVY_TMP)
-	@$(VENV)/bin/python -m pytest -m heavy tests/e2e/test_lab_fixtures.py --basetemp=$(HEAVY_TMP)/fixtures \
-	  $(PYTEST_ARGS) > $(HEAVY_TMP)/fixtures.log 2>&1 & fixtures=$$!; \
-	$(VENV)/bin/python -m pytest -m heavy --ignore=tests/e2e/test_lab_fixtures.py --basetemp=$(HEAVY_TMP)/rest \
-	  $(PYTEST_ARGS); rest=$$?; \
-	wait $$fixtures; fx=$$?; \
-	echo "---- make test-heavy: tests/e2e/test_lab_fixtures.py (run beside the above) ----"; \
-	cat $(HEAVY_TMP)/fixtures.log; \
-	echo "make test-heavy: fixtures exit $$fx, the rest exit $$rest"; \
-	test $$fx -eq 0 && test $$rest -eq 0
+	$(call split_sessions,heavy,test-heavy)
 
 # the Slurm example on a real single-node Slurm (slurmctld + slurmd started and stopped by the
 # test; part of `make test-heavy` too)
