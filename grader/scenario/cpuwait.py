@@ -41,7 +41,8 @@ def _tree(pid: int, kids: dict[int, list[int]]) -> list[int]:
     return out
 
 
-def _schedstat(pid: int) -> tuple[int, int]:
+def schedstat(pid: int) -> tuple[int, int]:
+    """Nanoseconds on a CPU and waiting on a run queue, summed over the process's live threads."""
     cpu = wait = 0
     try:
         for tid in os.listdir(f"/proc/{pid}/task"):
@@ -80,7 +81,7 @@ def cpu_wait(pids: Mapping[str, int | None]) -> dict[str, dict[str, float]]:
         age = _age_s(pid)
         cpu = wait = 0
         for p in _tree(pid, kids):
-            c, w = _schedstat(p)
+            c, w = schedstat(p)
             cpu, wait = cpu + c, wait + w
         entry = {"cpu_s": round(cpu / 1e9, 3), "wait_s": round(wait / 1e9, 3)}
         if age:

@@ -6,8 +6,8 @@ process exits) is also published on ``/grader/events``, and student stdout/stder
 scenario's recorder, in this process) they go into the bag from here, not through DDS, where any
 node could publish an "event" of its own (:mod:`grader.bag.recorder`).
 
-Over the project's ~400 lines: one node holds every client, publisher and the hold/placement
-state the steps share; the step logic itself is in ``steps.py``.
+One node holds every client, publisher and the hold/placement state the steps share; what it
+asks the graph is in ``graph_queries.py``, the step logic in ``steps.py``.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ from typing import Any, Callable, Iterator
 from grader.executors import make_executor
 from grader.runner import ManagedProcess
 from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.scenario.graph_queries import GRADER_NODE_PREFIX, GraphQueries
 from grader.sim.clock import HOLD_SERVICE
 
-GRADER_NODE_PREFIX = "grader_"
 
 
 def import_type(name: str):
@@ -73,7 +73,7 @@ def to_plain(msg: Any) -> Any:
     return msg
 
 
-class Driver:
+class Driver(GraphQueries):
     """Owns an rclpy context on the scenario's domain and a background executor thread.
 
     ``time_scale`` > 1: the node runs with ``use_sim_time`` and ``clock`` measures scenario time
@@ -335,16 +335,6 @@ class Driver:
         n = self.node.count_publishers(topic)
         return n > 0 and self.recording_matched(topic, n)
 
-    def topic_type(self, topic: str, wait_s: float = 0.0) -> str | None:
-        deadline = time.monotonic() + wait_s
-        while True:
-            for name, types in self.node.get_topic_names_and_types():
-                if name == topic and types:
-                    return types[0]
-            if time.monotonic() >= deadline:
-                return None
-            time.sleep(0.1)
-
     def watch_commands(self, topic: str) -> None:
         """Keep the velocity commands on ``topic`` (a Twist topic) in ``commands[topic]``: how
         many so far and the last one (linear.x, linear.y, angular.z), so a hand-over can tell
@@ -418,72 +408,6 @@ class Driver:
         ``react``: a wall wait that ticks in lockstep, see ScenarioClock.wait_until)."""
         return self.clock.wait_until(predicate, timeout_s, poll, wall=wall, react=react)
 
-    def graph_snapshot(self) -> None:
-        """Publish the nodes, and who publishes, subscribes and serves what (with the types):
-        integrity checks, "the launch file starts these nodes" and the contract's names found by
-        behaviour (the node that serves /set_goal, whatever it is called) need it."""
-        pubs: dict[str, list[str]] = {}
-        subs: dict[str, list[str]] = {}
-        names = self.node.get_node_names_and_namespaces()
-        nodes = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in names)
-        services = sorted(n for n, _ in self.node.get_service_names_and_types())
-        topic_types: dict[str, list[str]] = {}
-        for topic, types in self.node.get_topic_names_and_types():
-            try:
-                pubs[topic] = sorted({i.node_name for i in self.node.get_publishers_info_by_topic(topic)})
-                subs[topic] = sorted({i.node_name for i in self.node.get_subscriptions_info_by_topic(topic)})
-                topic_types[topic] = list(types)
-            except Exception:  # noqa: BLE001 - a topic vanishing mid-query is fine
-                continue
-        servers: dict[str, list[str]] = {}
-        service_types: dict[str, list[str]] = {}
-        for name, ns in names:
-            try:
-                offered = self.node.get_service_names_and_types_by_node(name, ns)
-            except Exception:  # noqa: BLE001 - the node went away meanwhile
-                continue
-            for service, types in offered:
-                servers.setdefault(service, []).append(name)
-                service_types[service] = list(types)
-        self.event(Event.GRAPH, nodes=nodes, publishers=pubs, subscribers=subs, services=services,
-                   topic_types=topic_types, servers={k: sorted(set(v)) for k, v in servers.items()},
-                   service_types=service_types)
-
-    # -- readiness -------------------------------------------------------------------------
-    def _student_endpoint(self, topic: str, publisher: bool) -> bool:
-        """Does a node other than the grader's (and the sim) publish/subscribe ``topic``?
-
-        Asked per node: endpoint info alone can name an endpoint's node "_NODE_NAME_UNKNOWN_"
-        before node discovery completes, which must not count as the student being ready.
-        """
-        by_node = (self.node.get_publisher_names_and_types_by_node if publisher
-                   else self.node.get_subscriber_names_and_types_by_node)
-        for name_ns in self.student_nodes():
-            try:
-                if any(t == topic for t, _ in by_node(*name_ns)):
-                    return True
-            except Exception:  # noqa: BLE001 - the node went away meanwhile
-                continue
-        return False
-
-    def student_nodes(self) -> set[tuple[str, str]]:
-        return {(n, ns) for n, ns in self.node.get_node_names_and_namespaces()
-                if not n.startswith(GRADER_NODE_PREFIX) and n != self.sim_node}
-
-    def recorder_matched(self, name_ns: tuple[str, str]) -> bool:
-        """Every topic the node publishes has a grader subscriber (the recorder) matched."""
-        try:
-            topics = self.node.get_publisher_names_and_types_by_node(*name_ns)
-        except Exception:  # noqa: BLE001 - node vanished
-            return True
-        for topic, _types in topics:
-            if topic in ("/rosout", "/parameter_events"):
-                continue
-            subs = self.node.get_subscriptions_info_by_topic(topic)
-            if not any(i.node_name.startswith(GRADER_NODE_PREFIX) for i in subs):
-                return False
-        return True
-
     def watch_action_status(self, action: str) -> None:
         """Keep the latest status of every goal of ``action`` (its ``_action/status`` topic)."""
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -504,22 +428,6 @@ class Driver:
     def action_status(self, action: str, goal_id: bytes) -> int | None:
         """The last status the server published for ``goal_id`` (None: it never mentioned it)."""
         return self.goal_status.get(goal_id)
-
-    def student_publishes(self, topic: str) -> bool:
-        return self._student_endpoint(topic, publisher=True)
-
-    def student_subscribes(self, topic: str) -> bool:
-        return self._student_endpoint(topic, publisher=False)
-
-    def service_type(self, name: str) -> str | None:
-        """The type a server advertises for service ``name`` (None while there is none)."""
-        for service, types in self.node.get_service_names_and_types():
-            if service == name and types:
-                return types[0]
-        return None
-
-    def action_available(self, name: str) -> bool:
-        return self.service_type(name.rstrip("/") + "/_action/send_goal") is not None
 
     def shutdown(self) -> None:
         try:

@@ -17,7 +17,9 @@ measures the recorded times.
 Either one sends the scenario back to 1x. A node that is simply wrong (10 Hz instead of 1 Hz)
 is then graded at 1x too, which only costs time: the grade is never taken from a run that might
 differ from 1x. Two more signals: anyone but the grader's clock publishing ``/clock``, and a
-student process busy for ``BUSY_SHARE`` of a CPU core or more since its node came up: at K x it
+student process busy for ``BUSY_SHARE`` of a CPU core or more since its node came up (or, on a
+loaded machine where it cannot get that, running or waiting for a CPU ``RUNNABLE_SHARE`` of the
+time): at K x it
 handles K times the messages per wall second (every ``/clock`` included), and a process near a
 full core falls behind simulated time. Measured on Lab 3's action server (rclpy's
 MultiThreadedExecutor with ``Rate.sleep`` in its execute callback): 53-102 % of a core at 4x
@@ -46,19 +48,27 @@ QUIET_PERIODS = 4.0
 #: share of a CPU core a student process may use (averaged over at least BUSY_WINDOW_S of wall
 #: time since its node came up) before it counts as unable to keep pace
 BUSY_SHARE = 0.75
+#: ... or the share of the time it was running or ready to run (waiting on a run queue): a busy
+#: loop on a loaded machine gets half a core or less and waits for the rest (the test's loop
+#: beside a test session, load ~4 on 2 cores: 0.4-0.6 of a core, runnable ~1.0 of the time),
+#: where a node that waits for its timers is runnable a small share even at load 20 (the
+#: simulator waits ~0.1 of its time there, :mod:`grader.scenario.cpuwait`)
+RUNNABLE_SHARE = 0.9
 BUSY_WINDOW_S = 2.0
 
 
-def tree_cpu_seconds(pids: dict[str, int]) -> dict[str, float]:
-    """CPU seconds (user + system, reaped children included) of each named process and all its
-    descendants, read from /proc (a sandbox's wrapper and the node inside it count as one; the
-    tree is the one the lockstep quiet checks wait for, :func:`quiescence.descendants`)."""
+def tree_cpu_seconds(pids: dict[str, int]) -> dict[str, tuple[float, float]]:
+    """Per named process and all its descendants (a sandbox's wrapper and the node inside count
+    as one; the tree the lockstep quiet checks wait for, :func:`quiescence.descendants`), read
+    from /proc: CPU seconds (user + system, reaped children included) and runnable seconds
+    (on a CPU or waiting for one, live threads: ``schedstat``)."""
+    from grader.scenario.cpuwait import schedstat
     from grader.scenario.quiescence import descendants
 
     tick = os.sysconf("SC_CLK_TCK")
     out = {}
     for name, root in pids.items():
-        total = 0.0
+        total = runnable = 0.0
         for pid in descendants([root]):
             try:
                 with open(f"/proc/{pid}/stat") as f:
@@ -66,7 +76,9 @@ def tree_cpu_seconds(pids: dict[str, int]) -> dict[str, float]:
             except OSError:                  # exited meanwhile
                 continue
             total += sum(int(v) for v in stat[stat.rindex(")") + 2:].split()[11:15]) / tick
-        out[name] = total
+            on_cpu, waiting = schedstat(pid)
+            runnable += (on_cpu + waiting) / 1e9
+        out[name] = (total, runnable)
     return out
 
 
@@ -106,7 +118,8 @@ class RateWatchdog:
     clock_owner: str
     arrivals: dict[str, tuple[list[float], list[float]]] = field(default_factory=dict)
     advertised_at: dict[str, float] = field(default_factory=dict)   # sim time a student publisher was seen
-    cpu_base: dict[str, tuple[float, float]] = field(default_factory=dict)   # process -> (cpu s, wall s)
+    #: process -> (cpu s, runnable s, wall s) when first seen
+    cpu_base: dict[str, tuple[float, float, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.arrivals = {e.topic: ([], []) for e in self.expected}
@@ -119,15 +132,22 @@ class RateWatchdog:
 
     def busy(self, pids: dict[str, int]) -> str | None:
         """A student process (``name -> pid`` of those running) that used ``BUSY_SHARE`` of a
-        core or more since the first call that saw it (its node was up by then)."""
+        core, or was runnable ``RUNNABLE_SHARE`` of the time, since the first call that saw it
+        (its node was up by then)."""
         now = time.monotonic()
-        used = tree_cpu_seconds(pids)
-        for name, cpu in used.items():
-            base = self.cpu_base.setdefault(name, (cpu, now))
-            wall = now - base[1]
-            if wall >= BUSY_WINDOW_S and (cpu - base[0]) / wall >= BUSY_SHARE:
-                return (f"{name} used {100 * (cpu - base[0]) / wall:.0f} % of a CPU core for {wall:.1f} s: "
+        for name, (cpu, runnable) in tree_cpu_seconds(pids).items():
+            base = self.cpu_base.setdefault(name, (cpu, runnable, now))
+            wall = now - base[2]
+            if wall < BUSY_WINDOW_S:
+                continue
+            used, wanted = (cpu - base[0]) / wall, (runnable - base[1]) / wall
+            if used >= BUSY_SHARE:
+                return (f"{name} used {100 * used:.0f} % of a CPU core for {wall:.1f} s: "
                         "a process that busy cannot keep pace with simulated time")
+            if wanted >= RUNNABLE_SHARE:
+                return (f"{name} was running or waiting for a CPU {100 * wanted:.0f} % of {wall:.1f} s "
+                        f"({100 * used:.0f} % of a core on this busy machine): a process that busy "
+                        "cannot keep pace with simulated time")
         return None
 
     def verdict(self, node: Any, sim_now: float, student_publishes: Any = None) -> str | None:
