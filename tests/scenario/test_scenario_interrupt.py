@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from grader.scenario import run as scenario_run
 from grader.scenario.model import Scenario, ScenarioRun, Step
 
 
@@ -23,8 +24,10 @@ def test_sigterm_mid_scenario_finalizes_bag(tmp_path: Path) -> None:
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "grader.scenario.run", str(tmp_path / "run.json"), str(out)],
                             start_new_session=True)
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and not (out / "logs" / "turtlesim.stdout.log").exists():
+    # the scenario under way: the simulator writes its own record of the poses it publishes once
+    # the recorder and the driver are up (on a loaded machine that takes seconds, not a fixed time)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (out / scenario_run.SIM_RECORD).exists():
         time.sleep(0.1)
     time.sleep(3.0)
     os.killpg(proc.pid, signal.SIGTERM)
