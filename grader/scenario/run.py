@@ -13,8 +13,8 @@ Runs in a child process started with a trusted environment (``rosenv.trusted_env
 interface types import here from the grader's own build of their definitions, never from theirs
 (``grader.workspace.trusted_interfaces``), and rclpy state never leaks between scenarios.
 
-A little over the project's ~400 lines: the child's one sequence (graph, recorder, simulator,
-driver, students, steps, shutdown) shares its record and its clean-up stack.
+Starting the students' processes (limits, scripted stdin, the wait until a node is up) is
+:mod:`grader.scenario.launcher`.
 """
 
 from __future__ import annotations
@@ -24,35 +24,24 @@ import json
 import os
 import signal
 import sys
-import threading
 import time
 import traceback
 from pathlib import Path
-from typing import Any, Iterator, Sequence, cast
+from typing import Any, Iterator, cast
 
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
-from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
+from grader.runner import ManagedProcess, ProcessSpec, RosGraph
 from grader.scenario.cpuwait import cpu_wait
 from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.scenario.launcher import FIRST_CLOCK_S, Launcher
 from grader.scenario.lockstep import LockstepFailed
-from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
+from grader.scenario.model import ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
 from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
 
 RECORDER_READY_S = 10.0
 SIM_READY_S = 15.0
-#: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
-#: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario
-STUDENT_STOP_GRACE_S = 2.0
-#: wall seconds a starting process may hold the clock until its node is up (at 1x: scenario time
-#: stands still meanwhile, so a step's limit never pays for a start-up; see ScenarioClock.held)
-NODE_UP_S = 15.0
-#: then wall seconds until the clock owner has matched the new nodes' /clock readers
-CLOCK_MATCH_S = 5.0
-#: and for the new nodes to take the held /clock (and the recorder to match their publishers:
-#: DDS matching lags the graph) before the clock runs again
-FIRST_CLOCK_S = 0.3
 #: wall seconds the driver waits for the simulator to hold the turtles at the scenario's end
 END_HOLD_WAIT_S = 2.0
 #: the simulator's own record of its poses, beside the bag until the recorder takes it in
@@ -76,139 +65,6 @@ def _discover_like(graph: RosGraph) -> None:
             os.environ[key] = graph.env[key]
         else:
             os.environ.pop(key, None)
-
-
-class _EventedProcess(ManagedProcess):
-    """A student process whose scripted stdin lines are announced on /grader/events."""
-
-    driver = None
-
-    def pause_before_line(self, seconds: float) -> bool:
-        """A line's delay in scenario time (simulated when the run is faster than real time)."""
-        if self.driver is None or not self.driver.clock.simulated:
-            return super().pause_before_line(seconds)
-        return self.driver.clock.sleep(seconds, stop=lambda: self.popen.poll() is not None)
-
-    def on_stdin_line(self, text: str) -> None:
-        if self.driver is not None:
-            self.driver.event(Event.STDIN_LINE, process=self.name, line=text, delivered=True)
-
-
-def _open_gate(driver, proc: ManagedProcess, before: set, gate: threading.Event) -> None:
-    """Let the stdin script start once the process's node is up and its topics are recorded."""
-    deadline = time.monotonic() + 15.0
-    new: set = set()
-    while time.monotonic() < deadline and proc.alive():
-        new = driver.student_nodes() - before
-        if new and all(driver.recorder_matched(n) for n in new):
-            driver.clock.sleep(0.3)
-            break
-        time.sleep(0.05)
-    driver.event(Event.STDIN_READY, process=proc.name,
-                 nodes=sorted("/".join(n[::-1]).replace("//", "/") for n in new))
-    gate.set()
-
-
-def process_limits(proc: Process, scenario_wall_s: float) -> Limits:
-    """The rubric's limits for a student process over the grader's defaults for student code."""
-    return Limits(wall_s=proc.limits.wall_s or scenario_wall_s,
-                  cpu_s=proc.limits.cpu_s or UNTRUSTED.cpu_s,
-                  memory_mb=proc.limits.memory_mb or UNTRUSTED.memory_mb)
-
-
-class Launcher:
-    """Starts a rubric process: each of its OS processes (one, or a launch file's nodes)."""
-
-    def __init__(self, run: ScenarioRun, graph: RosGraph, driver, students: dict[str, ManagedProcess]) -> None:
-        self.run, self.graph, self.driver, self.students = run, graph, driver, students
-        self.members: dict[str, list[str]] = {p.name: [] for p in run.scenario.processes}
-
-    def start(self, name: str) -> list[str]:
-        proc = self.run.scenario.process(name)
-        clock = self.driver.clock
-        if proc.start_delay:
-            clock.sleep(proc.start_delay)
-        launched: Sequence[LaunchedProcess] = self.run.launched.get(name, ())
-        started: list[str] = []
-        launched = [lp for lp in launched if not lp.stand_in]   # the reference sim plays those
-        delayed = [lp for lp in launched if lp.start_delay > 0]
-        with clock.held():
-            before = self.driver.student_nodes(), clock.clock_readers()
-            for lp in launched:
-                if lp.start_delay <= 0 and self._start_one(proc, lp):
-                    started.append(lp.name)
-            self._wait_up(before, started)
-        for lp in delayed:      # a launch file's TimerAction: start later, without blocking steps
-            if clock.simulated:
-                threading.Thread(target=self._start_later, args=(proc, lp), daemon=True).start()
-            else:
-                threading.Timer(lp.start_delay, self._start_one, args=(proc, lp)).start()
-            started.append(lp.name)
-        return started
-
-    def _start_later(self, proc: Process, lp: LaunchedProcess) -> None:
-        clock = self.driver.clock
-        clock.sleep(lp.start_delay)
-        with clock.held():
-            before = self.driver.student_nodes(), clock.clock_readers()
-            if self._start_one(proc, lp):
-                self._wait_up(before, [lp.name])
-
-    def _wait_up(self, snapshot: tuple[set, int | None], names: list[str]) -> None:
-        """While the clock is held: wait (wall time) until the started processes' nodes are in
-        the graph with their topics recorded (or the processes ended); on simulated time also
-        until the clock owner has matched their ``/clock`` readers, then a moment for their
-        first ``/clock``. ``snapshot``: the student nodes and matched readers before they started."""
-        clock = self.driver.clock
-        if not names:
-            return
-        driver = self.driver
-        before, readers = snapshot
-
-        def alive() -> list[str]:
-            return [n for n in names if n in self.students and self.students[n].alive()]
-
-        def up() -> bool:
-            new = driver.student_nodes() - before
-            return not alive() or (len(new) >= len(alive()) and all(driver.recorder_matched(n) for n in new))
-
-        def clocked() -> bool:
-            now = clock.clock_readers()
-            return not alive() or readers is None or now is None or \
-                now >= readers + len(driver.student_nodes() - before)
-
-        if driver.wait_until(up, NODE_UP_S, poll=0.02, wall=True) and clock.simulated and \
-                driver.wait_until(clocked, CLOCK_MATCH_S, poll=0.02, wall=True):
-            time.sleep(FIRST_CLOCK_S)
-
-    def _start_one(self, proc: Process, lp: LaunchedProcess) -> bool:
-        driver = self.driver
-        if not lp.argv:
-            driver.event(Event.NODE_UNAVAILABLE, process=lp.name, of=proc.name, package=proc.package,
-                         executable=proc.executable, module=proc.module, launch=proc.launch, error=lp.error,
-                         node_name=lp.node_name)
-            return False
-        script = list(proc.stdin or ()) if proc.launch is None else []
-        gate = threading.Event() if script else None
-        before = driver.student_nodes()
-        argv = list(lp.argv)
-        if self.run.time_scale > 1 or self.run.lockstep:     # every node of the process follows /clock
-            argv += ["--ros-args", "-p", "use_sim_time:=true"]
-        managed = self.graph.start(ProcessSpec(
-            lp.name, argv, env={**proc.env, **lp.env} or None,
-            stdin=script if (script or proc.stdin is not None) else None,
-            close_stdin=proc.stdin_close, limits=process_limits(proc, self.run.wall_limit_s),
-            nproc=UNTRUSTED_NPROC, stop_grace_s=STUDENT_STOP_GRACE_S, term_grace_s=1.0, untrusted=True),
-            process_class=_EventedProcess, stdin_gate=gate)
-        managed.driver = driver  # type: ignore[attr-defined]  # (an _EventedProcess)
-        if gate is not None:
-            threading.Thread(target=_open_gate, args=(driver, managed, before, gate), daemon=True).start()
-        self.students[lp.name] = managed
-        self.members[proc.name].append(lp.name)
-        driver.event(Event.NODE_STARTED, process=lp.name, of=proc.name, package=proc.package,
-                     executable=proc.executable, module=proc.module, launch=proc.launch,
-                     node_name=lp.node_name, argv=list(lp.argv))
-        return True
 
 
 def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:

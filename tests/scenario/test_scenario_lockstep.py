@@ -143,6 +143,55 @@ def test_threads_waiting_on_the_lockstep_clock_share_its_ticks() -> None:
     assert seen["b"][-1] >= 60 * 16_000_000 and max(seen["a"]) == 100 * 16_000_000
 
 
+def test_scheduled_actions_run_at_the_tick_boundary_in_the_ticking_thread() -> None:
+    """A scripted stdin line is typed by the thread that ticks, after the first tick that reaches
+    its time and before the next one, then the processes are let settle: never from a thread of
+    its own some wall time later (where the step's wait ticked on)."""
+    import threading
+    from collections import Counter
+
+    from grader.scenario.lockstep import Stepper
+
+    stepper = object.__new__(Stepper)          # the simulator's answers: a stand-in
+    stepper.now_ns, stepper.ticks, stepper.tick_wall_s = 0, 0, 0.0
+    stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
+    stepper._due, stepper._order = [], __import__("itertools").count()
+    calls: list[str] = []
+
+    def call(client, request=None) -> str:
+        if client == "clock":
+            stepper._next = stepper.now_ns + 16_000_000
+            calls.append("clock")
+            return f"{stepper._next} 0"
+        calls.append("world")
+        return ""
+
+    def settle(own: bool) -> None:
+        if own and calls[-1] != "settled":
+            calls.append("settled")
+
+    stepper._clock, stepper._world = "clock", "world"
+    stepper._call, stepper._settle = call, settle   # type: ignore[method-assign]
+    ran: list[tuple[int, int, int]] = []
+    ticker = threading.get_ident()
+
+    def action(name: int) -> None:
+        ran.append((name, stepper.now_ns, stepper.ticks))
+        calls.append(f"action {name}")
+        assert threading.get_ident() == ticker
+
+    stepper.schedule(40_000_000, lambda: action(2))      # due at the third tick (48 ms)
+    stepper.schedule(32_000_000, lambda: action(1))      # exactly at the second
+    stepper.schedule(48_000_000, lambda: action(3))      # the same tick as 2, after it
+    for _ in range(4):
+        stepper.tick()
+    assert [(n, t) for n, t, _ in ran] == [(1, 32_000_000), (2, 48_000_000), (3, 48_000_000)]
+    assert [k for n, _, k in ran] == [1, 2, 2]             # within the tick that reached the time
+    i = calls.index("action 2")                             # the world stepped first, settled after
+    assert calls[i - 2:i + 3] == ["world", "settled", "action 2", "action 3", "settled"]
+    assert Counter(calls)["clock"] == 4 and stepper._due == []
+
+
 def test_a_loaded_machine_allows_slower_ticks_within_a_bound(monkeypatch: pytest.MonkeyPatch) -> None:
     """A tick waits for CPUs on a loaded machine: the slowdown that ends a lockstep run grows with
     the load per core (a correct chaser gave up at load 14-20 otherwise), up to a bound that a
@@ -205,7 +254,10 @@ def test_an_item_of_a_lockstep_run_says_so() -> None:
 def chase_scenario() -> Scenario:
     return Scenario.model_validate({
         "lockstep": True,
-        "processes": [{"name": "chaser", "package": "pacers", "executable": "chaser_node"}],
+        # two lines typed into its stdin (it does not read them): typed at a tick boundary by
+        # the thread that ticks, at the same simulated times in every run
+        "processes": [{"name": "chaser", "package": "pacers", "executable": "chaser_node",
+                       "stdin": [{"line": "one", "delay": 1.0}, {"line": "two", "delay": 0.48}]}],
         # a teleport half-way: the wait for its answer must not tick a different number of
         # times from run to run (it settles first: Stepper.settle)
         "steps": [{"id": "up", "until": {"condition": "subscribed", "topic": "/turtle1/pose"}, "timeout": 10},
@@ -225,6 +277,19 @@ def _poses(folder: Path) -> tuple[bytes, int]:
     topic = record_topic("/turtle1/pose")
     data = [bytes(payload) for _t, *_times, payload in open_bag(folder / "bag", [topic]).iter_messages([topic])]
     return b"".join(data), len(data)
+
+
+def _typed(folder: Path) -> list[tuple[float, str]]:
+    """The stdin lines the driver typed, at their simulated times in the bag."""
+    from grader.grading.pipeline import scenario_frames
+
+    events = scenario_frames(folder)["/grader/events"]
+    out = []
+    for t, data in zip(events.index, events["data"]):
+        event = json.loads(data)
+        if event["event"] == "stdin_line":
+            out.append((round(float(t), 6), event["line"]))
+    return out
 
 
 @pytest.mark.ros
@@ -251,6 +316,9 @@ def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(pacin
         assert record["lockstep"]["processes"] >= 3, record["lockstep"]
     first, n = _poses(tmp_path / "quiet")
     assert n >= 8 * 62 and _poses(tmp_path / "busy") == (first, n)
+    typed = _typed(tmp_path / "quiet")
+    assert [line for _t, line in typed] == ["one", "two"] and _typed(tmp_path / "busy") == typed
+    assert 0.48 - 0.016 < typed[1][0] - typed[0][0] < 0.48 + 0.016
     # the bag reads in simulated time: a pose every tick, on the tick
     pose = scenario_frames(tmp_path / "quiet")["/turtle1/pose"]
     assert np.allclose(np.diff(pose.index.to_numpy()), 0.016, atol=1e-6)
