@@ -48,8 +48,8 @@ define split_sessions
 	test $$fx -eq 0 && test $$rest -eq 0
 endef
 
-# everything but the heavy tests, as two sessions side by side (31 min one after the other on 2
-# cores, the fixture batch 12 of them); CI (.ci/run) runs test-heavy after it
+# everything but the heavy tests, as two sessions side by side: 24 min on a fresh clone (31 one
+# after the other on 2 cores); CI (.ci/run) runs test-heavy after it
 test: bootstrap
 	$(call split_sessions,not heavy,test)
 
