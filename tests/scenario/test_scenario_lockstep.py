@@ -356,7 +356,8 @@ def test_the_report_says_how_a_lockstep_scenario_ran() -> None:
         "north": {"clock": "lockstep", "used": True, "ticks": 1300, "quiet_timeouts": 2},
         "other": {"clock": "lockstep", "used": False, "fallback": "wall-clock pacing in node code (x.py:3: time.sleep())"}})
     assert notes == [
-        "scenario drive ran on lockstep simulated time (4033 ticks; the same code repeats it exactly)",
+        "scenario drive ran on lockstep simulated time (4033 ticks; every tick quiet: the same code repeats it "
+        "exactly, unless a node sends before DDS has matched its peer)",
         "scenario north ran on lockstep simulated time (1300 ticks; 2 tick(s) went on before every process "
         "was quiet, so another run may differ)",
         "scenario other ran on the wall clock instead of lockstep simulated time: wall-clock pacing in node "
