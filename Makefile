@@ -30,26 +30,27 @@ lint: bootstrap $(VENV)/.lint-tools
 	$(VENV)/bin/ruff check grader tests
 	$(VENV)/bin/mypy
 
-# Two pytest sessions side by side, $(1) the marker expression: the fixture batch
-# (tests/e2e/test_lab_fixtures.py, whose lockstep scenarios wait on quiet checks more than they
-# use the CPUs: load 1-3 while it ran alone) and everything else; the fixture batch's log is
-# printed after the other session's, and the target fails when either does.
+# Two pytest sessions side by side, $(1) the marker expression: the grading batches (the fixture
+# batch, whose lockstep scenarios wait on quiet checks more than they use the CPUs, load 1-3
+# while it ran alone, and the two other batch-grading modules) and everything else; the batches'
+# log is printed after the other session's, and the target fails when either does.
 SPLIT_TMP ?= $(or $(TMPDIR),/tmp)/grader-test
+BATCH_TESTS := tests/e2e/test_lab_fixtures.py tests/e2e/test_diagnoses.py tests/e2e/test_check.py
 define split_sessions
 	@rm -rf $(SPLIT_TMP)/$(2) && mkdir -p $(SPLIT_TMP)/$(2)
-	@$(VENV)/bin/python -m pytest -m "$(1)" tests/e2e/test_lab_fixtures.py --basetemp=$(SPLIT_TMP)/$(2)/fixtures \
-	  $(PYTEST_ARGS) > $(SPLIT_TMP)/$(2)/fixtures.log 2>&1 & fixtures=$$!; \
-	$(VENV)/bin/python -m pytest -m "$(1)" --ignore=tests/e2e/test_lab_fixtures.py --basetemp=$(SPLIT_TMP)/$(2)/rest \
+	@$(VENV)/bin/python -m pytest -m "$(1)" $(BATCH_TESTS) --basetemp=$(SPLIT_TMP)/$(2)/batches \
+	  $(PYTEST_ARGS) > $(SPLIT_TMP)/$(2)/batches.log 2>&1 & batches=$$!; \
+	$(VENV)/bin/python -m pytest -m "$(1)" $(addprefix --ignore=,$(BATCH_TESTS)) --basetemp=$(SPLIT_TMP)/$(2)/rest \
 	  $(PYTEST_ARGS); rest=$$?; \
-	wait $$fixtures; fx=$$?; \
-	echo "---- make $(2): tests/e2e/test_lab_fixtures.py (run beside the above) ----"; \
-	cat $(SPLIT_TMP)/$(2)/fixtures.log; \
-	echo "make $(2): fixtures exit $$fx, the rest exit $$rest"; \
-	test $$fx -eq 0 && test $$rest -eq 0
+	wait $$batches; bx=$$?; \
+	echo "---- make $(2): $(BATCH_TESTS) (run beside the above) ----"; \
+	cat $(SPLIT_TMP)/$(2)/batches.log; \
+	echo "make $(2): batches exit $$bx, the rest exit $$rest"; \
+	test $$bx -eq 0 && test $$rest -eq 0
 endef
 
-# everything but the heavy tests, as two sessions side by side: 24 min on a fresh clone (31 one
-# after the other on 2 cores); CI (.ci/run) runs test-heavy after it
+# everything but the heavy tests, as two sessions side by side: 24 min on a fresh clone with the
+# fixture batch alone beside the rest (31 one after the other); CI (.ci/run) runs test-heavy after it
 test: bootstrap
 	$(call split_sessions,not heavy,test)
 
