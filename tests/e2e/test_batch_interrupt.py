@@ -34,6 +34,7 @@ def _processes_mentioning(text: str) -> set[int]:
 
 @pytest.mark.slow
 @pytest.mark.ros
+@pytest.mark.timeout(600)     # its own waits add up to 210 s, beyond the build on a loaded machine
 def test_ctrl_c_mid_batch(tmp_path: Path) -> None:
     out = tmp_path / "out"
     proc = subprocess.Popen(  # --no-reuse: the scenarios must really run when Ctrl-C comes
