@@ -49,7 +49,7 @@ def test_ctrl_c_mid_batch(tmp_path: Path) -> None:
         time.sleep(0.2)
     time.sleep(2.0)
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=90)
+    _, err = proc.communicate(timeout=240)
     assert proc.returncode == 130, err
     assert "interrupted" in err and "--resume" in err
     assert not list(out.glob("*/result.json")), "a half-graded submission must not get a result"
