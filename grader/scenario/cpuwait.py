@@ -15,30 +15,9 @@ from __future__ import annotations
 import os
 from typing import Mapping
 
+from grader.scenario.quiescence import descendants
+
 _TICKS = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
-
-
-def _children() -> dict[int, list[int]]:
-    kids: dict[int, list[int]] = {}
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry}/stat") as f:
-                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
-        except (OSError, IndexError, ValueError):
-            continue
-        kids.setdefault(ppid, []).append(int(entry))
-    return kids
-
-
-def _tree(pid: int, kids: dict[int, list[int]]) -> list[int]:
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        out.append(p)
-        todo += kids.get(p, [])
-    return out
 
 
 def schedstat(pid: int) -> tuple[int, int]:
@@ -73,14 +52,13 @@ def cpu_wait(pids: Mapping[str, int | None]) -> dict[str, dict[str, float]]:
     """``{name: {cpu_s, wait_s, alive_s, wait_share}}`` for each live process tree of ``pids``."""
     if not os.path.exists("/proc/self/task"):
         return {}
-    kids = _children()
     out: dict[str, dict[str, float]] = {}
     for name, pid in pids.items():
         if pid is None or not os.path.exists(f"/proc/{pid}"):
             continue
         age = _age_s(pid)
         cpu = wait = 0
-        for p in _tree(pid, kids):
+        for p in descendants([pid]):
             c, w = schedstat(p)
             cpu, wait = cpu + c, wait + w
         entry = {"cpu_s": round(cpu / 1e9, 3), "wait_s": round(wait / 1e9, 3)}

@@ -72,8 +72,8 @@ class _SteppedProcess(_EventedProcess):
         try:
             os.set_blocking(pipe.fileno(), False)   # a node that never reads must not stop the clock
             os.write(pipe.fileno(), (text + "\n").encode())
-        except (BlockingIOError, BrokenPipeError, OSError, ValueError):
-            return                                # exited, closed its stdin, or its pipe is full
+        except (OSError, ValueError):             # exited, closed its stdin, or its pipe is full
+            return
         self.on_stdin_line(text)
 
     def _close_stdin(self) -> None:

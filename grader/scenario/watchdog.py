@@ -57,7 +57,7 @@ RUNNABLE_SHARE = 0.9
 BUSY_WINDOW_S = 2.0
 
 
-def tree_cpu_seconds(pids: dict[str, int]) -> dict[str, tuple[float, float]]:
+def tree_times(pids: dict[str, int]) -> dict[str, tuple[float, float]]:
     """Per named process and all its descendants (a sandbox's wrapper and the node inside count
     as one; the tree the lockstep quiet checks wait for, :func:`quiescence.descendants`), read
     from /proc: CPU seconds (user + system, reaped children included) and runnable seconds
@@ -135,7 +135,7 @@ class RateWatchdog:
         core, or was runnable ``RUNNABLE_SHARE`` of the time, since the first call that saw it
         (its node was up by then)."""
         now = time.monotonic()
-        for name, (cpu, runnable) in tree_cpu_seconds(pids).items():
+        for name, (cpu, runnable) in tree_times(pids).items():
             base = self.cpu_base.setdefault(name, (cpu, runnable, now))
             wall = now - base[2]
             if wall < BUSY_WINDOW_S:
