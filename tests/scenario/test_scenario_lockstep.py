@@ -150,6 +150,7 @@ def test_scheduled_actions_run_at_the_tick_boundary_in_the_ticking_thread() -> N
     """A scripted stdin line is typed by the thread that ticks, after the first tick that reaches
     its time and before the next one, then the processes are let settle: never from a thread of
     its own some wall time later (where the step's wait ticked on)."""
+    import itertools
     import threading
     from collections import Counter
 
@@ -158,7 +159,7 @@ def test_scheduled_actions_run_at_the_tick_boundary_in_the_ticking_thread() -> N
     stepper = object.__new__(Stepper)          # the simulator's answers: a stand-in
     stepper.now_ns, stepper.ticks, stepper.tick_wall_s = 0, 0, 0.0
     stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
-    stepper._due, stepper._order = [], __import__("itertools").count()
+    stepper._due, stepper._order = [], itertools.count()
     calls: list[str] = []
 
     def call(client, request=None) -> str:
