@@ -83,9 +83,11 @@ def settles_check(items: list, planned: int) -> Callable[[list[Path]], bool] | N
 
 
 def lockstep_record_exact(record: dict) -> bool:
-    """A record of a lockstep run with every tick quiet: running it again repeats it exactly."""
+    """A record of a lockstep run with every tick quiet and no wait cut short by its wall-time
+    limit: running it again repeats it exactly."""
     ls = record.get("lockstep") or {}
-    return bool(ls.get("used")) and not ls.get("quiet_timeouts") and not record.get("errors")
+    return (bool(ls.get("used")) and not ls.get("quiet_timeouts") and not ls.get("wall_cuts")
+            and not record.get("errors"))
 
 
 def exact_lockstep(folder: Path) -> bool:

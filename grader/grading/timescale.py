@@ -255,10 +255,13 @@ def describe_lockstep(scenario_id: str, ls: dict[str, Any]) -> str:
         return (f"scenario {scenario_id} ran on the wall clock instead of lockstep simulated time: "
                 f"{ls.get('fallback', 'no reason recorded')}")
     quiet = int(ls.get("quiet_timeouts") or 0)
+    cuts = int(ls.get("wall_cuts") or 0)
     # not "exactly" without a condition: a node that sends before DDS has matched its peer (a
     # service call without waiting for the service) races discovery in every run (chase's
     # bench_flake class: one such /spawn request answered in one run of three)
     how = ("every tick quiet: the same code repeats it exactly, unless a node sends before DDS has "
-           "matched its peer" if not quiet else
-           f"{quiet} tick(s) went on before every process was quiet, so another run may differ")
+           "matched its peer" if not quiet and not cuts else
+           f"{quiet} tick(s) went on before every process was quiet, so another run may differ" if quiet else
+           f"{cuts} wait(s) ended by their wall-time limit before their simulated time (the machine was "
+           "too busy), so another run may differ")
     return f"scenario {scenario_id} ran on lockstep simulated time ({ls.get('ticks', '?')} ticks; {how})"

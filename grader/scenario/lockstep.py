@@ -108,6 +108,8 @@ class Stepper:
         self._ticking = threading.Lock()
         self._ticked = threading.Condition()
         self.tick_wall_s = 0.0          # wall time spent in ticks
+        #: waits that ended by their wall-time limit before their simulated time (ScenarioClock)
+        self.wall_cuts = 0
         #: (time, order, action): what :meth:`schedule` asked to run at a tick boundary
         self._due: list[tuple[int, int, Callable[[], None]]] = []
         self._order = itertools.count()
@@ -246,7 +248,7 @@ class Stepper:
         return {"ticks": self.ticks, "sim_s": round(self.now_ns / 1e9, 3),
                 "tick_wall_s": round(self.tick_wall_s, 3),
                 "quiet_waits": sum(q.waits for q in both), "quiet_scans": sum(q.scans for q in both),
-                "quiet_timeouts": self.quiet_timeouts,
+                "quiet_timeouts": self.quiet_timeouts, "wall_cuts": self.wall_cuts,
                 "quiet_starved_s": round(max(q.starved_s for q in both), 3), "tick_ns": TICK_NS,
                 "processes": self.quiet[True].processes,
                 "blockers": dict(blockers.most_common(5))}

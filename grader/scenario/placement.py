@@ -72,7 +72,7 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState,
     driver = rt.driver
     topic = placement_topic(place)
     start = driver.pose_mark(topic)
-    spec = m.ServiceCall(name=f"/{place.turtle}/teleport_absolute", type="turtlesim/srv/TeleportAbsolute",
+    spec = m.ServiceCall(name=teleport_service(place), type=TELEPORT_TYPE,
                          request={"x": place.x, "y": place.y, "theta": place.theta})
     called = call_service(rt, step, spec, state)
     state.service_done = False           # the step's own service (if any) has not run yet
@@ -125,6 +125,15 @@ def _command_at_placement(rt: Runtime, step: m.Step) -> tuple[int, Any]:
     start = entry[0]
     driver.wait_until(lambda: entry[0] >= start + 2, PLACE_SETTLE_S, poll=0.002, wall=True, react=True)
     return entry[0], entry[1]
+
+
+#: the simulator's service a placement calls
+TELEPORT_TYPE = "turtlesim/srv/TeleportAbsolute"
+
+
+def teleport_service(place: m.Placement) -> str:
+    """The service that places ``place.turtle`` (its client is made before the scenario starts)."""
+    return f"/{place.turtle}/teleport_absolute"
 
 
 def handoff_topic(place: m.Placement) -> str:

@@ -235,14 +235,47 @@ def test_lockstep_needs_the_simulator_and_simulated_time(extra: dict, message: s
 def test_an_exact_lockstep_run_settles_a_repeated_scenario_at_once(tmp_path: Path) -> None:
     exact = {"lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0}, "errors": []}
     loose = {"lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 2}, "errors": []}
+    cut = {"lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0, "wall_cuts": 1}, "errors": []}
     fell_back = {"lockstep": {"used": False, "fallback": "wall-clock pacing"}, "errors": []}
     assert lockstep_record_exact(exact)
-    assert not lockstep_record_exact(loose) and not lockstep_record_exact(fell_back)
-    for record, runs in ((exact, 1), (loose, 3), (fell_back, 3)):
+    assert not any(lockstep_record_exact(r) for r in (loose, cut, fell_back))
+    for record, runs in ((exact, 1), (loose, 3), (cut, 3), (fell_back, 3)):
         made: list[int] = []
         run_until_settled(lambda k, _folder, r=record, m=made: m.append(k) or dict(r), tmp_path, "drive", 3,
                           settles=lambda folders: False)
         assert len(made) == runs, record
+
+
+class _SlowStepper:
+    """A lockstep clock whose ticks take 20 ms of wall time each (a very busy machine)."""
+
+    def __init__(self) -> None:
+        self.now_ns = 0
+        self.wall_cuts = 0
+
+    def settle(self) -> None:
+        pass
+
+    def advance(self) -> None:
+        time.sleep(0.02)
+        self.now_ns += 16_000_000
+
+
+def test_a_lockstep_wait_cut_short_by_the_wall_is_counted(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A wait that ends by its wall-time limit before its simulated time lasted as long as the
+    machine's load allowed: the run is not exact, and its record and report say so."""
+    from grader.grading.timescale import describe_lockstep
+    from grader.scenario import simtime
+
+    monkeypatch.setattr(simtime, "LOCKSTEP_WALL_FACTOR", 0.0)
+    monkeypatch.setattr(simtime, "LOCKSTEP_WALL_EXTRA_S", 0.5)
+    stepper = _SlowStepper()
+    clock = simtime.ScenarioClock(stepper=stepper)
+    assert clock.wait_until(lambda: False, 0.016) is False and stepper.wall_cuts == 0   # 1 tick: in time
+    assert clock.wait_until(lambda: False, 10.0) is False and stepper.wall_cuts == 1
+    assert stepper.now_ns < 16_000_000 + 10 * 10**9
+    line = describe_lockstep("ex3_action", {"used": True, "ticks": 9, "quiet_timeouts": 0, "wall_cuts": 1})
+    assert "1 wait(s) ended by their wall-time limit" in line and "may differ" in line
 
 
 def test_an_item_of_a_lockstep_run_says_so() -> None:
@@ -283,17 +316,22 @@ def _poses(folder: Path) -> tuple[bytes, int]:
     return b"".join(data), len(data)
 
 
-def _typed(folder: Path) -> list[tuple[float, str]]:
-    """The stdin lines the driver typed, at their simulated times in the bag."""
+def _events(folder: Path, *names: str) -> list[tuple[float, dict]]:
+    """The driver's events of these kinds, at their simulated times in the bag."""
     from grader.grading.pipeline import scenario_frames
 
     events = scenario_frames(folder)["/grader/events"]
     out = []
     for t, data in zip(events.index, events["data"]):
         event = json.loads(data)
-        if event["event"] == "stdin_line":
-            out.append((round(float(t), 6), event["line"]))
+        if event["event"] in names:
+            out.append((round(float(t), 6), event))
     return out
+
+
+def _typed(folder: Path) -> list[tuple[float, str]]:
+    """The stdin lines the driver typed, at their simulated times in the bag."""
+    return [(t, event["line"]) for t, event in _events(folder, "stdin_line")]
 
 
 @pytest.mark.ros
@@ -323,6 +361,12 @@ def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(pacin
     typed = _typed(tmp_path / "quiet")
     assert [line for _t, line in typed] == ["one", "two"] and _typed(tmp_path / "busy") == typed
     assert 0.48 - 0.016 < typed[1][0] - typed[0][0] < 0.48 + 0.016
+    # the teleport is answered at the tick it was called: its client was made before the
+    # scenario started (steps.prepare); made at the call, the simulator's answer waited for
+    # discovery, asleep, while the clock ticked (0 or 4 ticks from run to run in a Lab 3 class)
+    for folder in ("quiet", "busy"):
+        call, response = _events(tmp_path / folder, "service_call", "service_response")
+        assert call[0] == response[0], (folder, call, response)
     # the bag reads in simulated time: a pose every tick, on the tick
     pose = scenario_frames(tmp_path / "quiet")["/turtle1/pose"]
     assert np.allclose(np.diff(pose.index.to_numpy()), 0.016, atol=1e-6)
