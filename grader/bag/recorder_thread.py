@@ -112,6 +112,7 @@ class RecorderThread:
         self.recorder = ScenarioRecorder(build_parser().parse_args(argv), domain_id=domain_id)
         for topic in local:
             self.recorder.add_local(topic, "std_msgs/msg/String")
+        self._topics = None if topics is None else set(topics)
         self.ready = threading.Event()
         self.error: BaseException | None = None
         self.messages: int | None = None
@@ -148,6 +149,10 @@ class RecorderThread:
         cannot give (the subscription may exist before DDS has matched it with the publisher)."""
         entry = self.recorder.writer.topics.get(topic)
         return entry.info.message_count if entry is not None else 0
+
+    def records(self, topic: str) -> bool:
+        """Whether ``topic`` is one this recording takes (all topics, or it is in the list)."""
+        return self._topics is None or topic in self._topics
 
     def matched(self, topic: str, publishers: int) -> bool:
         """The recorder's subscription on ``topic`` is matched with at least ``publishers``

@@ -327,9 +327,10 @@ class Driver(GraphQueries):
 
     def topic_recorded(self, topic: str) -> bool:
         """Every publisher the graph shows on ``topic`` is matched by the recorder's
-        subscription: what is published on it from now on is in the bag. (The graph shows the
-        recorder's subscription before its DDS reader has matched a new publisher: in one of
-        three runs of bench_flake a 2 Hz publisher's first two messages went unrecorded.)"""
+        subscription: what is published on it from now on is in the bag (true at once of a topic
+        the scenario does not record). (The graph shows the recorder's subscription before its
+        DDS reader has matched a new publisher: in one of three runs of bench_flake a 2 Hz
+        publisher's first two messages went unrecorded.)"""
         if self.recording_matched is None:
             return True
         n = self.node.count_publishers(topic)

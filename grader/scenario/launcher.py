@@ -166,9 +166,13 @@ class Launcher:
 
     def _wait_up(self, snapshot: tuple[set, int | None], names: list[str]) -> None:
         """While the clock is held: wait (wall time) until the started processes' nodes are in
-        the graph with their topics recorded (or the processes ended); on simulated time also
-        until the clock owner has matched their ``/clock`` readers, then a moment for their
-        first ``/clock``. ``snapshot``: the student nodes and matched readers before they started."""
+        the graph with their topics recorded, their ``/rosout`` included (or the processes
+        ended). A line a node logs in its constructor reaches the bag only so: ``/rosout`` keeps
+        it for a subscriber that matches later (transient local, 10 s lifespan), but not once
+        the node has stopped; bench_flake at load ~24 recorded a correct greeter's one line in
+        two runs of three, and the third told the student it had not logged through ROS. On
+        simulated time also until the clock owner has matched their ``/clock`` readers, then a
+        moment for their first ``/clock``. ``snapshot``: the student nodes and matched readers before they started."""
         clock = self.driver.clock
         if not names:
             return
@@ -180,7 +184,8 @@ class Launcher:
 
         def up() -> bool:
             new = driver.student_nodes() - before
-            return not alive() or (len(new) >= len(alive()) and all(driver.recorder_matched(n) for n in new))
+            return not alive() or (len(new) >= len(alive()) and all(driver.recorder_matched(n) for n in new)
+                                   and driver.topic_recorded("/rosout"))
 
         def clocked() -> bool:
             now = clock.clock_readers()

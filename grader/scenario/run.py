@@ -116,7 +116,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 sim = _start_clock_owner(graph, run, out, record, scale)
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
                             clock_node=clock_node, sink=recorder.post,
-                            recording_matched=recorder.matched,
+                            recording_matched=lambda t, n: not recorder.records(t) or recorder.matched(t, n),
                             lockstep=(lambda: [p.pid for p in [sim, *students.values()]
                                                if p is not None and p.alive()]) if run.lockstep else None,
                             lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None})

@@ -218,3 +218,39 @@ def test_a_placement_waits_until_the_commands_are_recorded(tmp_path: Path, monke
     frames = load_frames(tmp_path / "heard" / "bag")
     assert "/turtle1/cmd_vel" in frames and len(frames["/turtle1/cmd_vel"]) == 1
     assert frames["/turtle1/cmd_vel"]["angular.z"].iloc[0] == 0.5
+
+
+@pytest.mark.ros
+def test_a_line_logged_in_a_constructor_is_recorded_when_the_recorder_is_late(pacing_build, tmp_path: Path,
+                                                                               monkeypatch) -> None:
+    """A node that logs once, in its constructor (first_nodes' greeter): /rosout keeps the line
+    for a late subscriber, but not once the node has stopped. Here the recorder subscribes to
+    /rosout 8 s after it first sees the topic (a loaded machine's discovery, exaggerated); the
+    process start waits until the recorder has matched every /rosout publisher, so the line is
+    in the bag. (Fails without that wait: the scenario ends, and the node stops, before.)"""
+    import time
+
+    from grader.bag.frames import load_frames
+    from grader.bag.recorder import Recorder
+    from grader.scenario import run as scenario_run
+
+    for key in scenario_run.DISCOVERY_ENV:
+        monkeypatch.delenv(key, raising=False)
+    wanted = Recorder.wanted
+    first: list[float] = []
+
+    def late(self, topic: str) -> bool:
+        if topic == "/rosout":
+            first[:] = first or [time.monotonic()]
+            if time.monotonic() - first[0] < 8.0:
+                return False
+        return wanted(self, topic)
+
+    monkeypatch.setattr(Recorder, "wanted", late)
+    scenario = Scenario.model_validate({
+        "sim": False, "processes": [{"name": "ticker", "package": "pacers", "executable": "timer_node"}],
+        "steps": [{"id": "idle", "wait": 0.5}], "limits": {"wall_s": 60}})
+    record = scenario_run.run_scenario_here(resolve("logged", scenario, pacing_build), tmp_path / "logged")
+    assert record["errors"] == [], record
+    rosout = load_frames(tmp_path / "logged" / "bag").get("/rosout")
+    assert rosout is not None and (rosout["msg"] == "ticker up").sum() == 1, rosout

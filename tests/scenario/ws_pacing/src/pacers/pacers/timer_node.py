@@ -11,6 +11,7 @@ class Ticker(Node):
         super().__init__("ticker")
         self.pub = self.create_publisher(String, "ticks", 10)
         self.create_timer(0.5, self.tick)
+        self.get_logger().info("ticker up")     # once, in the constructor (a greeting)
 
     def tick(self):
         self.pub.publish(String(data="tick"))
