@@ -236,6 +236,22 @@ def _event_sent(frames: Frames, event: dict) -> float | None:
     return v if np.isfinite(v) else None
 
 
+#: seconds between a message's recording and its subscriber's log line, at most, and how far
+#: back a first line that is not a published message is taken to have been listening
+HEARD_LAG_S = 1.0
+
+
+def _listening_since(published: list[str], pub_t: np.ndarray, first: tuple[float, str]) -> float:
+    """When the subscriber's listening is judged from: the recording of the first message it
+    logged (the latest one with that text recorded before the line). One published before it may
+    have gone out before DDS had matched the student's two processes, which no code of theirs
+    decides: bench_flake at load ~24 judged a correct subscriber from 1 s before its first line,
+    and its first two messages, sent before the match, cost it 0.4 points in one run of three."""
+    t, text = first
+    sent = [pt for pt, msg in zip(pub_t, published) if msg == text and pt <= t + HEARD_LAG_S]
+    return float(sent[-1]) if sent else t - HEARD_LAG_S
+
+
 @register("heard_messages", evidence={**EVIDENCE, "value": ('messages heard', '')},
           expect='{min_share:.0%} of the published messages logged', defaults={
     "topic": REQUIRED,             # required: the topic the subscriber listens to
@@ -288,7 +304,7 @@ def heard_messages(frames: Frames, p: dict) -> Finding:
     # subscribed for: they cannot be checked, so they do not count either way
     first = float(pub_t[0]) - 0.05 if len(pub_t) else float("inf")
     foreign = [h for t, h in heard if h not in known and t >= first]
-    window = (pub_t >= heard[0][0] - 1.0) & (pub_t <= heard[-1][0])
+    window = (pub_t >= _listening_since(published, pub_t, heard[0])) & (pub_t <= heard[-1][0])
     expected = int(window.sum()) or len(heard)
     share = min(1.0, sum(1 for _, h in heard if h in known) / expected)
     ev.update(share=share, foreign=foreign[:5], published_while_listening=expected)

@@ -174,6 +174,21 @@ def test_heard_by_a_subscriber_of_any_name() -> None:
     assert f.status == "fail" and "was printed, not logged" in f.feedback
 
 
+def test_a_subscriber_is_judged_from_the_first_message_it_heard() -> None:
+    """Messages published before the subscriber's first line may have gone out before DDS
+    matched the two processes: they do not count against it. Missed ones after it do."""
+    news = [(T0 + 1 + k / 4, f"Hello robot {k}") for k in range(14)]      # 4 Hz
+    subs = {"/robot_news": ["listener"]}
+    late = [(T0 + 1.01 + k / 4, "listener", f"I heard: Hello robot {k}") for k in range(4, 14)]
+    f = get("heard_messages")(_logs(rosout=late, published=news, subscribers=subs), {"topic": "/robot_news"})
+    # (judged from 1 s before its first line, it had missed 3 of 13: 77 %)
+    assert f.status == "pass" and f.evidence["published_while_listening"] == 10, f.evidence
+    # look-alike: the same first and last lines, two in between missing
+    gaps = [h for h in late if h[2] not in ("I heard: Hello robot 7", "I heard: Hello robot 8")]
+    f = get("heard_messages")(_logs(rosout=gaps, published=news, subscribers=subs), {"topic": "/robot_news"})
+    assert f.status != "pass" and f.evidence["share"] == 0.8, f.evidence
+
+
 def test_nobody_subscribed_vs_subscribed_and_silent() -> None:
     news = [(T0 + 1 + k, f"Hello robot {k}") for k in range(5)]
     f = get("heard_messages")(_logs(published=news), {"topic": "/robot_news"})
