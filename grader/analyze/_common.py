@@ -97,6 +97,20 @@ def sim_pose(frames: Frames, pose_topic: str) -> pd.DataFrame | None:
     return None
 
 
+def sim_tick_times(frames: Frames, pose_topic: str, df: pd.DataFrame) -> np.ndarray | None:
+    """The times of ``df`` (consecutive poses of :func:`sim_pose`) on the simulator's own clock,
+    one 16 ms tick per pose, from its first pose's time; None unless ``df`` is the simulator's
+    record (lossless: every pose it published, one per tick; a topic recorded over DDS may miss
+    one). A simulator starved of CPU for more than its catch-up drops ticks, and its world falls
+    behind the wall clock: a rate judged on the wall clock then measures the machine."""
+    from grader.sim.physics import DT
+    from grader.sim.record import record_topic
+
+    if not isinstance(frames.get(record_topic(pose_topic)), pd.DataFrame) or not len(df):
+        return None
+    return float(df.index[0]) + np.arange(len(df)) * DT
+
+
 def topic_or_student_topic(frames: Frames, name: str, type_name: str | None
                            ) -> tuple[pd.DataFrame | None, str, str]:
     """``name``'s frame, or, when it is missing and ``type_name`` is given, the one other topic of

@@ -33,7 +33,7 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, provenance, register
 from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (sim_pose, Frames, fmt, held_mask, missing_topic_feedback,
+from grader.analyze._common import (sim_pose, sim_tick_times, Frames, fmt, held_mask, missing_topic_feedback,
                                     rosout_lines, scenario_end_time, thin, times, topic)
 from grader.spec.world import WORLD_SIZE_M
 from grader.analyze.rate import rate_stats
@@ -46,6 +46,7 @@ EVIDENCE = {
     "expected_m": ("expected radius", "m"), "rel_error": ("relative error", SHARE), "poses": ("poses used", ""),
     "path": None, "period_s": ("time for one circle", "s"), "angular_velocity_rad_s": ("turning rate", "rad/s"),
     "turns": ("circles recorded", ""), "expected_s": ("expected period", "s"), "direction": ("direction", ""),
+    "timed_on": ("timed on", ""),
     "rel_tol": ("allowed relative error", SHARE), "skip_s": ("time left out after the start", "s"),
     "commands": ("velocity commands", ""), "rate_hz": ("command rate", "Hz"), "max_gap_s": ("longest gap between commands", "s"),
     "moving_share": ("share of the time moving", SHARE), "stalls": ("stops", ""), "start": ("stopped at", TIME),
@@ -178,14 +179,19 @@ def circle_period(frames: Frames, p: dict) -> Finding:
     df, problem = _moving_pose(frames, p)
     if problem or df is None:           # (no problem: there are poses)
         return cast(Finding, problem)
-    t = times(df)
+    # on the simulator's ticks: bench_flake at load ~24 timed a correct circle at 6.53 s in one
+    # run and 6.71 s (fail) in another on the wall clock, the simulator waiting 0.46 s per second
+    # for a CPU; a student's pause still counts (the turtle stands still for those ticks)
+    ticks = sim_tick_times(frames, p["pose_topic"], df)
+    t = times(df) if ticks is None else ticks
     theta = np.unwrap(df["theta"].to_numpy(float))
     slope, _ = np.polyfit(t - t[0], theta, 1)
     period = 2 * math.pi / abs(slope) if abs(slope) > 1e-6 else float("inf")
     turns = abs(theta[-1] - theta[0]) / (2 * math.pi)
     ev = {"period_s": period, "angular_velocity_rad_s": float(slope), "turns": turns,
           "expected_s": p["expected_s"], "rel_error": period / p["expected_s"] - 1.0 if math.isfinite(period) else None,
-          "direction": "counter-clockwise" if slope > 0 else "clockwise"}
+          "direction": "counter-clockwise" if slope > 0 else "clockwise",
+          "timed_on": "the recorded times" if ticks is None else "the simulator's ticks (16 ms each)"}
     value = f"T = {fmt(period, 3)} s"
     if turns < 1.0:
         return Finding(value, 0.0, "fail", f"The turtle went only {turns:.2f} times round; a period needs at "
