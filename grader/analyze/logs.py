@@ -261,7 +261,8 @@ def _listening_since(published: list[str], pub_t: np.ndarray, first: tuple[float
 })
 def heard_messages(frames: Frames, p: dict) -> Finding:
     """A subscriber logs what it received: each logged text is a published one, and (almost)
-    every message published while it listened was logged. Without ``logger``, the subscriber is
+    every message published from the first one it logged on was logged (one sent before DDS had
+    matched the two processes was never its to hear). Without ``logger``, the subscriber is
     whichever node subscribes to ``topic`` (its name is the student's choice)."""
     df = topic(frames, p["topic"])
     published = [str(v) for v in df["data"]] if df is not None and "data" in df.columns else []

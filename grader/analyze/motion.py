@@ -176,6 +176,9 @@ def _wrong_way(df: pd.DataFrame, p: dict, ev: dict) -> str:
     "skip_s": 0.5,
 })
 def circle_period(frames: Frames, p: dict) -> Finding:
+    """The time of one circle, from the heading's rate over the whole run, on the simulator's
+    ticks (16 ms of its world each, so a simulator starved of CPU does not lengthen it); a
+    turtle that stops between commands stands still for those ticks, and that lengthens it."""
     df, problem = _moving_pose(frames, p)
     if problem or df is None:           # (no problem: there are poses)
         return cast(Finding, problem)
