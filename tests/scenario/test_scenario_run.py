@@ -177,17 +177,12 @@ def test_a_scenario_starts_only_once_the_simulators_poses_are_recorded(tmp_path:
         assert frames[name].index[0] <= start, name      # recorded before the scenario began
 
 
-@pytest.mark.ros
-def test_a_placement_waits_until_the_commands_are_recorded(tmp_path: Path, monkeypatch) -> None:
-    """A placed step right after a controller's start-up: the recorder (another DDS participant)
-    may match the controller's command publisher up to ~1 s after the driver does, and the
-    commands computed during the hand-over were then missing from the bag (wrong_sign's goal 1
-    judged from a command sent after the release: the short way, once). Here the recorder is made
-    to see /turtle1/cmd_vel 1 s late; the placed step waits for it, and the command sent during
-    the placement is in the bag. (Fails without the wait: the bag has no command.)"""
+def _late_recorder(monkeypatch: pytest.MonkeyPatch, late_topic: str, delay_s: float) -> None:
+    """The scenario's recorder (in this process) subscribes to ``late_topic`` only ``delay_s``
+    after its first sight of it (not after the test's start: on a loaded machine the start-up
+    alone took longer than that): a loaded machine's discovery, exaggerated."""
     import time
 
-    from grader.bag.frames import load_frames
     from grader.bag.recorder import Recorder
     from grader.scenario import run as scenario_run
 
@@ -197,15 +192,27 @@ def test_a_placement_waits_until_the_commands_are_recorded(tmp_path: Path, monke
     first: list[float] = []
 
     def late(self, topic: str) -> bool:
-        # late by 1 s from the recorder's first sight of the topic (not from the test's start:
-        # on a loaded machine the start-up alone took longer than that)
-        if topic == "/turtle1/cmd_vel":
+        if topic == late_topic:
             first[:] = first or [time.monotonic()]
-            if time.monotonic() - first[0] < 1.0:
+            if time.monotonic() - first[0] < delay_s:
                 return False
         return wanted(self, topic)
 
     monkeypatch.setattr(Recorder, "wanted", late)
+
+
+@pytest.mark.ros
+def test_a_placement_waits_until_the_commands_are_recorded(tmp_path: Path, monkeypatch) -> None:
+    """A placed step right after a controller's start-up: the recorder (another DDS participant)
+    may match the controller's command publisher up to ~1 s after the driver does, and the
+    commands computed during the hand-over were then missing from the bag (wrong_sign's goal 1
+    judged from a command sent after the release: the short way, once). Here the recorder is made
+    to see /turtle1/cmd_vel 1 s late; the placed step waits for it, and the command sent during
+    the placement is in the bag. (Fails without the wait: the bag has no command.)"""
+    from grader.bag.frames import load_frames
+    from grader.scenario import run as scenario_run
+
+    _late_recorder(monkeypatch, "/turtle1/cmd_vel", 1.0)
     scenario = Scenario.model_validate({"steps": [
         {"id": "placed", "place": {"x": 2.0, "y": 7.0, "theta": 2.1},
          "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
@@ -228,25 +235,10 @@ def test_a_line_logged_in_a_constructor_is_recorded_when_the_recorder_is_late(pa
     /rosout 8 s after it first sees the topic (a loaded machine's discovery, exaggerated); the
     process start waits until the recorder has matched every /rosout publisher, so the line is
     in the bag. (Fails without that wait: the scenario ends, and the node stops, before.)"""
-    import time
-
     from grader.bag.frames import load_frames
-    from grader.bag.recorder import Recorder
     from grader.scenario import run as scenario_run
 
-    for key in scenario_run.DISCOVERY_ENV:
-        monkeypatch.delenv(key, raising=False)
-    wanted = Recorder.wanted
-    first: list[float] = []
-
-    def late(self, topic: str) -> bool:
-        if topic == "/rosout":
-            first[:] = first or [time.monotonic()]
-            if time.monotonic() - first[0] < 8.0:
-                return False
-        return wanted(self, topic)
-
-    monkeypatch.setattr(Recorder, "wanted", late)
+    _late_recorder(monkeypatch, "/rosout", 8.0)
     scenario = Scenario.model_validate({
         "sim": False, "processes": [{"name": "ticker", "package": "pacers", "executable": "timer_node"}],
         "steps": [{"id": "idle", "wait": 0.5}], "limits": {"wall_s": 60}})
