@@ -121,7 +121,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                                                if p is not None and p.alive()]) if run.lockstep else None,
                             lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None})
             graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
-            if run.lockstep and (topics is None or CLOCK_TOPIC in topics):
+            if run.lockstep and recorder.records(CLOCK_TOPIC):
                 # every tick's /clock is recorded, the first included: a pose recorded before any
                 # /clock maps to no tick (CI saw the first pose 13 ms of wall time off its tick)
                 driver.wait_until(lambda: recorder.matched(CLOCK_TOPIC, 1), RECORDER_READY_S, wall=True)
@@ -138,7 +138,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
                     raise RuntimeError("the reference simulator published no pose within "
                                        f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
-                _wait_recorded(driver, recorder, record, topics)
+                _wait_recorded(driver, recorder, record)
             start_hold = contextlib.ExitStack()
             if sim_time:
                 # the clock is held from here until the autostarted processes are up: a recorder
@@ -239,8 +239,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     return record
 
 
-def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[str, Any],
-                   topics: list[str] | None) -> None:
+def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[str, Any]) -> None:
     """Go on only once the recorder has recorded the simulator's poses (both topics).
 
     The driver hearing the simulator says nothing about the recorder: it is another DDS
@@ -256,7 +255,7 @@ def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[st
         return
     pose = driver.pose_topic or "/turtle1/pose"
     # only the topics this scenario records (a rubric's `record:` list may leave the copy out)
-    wanted = [t for t in (pose, truth_pose_topic(pose)) if topics is None or t in topics]
+    wanted = [t for t in (pose, truth_pose_topic(pose)) if recorder.records(t)]
     if not wanted:
         return
     # (in lockstep the simulator publishes only on a tick: this wait ticks, before any student starts)
