@@ -25,7 +25,10 @@ def test_round_trip_same_messages_order_and_timing(graph, replay_bag, tmp_path: 
     stop_recorder(rec_a)
 
     rec_b = start_recorder(graph, b, "/pose", "/numbers", name="rec_b")
-    rp = replay_bag(a, graph=graph, wait_subscribers=1)
+    # --wait-subscribers sees the recorder once the *replay* has discovered it; the recorder may
+    # discover the replay's writer later and miss the first samples (as with `ros2 bag play`), so
+    # the replay also waits --delay, like rosbag2's own option of that name.
+    rp = replay_bag(a, graph=graph, wait_subscribers=1, delay=1.0)
     assert rp.wait_done(60) == 340
     time.sleep(0.5)
     stop_recorder(rec_b)
@@ -53,7 +56,7 @@ def test_replay_options(graph, replay_bag, fixture_bag, tmp_path: Path) -> None:
     out = tmp_path / "B"
     rec = start_recorder(graph, out, "/replayed/pose", "/clock", "/numbers_loop")
     rp = replay_bag(src, graph=graph, topics=["/turtle1/pose"], remap={"/turtle1/pose": "/replayed/pose"},
-                    rate=2.0, start_offset=offset, clock_hz=50, wait_subscribers=1)
+                    rate=2.0, start_offset=offset, clock_hz=50, wait_subscribers=1, delay=1.0)
     # a looping replay of the last 0.25 s of random_numbers (~50 messages per pass)
     nums = open_bag(fixture_bag("random_numbers"))
     n0, n1 = nums.time_range()
