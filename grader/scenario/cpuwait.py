@@ -13,7 +13,7 @@ between two runs can be read against how starved each run was.
 from __future__ import annotations
 
 import os
-from typing import Mapping
+from typing import Callable, Mapping
 
 from grader.scenario.quiescence import descendants
 
@@ -66,3 +66,30 @@ def cpu_wait(pids: Mapping[str, int | None]) -> dict[str, dict[str, float]]:
             entry.update(alive_s=round(age, 1), wait_share=round(wait / 1e9 / age, 3))
         out[name] = entry
     return out
+
+
+class TreeCpu:
+    """CPU time the process trees of ``pids()`` used since :meth:`mark`, a process that ended
+    keeping what it had used when last seen (its ``schedstat`` is gone with it).
+
+    Unlike wall time, this hardly moves with the machine's load: Lockstep's measure of a node
+    that keeps waking the others (:mod:`grader.scenario.lockstep`).
+    """
+
+    def __init__(self, pids: Callable[[], list[int]]) -> None:
+        self._pids = pids
+        self._seen: dict[int, int] = {}
+        self._base = 0
+
+    def _total_ns(self) -> int:
+        for pid in descendants(self._pids()):
+            cpu = schedstat(pid)[0]
+            if cpu > self._seen.get(pid, 0):
+                self._seen[pid] = cpu
+        return sum(self._seen.values())
+
+    def mark(self) -> None:
+        self._base = self._total_ns()
+
+    def used_s(self) -> float:
+        return (self._total_ns() - self._base) / 1e9
