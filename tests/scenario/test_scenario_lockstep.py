@@ -197,12 +197,9 @@ def test_scheduled_actions_run_at_the_tick_boundary_in_the_ticking_thread() -> N
     assert Counter(calls)["clock"] == 4 and stepper._due == []
 
 
-def test_a_node_that_keeps_the_graph_busy_is_given_up_on_its_cpu_not_the_wall_time() -> None:
-    """The lockstep give-up is measured in the waited processes' CPU per simulated second, which
-    the machine's load hardly moves (on the wall time, a flooding node was given up in one run and
-    kept in lockstep in another). A busy child exceeds the budget, a resting one does not, and a
-    busy child that ended still counts what it used; slow simulated time alone (the load) never
-    gives a run up."""
+def test_the_cpu_budget_counts_the_waited_processes_cpu_per_simulated_second() -> None:
+    """A busy child exceeds the budget, a resting one does not however much wall time passes, and
+    a busy child that ended still counts what it used."""
     from grader.scenario.lockstep import MAX_CPU_PER_SIM_S, CpuBudget, LockstepFailed
 
     burn = "import time\nend = time.process_time() + {s}\nwhile time.process_time() < end: pass\n"
@@ -228,6 +225,49 @@ def test_a_node_that_keeps_the_graph_busy_is_given_up_on_its_cpu_not_the_wall_ti
     finally:
         rest.kill()
         rest.wait()
+
+
+def test_a_run_is_given_up_only_when_slow_and_busy_by_its_own_nodes() -> None:
+    """Slow ticks alone are the machine's load (a correct chaser took 5-8 times its time at load
+    14-20) and a busy CPU alone may be an executor that spins on a free machine (chase's correct
+    MultiThreadedExecutor, 1.1 CPU s per simulated second in one run, with fast ticks): only both give a
+    lockstep run up, as wall_pen's flooding node at load (16-24 times, 2.4-2.8)."""
+    import itertools
+    import threading
+
+    from grader.scenario import lockstep
+
+    class Budget(lockstep.CpuBudget):
+        def __init__(self, rate: float) -> None:
+            super().__init__(list)
+            self._rate = rate
+
+        def rate(self, now_ns: int) -> float | None:
+            return self._rate
+
+    def run(rate: float, tick_wall_s: float) -> str | None:
+        stepper = object.__new__(lockstep.Stepper)
+        stepper.now_ns, stepper.ticks, stepper.tick_wall_s = 0, 0, 0.0
+        stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
+        stepper._due, stepper._order = [], itertools.count()
+        stepper.cpu = Budget(rate)
+        stepper._clock, stepper._world = "clock", "world"
+        stepper._call = lambda client, request=None: f"{stepper.now_ns + lockstep.TICK_NS} 0"  # type: ignore[method-assign]
+        stepper._settle = lambda own: None                  # type: ignore[method-assign]
+        try:
+            for _ in range(2 * lockstep.SLOW_AFTER_TICKS):
+                stepper.tick()
+                stepper.tick_wall_s = stepper.ticks * tick_wall_s   # as if each tick took that long
+        except lockstep.LockstepFailed as exc:
+            return str(exc)
+        return None
+
+    tick_s = lockstep.TICK_NS / 1e9
+    slow, busy = 2 * lockstep.MAX_SLOWDOWN * tick_s, 2 * lockstep.MAX_CPU_PER_SIM_S
+    assert run(busy, tick_s) is None                    # busy on a free machine, ticks fast
+    assert run(0.3, slow) is None                        # slow ticks, a light graph: the load
+    reason = run(busy, slow)
+    assert reason is not None and "times their simulated time" in reason and "CPU seconds" in reason
 
 
 def test_a_lockstep_bag_maps_each_time_to_the_last_tick_sent() -> None:
