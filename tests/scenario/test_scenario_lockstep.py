@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 import pytest
@@ -146,21 +147,33 @@ def test_threads_waiting_on_the_lockstep_clock_share_its_ticks() -> None:
     assert seen["b"][-1] >= 60 * 16_000_000 and max(seen["a"]) == 100 * 16_000_000
 
 
+def _stepper_stand_in(call: Callable[..., str], settle: Callable[[bool], None], cpu: Any) -> Any:
+    """A lockstep ``Stepper`` whose simulator answers are ``call`` (the client is ``"clock"`` or
+    ``"world"``) and whose quiet waits are ``settle``."""
+    import itertools
+    import threading
+
+    from grader.scenario.lockstep import Stepper
+
+    stepper = object.__new__(Stepper)
+    stepper.now_ns, stepper.ticks, stepper.tick_wall_s = 0, 0, 0.0
+    stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
+    stepper._due, stepper._order = [], itertools.count()
+    stepper.cpu = cpu
+    stepper._clock, stepper._world = "clock", "world"
+    stepper._call, stepper._settle = call, settle
+    return stepper
+
+
 def test_scheduled_actions_run_at_the_tick_boundary_in_the_ticking_thread() -> None:
     """A scripted stdin line is typed by the thread that ticks, after the first tick that reaches
     its time and before the next one, then the processes are let settle: never from a thread of
     its own some wall time later (where the step's wait ticked on)."""
-    import itertools
     import threading
     from collections import Counter
 
-    from grader.scenario.lockstep import CpuBudget, Stepper
+    from grader.scenario.lockstep import CpuBudget
 
-    stepper = object.__new__(Stepper)          # the simulator's answers: a stand-in
-    stepper.now_ns, stepper.ticks, stepper.tick_wall_s = 0, 0, 0.0
-    stepper.cpu = CpuBudget(list)
-    stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
-    stepper._due, stepper._order = [], itertools.count()
     calls: list[str] = []
 
     def call(client, request=None) -> str:
@@ -175,8 +188,7 @@ def test_scheduled_actions_run_at_the_tick_boundary_in_the_ticking_thread() -> N
         if own and calls[-1] != "settled":
             calls.append("settled")
 
-    stepper._clock, stepper._world = "clock", "world"
-    stepper._call, stepper._settle = call, settle   # type: ignore[method-assign]
+    stepper = _stepper_stand_in(call, settle, CpuBudget(list))
     ran: list[tuple[int, int, int]] = []
     ticker = threading.get_ident()
 
@@ -232,8 +244,6 @@ def test_a_run_is_given_up_only_when_slow_and_busy_by_its_own_nodes() -> None:
     14-20) and a busy CPU alone may be an executor that spins on a free machine (chase's correct
     MultiThreadedExecutor, 1.1 CPU s per simulated second in one run, with fast ticks): only both give a
     lockstep run up, as wall_pen's flooding node at load (16-24 times, 2.4-2.8)."""
-    import itertools
-    import threading
 
     from grader.scenario import lockstep
 
@@ -246,14 +256,8 @@ def test_a_run_is_given_up_only_when_slow_and_busy_by_its_own_nodes() -> None:
             return self._rate
 
     def run(rate: float, tick_wall_s: float) -> str | None:
-        stepper = object.__new__(lockstep.Stepper)
-        stepper.now_ns, stepper.ticks, stepper.tick_wall_s = 0, 0, 0.0
-        stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
-        stepper._due, stepper._order = [], itertools.count()
-        stepper.cpu = Budget(rate)
-        stepper._clock, stepper._world = "clock", "world"
-        stepper._call = lambda client, request=None: f"{stepper.now_ns + lockstep.TICK_NS} 0"  # type: ignore[method-assign]
-        stepper._settle = lambda own: None                  # type: ignore[method-assign]
+        stepper = _stepper_stand_in(lambda client, request=None: f"{stepper.now_ns + lockstep.TICK_NS} 0",
+                                    lambda own: None, Budget(rate))
         try:
             for _ in range(2 * lockstep.SLOW_AFTER_TICKS):
                 stepper.tick()
