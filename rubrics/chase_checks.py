@@ -136,6 +136,12 @@ def chase_spawned(frames: Frames, p: dict) -> Finding:
     made = [c for c in mine if c["response_name"] == p["name"]
             or (c["response_name"] is None and c["request_name"] == p["name"])]
     ev["spawned"] = sorted({c["response_name"] for c in mine if c["response_name"]})
+    # a placement with ``spawn: true`` made the turtle when the node had not: say so, the steps
+    # after it were graded with the grader's turtle
+    graders = [c for c in calls if c["by"] == provenance.GRADER and c["response_name"] == p["name"]]
+    ev["spawned_by_grader"] = bool(graders)
+    instead = (f" The grader spawned {p['name']} itself {float(since_start(frames, graders[0]['t'])):.1f} s after the "
+               "start, so that the items after it could be graded." if graders else "")
     if not mine:
         # "never called" would not be true of a node that called before its client had found
         # the service: the request is lost (bench_flake: wait_for_service(timeout_sec=-10.0),
@@ -143,14 +149,16 @@ def chase_spawned(frames: Frames, p: dict) -> Finding:
         return Finding.fail(f"The simulator's {p['service']} got no request from your node: call it once when "
                             f"the node starts, with name '{p['name']}' (turtlesim/srv/Spawn), after "
                             "wait_for_service(timeout_sec=...) with a positive timeout has returned True (a "
-                            "request sent before the client has found the service is lost).", ev, value="no call")
+                            "request sent before the client has found the service is lost)." + instead, ev,
+                            value="no call")
     if not made:
         other = ev["spawned"]
         said = (f"the simulator spawned {', '.join(other)}" if other
                 else "the simulator spawned nothing (see its log: a name already taken or not a valid name)")
         asked = ", ".join(repr(c["request_name"]) for c in mine[:3])
         return Finding.fail(f"Your node called {p['service']} {len(mine)} time(s) with name {asked}, and {said}; "
-                            f"this lab asks for a turtle named '{p['name']}'.", ev, value=", ".join(other) or "nothing")
+                            f"this lab asks for a turtle named '{p['name']}'." + instead, ev,
+                            value=", ".join(other) or "nothing")
     extra = len(mine) - int(p["max_calls"])
     ev["extra_calls"] = max(0, extra)
     first = made[0]

@@ -48,6 +48,9 @@ class Placement(Model):
     y: Annotated[float, Field(ge=0.0, le=WORLD_SIZE_M, description="m")]
     theta: Annotated[float, Field(allow_inf_nan=False, description="rad, 0 = facing +x")]
     turtle: LocalId = Field("turtle1", description="the turtle's name")
+    spawn: bool = Field(False, description="when the turtle does not exist (the simulator has published no "
+                        "pose of it), spawn it there (turtlesim's /spawn) instead: the items of the steps "
+                        "that need it are graded even when the student's code did not make it")
 
 
 class StdinLine(Model):

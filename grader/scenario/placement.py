@@ -72,8 +72,12 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState,
     driver = rt.driver
     topic = placement_topic(place)
     start = driver.pose_mark(topic)
-    spec = m.ServiceCall(name=teleport_service(place), type=TELEPORT_TYPE,
-                         request={"x": place.x, "y": place.y, "theta": place.theta})
+    placed = {"x": place.x, "y": place.y, "theta": place.theta}
+    # no pose of it yet: the student's code did not make the turtle (a lost /spawn request is
+    # one way); spawned where it would have been placed, the steps that need it are graded
+    spawned = place.spawn and driver.poses.get(topic) is None
+    spec = (m.ServiceCall(name=SPAWN_SERVICE, type=SPAWN_TYPE, request={**placed, "name": place.turtle}) if spawned
+            else m.ServiceCall(name=teleport_service(place), type=TELEPORT_TYPE, request=placed))
     called = call_service(rt, step, spec, state)
     state.service_done = False           # the step's own service (if any) has not run yet
     seen: list[Any] = []
@@ -88,7 +92,7 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState,
 
     shown = called.get("response") is not None and driver.wait_until(there, PLACE_WAIT_S, poll=0.001)
     pose = seen[0] if seen else driver.poses.get(topic)
-    return {"pose": [place.x, place.y, place.theta], "shown": bool(shown),
+    return {"pose": [place.x, place.y, place.theta], "shown": bool(shown), "spawned": spawned,
             "seen": None if pose is None else [round(pose.x, 4), round(pose.y, 4), round(pose.theta, 4)]}
 
 
@@ -129,6 +133,8 @@ def _command_at_placement(rt: Runtime, step: m.Step) -> tuple[int, Any]:
 
 #: the simulator's service a placement calls
 TELEPORT_TYPE = "turtlesim/srv/TeleportAbsolute"
+#: ... and the one that makes a turtle it places with ``spawn: true`` when there is none
+SPAWN_SERVICE, SPAWN_TYPE = "/spawn", "turtlesim/srv/Spawn"
 
 
 def teleport_service(place: m.Placement) -> str:

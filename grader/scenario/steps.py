@@ -25,8 +25,8 @@ from grader.scenario.driver import Driver, fill, import_type, to_plain
 from grader.scenario.events import Event
 from grader.scenario.lockstep import LockstepFailed
 from grader.scenario.pacing import Pacer
-from grader.scenario.placement import (TELEPORT_TYPE, handoff_topic, place_and_hold, placement_topic,
-                                      teleport_service)
+from grader.scenario.placement import (SPAWN_SERVICE, SPAWN_TYPE, TELEPORT_TYPE, handoff_topic, place_and_hold,
+                                      placement_topic, teleport_service)
 
 
 @dataclass
@@ -290,6 +290,8 @@ def prepare(rt: Runtime) -> None:
             rt.driver.watch_pose(placement_topic(step.place))
             rt.driver.watch_commands(handoff_topic(step.place))
             rt.driver.service_client(import_type(TELEPORT_TYPE), teleport_service(step.place))
+            if step.place.spawn:
+                rt.driver.service_client(import_type(SPAWN_TYPE), SPAWN_SERVICE)
         if step.service is not None and step.service.type is not None:
             rt.driver.service_client(import_type(step.service.type), step.service.name)
 

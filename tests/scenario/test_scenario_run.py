@@ -64,6 +64,48 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
 
 @pytest.mark.ros
 @pytest.mark.slow
+def test_a_placement_with_spawn_makes_a_missing_turtle_there(tmp_path: Path) -> None:
+    """`place: {turtle: turtle2, spawn: true}` spawns turtle2 at the placement when the
+    simulator has published no pose of it (the student's node did not make it), and teleports it
+    once it exists; the calls are the driver's. Without `spawn`, a missing turtle is not placed
+    (its teleport service does not exist), and nothing is spawned."""
+    from grader.bag.frames import load_frames
+
+    def place(step: str, x: float, spawn: bool) -> dict:
+        return {"id": step, "place": {"turtle": "turtle2", "x": x, "y": 3.0, "theta": 1.0, "spawn": spawn},
+                "publish": {"topic": "/marker", "type": "std_msgs/msg/Empty"}, "timeout": 0.2}
+
+    scenario = Scenario.model_validate({"steps": [place("first", 2.0, True), place("again", 4.0, True)],
+                                        "limits": {"wall_s": 30}, "lockstep": True})
+    run = resolve("spawn", scenario, None).model_copy(update={"lockstep": True})
+    record = run_scenario(run, tmp_path / "spawn")
+    assert record["errors"] == [] and record["lockstep"]["used"] and "fallback" not in record["lockstep"], record
+    first, again = (s["detail"]["placed"] for s in record["steps"])
+    assert first["spawned"] is True and first["shown"] is True
+    assert again["spawned"] is False and again["shown"] is True
+    assert again["seen"] == pytest.approx([4.0, 3.0, 1.0], abs=1e-4)
+    frames = load_frames(tmp_path / "spawn" / "bag")
+    events = [json.loads(d) for d in frames["/grader/events"]["data"]]
+    calls = [e for e in events if e["event"] == "service_call"]
+    assert [c["service"] for c in calls] == ["/spawn", "/turtle2/teleport_absolute"]
+    assert calls[0]["request"]["name"] == "turtle2"
+    truth = frames["/grader/sim/turtle2/pose"]
+    assert ((truth["x"] - 2.0).abs() < 1e-4).any() and ((truth["x"] - 4.0).abs() < 1e-4).any()
+
+    without = Scenario.model_validate({"steps": [place("first", 2.0, False)], "limits": {"wall_s": 30},
+                                       "lockstep": True})
+    record = run_scenario(resolve("nospawn", without, None).model_copy(update={"lockstep": True}),
+                          tmp_path / "nospawn")
+    placed = record["steps"][0]["detail"]["placed"]
+    assert placed["spawned"] is False and placed["shown"] is False
+    frames = load_frames(tmp_path / "nospawn" / "bag")
+    services = [json.loads(d).get("service") for d in frames["/grader/events"]["data"]]
+    assert "/spawn" not in services
+    assert "/grader/sim/turtle2/pose" not in frames or len(frames["/grader/sim/turtle2/pose"]) == 0
+
+
+@pytest.mark.ros
+@pytest.mark.slow
 @pytest.mark.parametrize("time_scale", [1.0, 4.0])
 def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path, time_scale: float) -> None:
     """`place:` holds the (moving) turtle still, teleports it, goes on with the action once the
