@@ -76,9 +76,16 @@ def _place(rt: Runtime, step: m.Step, place: m.Placement, state: StepState,
     # no pose of it yet: the student's code did not make the turtle (a lost /spawn request is
     # one way); spawned where it would have been placed, the steps that need it are graded
     spawned = place.spawn and driver.poses.get(topic) is None
-    spec = (m.ServiceCall(name=SPAWN_SERVICE, type=SPAWN_TYPE, request={**placed, "name": place.turtle}) if spawned
-            else m.ServiceCall(name=teleport_service(place), type=TELEPORT_TYPE, request=placed))
-    called = call_service(rt, step, spec, state)
+    teleport = m.ServiceCall(name=teleport_service(place), type=TELEPORT_TYPE, request=placed)
+    if spawned:
+        called = call_service(rt, step, m.ServiceCall(name=SPAWN_SERVICE, type=SPAWN_TYPE,
+                                                      request={**placed, "name": place.turtle}), state)
+        if (called.get("response") or {}).get("name") != place.turtle:
+            # turtlesim made none: the name is taken (the turtle's first pose had not reached the
+            # driver yet), so it is placed like any other
+            spawned, called = False, call_service(rt, step, teleport, state)
+    else:
+        called = call_service(rt, step, teleport, state)
     state.service_done = False           # the step's own service (if any) has not run yet
     seen: list[Any] = []
 

@@ -62,6 +62,39 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
     assert check_bag(tmp_path / "drive" / "bag") == []
 
 
+def test_a_placement_whose_spawn_finds_the_name_taken_teleports_the_turtle() -> None:
+    """The driver had no pose of turtle2 yet, but the student's node had made it: turtlesim
+    answers the grader's /spawn with no name, and the turtle is then placed by its teleport."""
+    from types import SimpleNamespace
+
+    from grader.scenario import model as m
+    from grader.scenario.placement import _place
+
+    class Driver:
+        poses: dict = {}
+
+        def pose_mark(self, topic: str) -> int:
+            return 0
+
+        def poses_since(self, topic: str, start: int) -> list:
+            return [SimpleNamespace(x=2.0, y=3.0, theta=1.0)]
+
+        def wait_until(self, predicate, *args, **kwargs) -> bool:
+            return predicate()
+
+    calls: list[str] = []
+
+    def call(rt, step, spec: m.ServiceCall, state) -> dict:
+        calls.append(spec.name)
+        return {"response": {"name": ""} if spec.name == "/spawn" else {}}
+
+    place = m.Placement(turtle="turtle2", x=2.0, y=3.0, theta=1.0, spawn=True)
+    step = m.Step.model_validate({"id": "a", "place": place.model_dump(), "timeout": 1.0})
+    out = _place(SimpleNamespace(driver=Driver()), step, place, SimpleNamespace(service_done=True), call)
+    assert calls == ["/spawn", "/turtle2/teleport_absolute"]
+    assert out["spawned"] is False and out["shown"] is True
+
+
 @pytest.mark.ros
 @pytest.mark.slow
 def test_a_placement_with_spawn_makes_a_missing_turtle_there(tmp_path: Path) -> None:
