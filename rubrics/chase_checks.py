@@ -46,6 +46,7 @@ EVIDENCE: dict[str, Any] = {
     **provenance.EVIDENCE,
     "calls": ("calls of /spawn by student code", ""), "name": ("turtle name asked for", ""), "by": ("called by", ""),
     "spawned": ("turtles the simulator spawned for student code", ""),
+    "spawned_by_grader": ("the grader spawned the turtle itself (the node had not)", ""),
     "service": ("service", ""), "request_name": ("name requested", ""),
     "response_name": ("name the simulator gave", ""),
     "extra_calls": ("calls after the turtle existed", ""), "max_calls": ("calls allowed", ""),
