@@ -248,9 +248,10 @@ def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
                                            evidence={}))
                 else:
                     per_run.append(analyze_item(item, frames))
-            planned = rubric.scenarios[sc].repeat if sc in rubric.scenarios else 1
-            per_scenario.append(median_finding(per_run, planned,
-                                               lockstep=exact_lockstep(sub_out / SCENARIOS_DIR / sc)))
+            scenario = rubric.scenarios.get(sc)
+            per_scenario.append(median_finding(per_run, scenario.repeat if scenario else 1,
+                                               lockstep=exact_lockstep(sub_out / SCENARIOS_DIR / sc),
+                                               by=scenario.repeat_by if scenario else "median"))
         findings[item.id] = combine_findings(item, per_scenario)
     mismatches = {}
     for sc, frames in frames_cache.items():
@@ -344,7 +345,8 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
     with holds, ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
         runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings,
                                    time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else (),
-                                   settles_check([i for i in items if sc_id in i.scenario], rubric.scenarios[sc_id].repeat))
+                                   settles_check([i for i in items if sc_id in i.scenario], rubric.scenarios[sc_id].repeat,
+                                                 rubric.scenarios[sc_id].repeat_by))
                 for sc_id in longest_first}
         for sc_id in scenario_ids:
             record = runs[sc_id].result()

@@ -1,6 +1,6 @@
 """The class view ``OUT/index.html``: score distribution, what the class got wrong (per item,
 most failed first, with links to the students who failed), items whose repeated runs disagreed
-(``repeat:`` scenarios, graded by the median run), a sortable and filterable table of
+(``repeat:`` scenarios, graded by the median or the worst run), a sortable and filterable table of
 submissions (build failures, crashes, flags, time taken) and, after ``grader regrade``, who
 changed and by how much.
 
@@ -162,15 +162,16 @@ def _item_table(subs: Sequence[Submission]) -> str:
 
 
 def _unstable(subs: Sequence[Submission]) -> str:
-    """Items graded by the median of repeated runs (``repeat:`` in the rubric) whose runs
-    disagreed: the grades a student may question first, with how each run came out."""
+    """Items graded from repeated runs (``repeat:`` in the rubric: the median run, or the worst
+    with ``repeat_by: worst``) whose runs disagreed: the grades a student may question first,
+    with how each run came out."""
     from grader.report.readable import spread_text
 
     repeated = [(s, i) for s in subs for i in s.result.items if int((i.decided or {}).get("runs") or 1) > 1]
     if not repeated:
         return ""
     unstable = [(s, i) for s, i in repeated if (i.decided or {}).get("stable") is False]
-    lead = (f"{len(repeated)} item result(s) were graded by the median of repeated runs; "
+    lead = (f"{len(repeated)} item result(s) were graded from repeated runs; "
             f"{len(unstable)} of them came out differently from run to run.")
     if not unstable:
         return (f'<section aria-labelledby="unstable-h"><h2 id="unstable-h">Unstable items</h2>'
@@ -179,8 +180,8 @@ def _unstable(subs: Sequence[Submission]) -> str:
                    f'<td>{_link(s.id, i.id, i.id)}</td><td class="num">{_num(i.points)} / {_num(i.max_points)}</td>'
                    f'<td>{escape(spread_text(i.decided))}</td></tr>' for s, i in sorted(unstable, key=lambda si: (si[1].id, si[0].id)))
     return (f'<section aria-labelledby="unstable-h"><h2 id="unstable-h">Unstable items</h2>'
-            f'<p class="sub">{escape(lead)} Each is graded by its median run; read the report before a '
-            f'student asks.</p><div class="scroll"><table class="unstable"><thead><tr>'
+            f'<p class="sub">{escape(lead)} Each is graded by its median run, or its worst where the rubric '
+            f'says so (the Runs column); read the report before a student asks.</p><div class="scroll"><table class="unstable"><thead><tr>'
             f'<th scope="col">Submission</th><th scope="col">Item</th><th scope="col" class="num">Points</th>'
             f'<th scope="col">Runs</th></tr></thead><tbody>{rows}</tbody></table></div></section>')
 

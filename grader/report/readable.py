@@ -237,16 +237,21 @@ def raw_json(evidence: Mapping[str, Any], hidden: set[str] | None = None, max_li
 
 def spread_text(decided: Mapping[str, Any] | None) -> str:
     """The report's sentence: "Graded by the median of 3 runs: 2 of 3 runs partial (1.5 points),
-    1 of 3 pass (3 points)." Empty for an item decided by one run."""
-    if not decided or int(decided.get("runs") or 1) <= 1:
+    1 of 3 pass (3 points)." (or "by the worst of 3 runs (it has to work in every run)"). Empty
+    for an item decided by one run."""
+    if not decided or max(int(decided.get("runs") or 1), int(decided.get("planned") or 1)) <= 1:
         return ""
     runs = int(decided["runs"])
     counts: Counter = Counter((o.get("status"), o.get("points")) for o in decided.get("outcomes") or ())
     parts = []
     for (status, points), n in counts.most_common():
         amount = f" ({points:g} points)" if isinstance(points, (int, float)) else ""
-        parts.append(f"{n} of {runs} runs {status}{amount}")
+        parts.append(f"{n} of {runs} run{'s' if runs > 1 else ''} {status}{amount}")
     planned = int(decided.get("planned") or runs)
+    if str(decided.get("by", "")).startswith("worst"):
+        extra = (f"; a further {planned - runs} run(s) could not have raised it" if planned > runs else "")
+        return (f"Graded by the worst of {runs} run{'s' if runs > 1 else ''} (it has to work in every run): "
+                + ", ".join(parts) + extra + ".")
     extra = (f"; a further {planned - runs} run(s) could not have changed the median"
              if planned > runs else "")
     return f"Graded by the median of {runs} runs: " + ", ".join(parts) + extra + "."

@@ -49,7 +49,7 @@ def test_run_until_settled_records_two_runs_when_they_agree_three_when_not(tmp_p
         made.append(k)
         return {"errors": [f"e{k}"] if k == 3 else [], "parent_wall_s": 10.0, "active_s": 8.0}
 
-    rec = run_until_settled(record, tmp_path / "a", "sc", 3, lambda folders: True)
+    rec = run_until_settled(record, tmp_path / "a", "sc", 3, lambda folders: len(folders) >= 2)
     assert made == [1, 2] and rec["runs"] == 2 and rec["parent_wall_s"] == 20.0
     made.clear()
     rec = run_until_settled(record, tmp_path / "b", "sc", 3, lambda folders: False)
@@ -77,15 +77,53 @@ def test_result_and_report_say_how_an_item_was_decided() -> None:
     assert single.decided == {"by": "one run", "runs": 1} and spread_text(single.decided) == ""
 
 
-@pytest.mark.parametrize("repeat, ok", [(1, True), (3, True), (2, False), (11, False)])
-def test_the_rubric_loader_takes_odd_repeats_up_to_nine(repeat: int, ok: bool) -> None:
+def test_the_worst_run_grades_a_start_up_that_has_to_work_every_time() -> None:
+    lucky = median_finding([f("pass", 1.0), f("fail", 0.0), f("pass", 1.0)], planned=3, by="worst")
+    assert (lucky.status, lucky.fraction) == ("fail", 0.0)          # the median would have paid it
+    assert lucky.decided["by"] == "worst of repeated runs"
+    assert (lucky.decided["runs"], lucky.decided["agree"], lucky.decided["stable"]) == (3, 1, False)
+    low = median_finding([f("pass", 1.0), f("partial", 0.5), f("partial", 0.25)], planned=3, by="worst")
+    assert (low.status, low.fraction) == ("partial", 0.25)
+    steady = median_finding([f("pass", 1.0)] * 3, planned=3, by="worst")
+    assert steady.status == "pass" and steady.decided["stable"]
+    assert spread_text(lucky.decided | {"outcomes": [{"status": "pass", "points": 3}, {"status": "fail", "points": 0},
+                                                     {"status": "pass", "points": 3}]}) == (
+        "Graded by the worst of 3 runs (it has to work in every run): 2 of 3 runs pass (3 points), "
+        "1 of 3 runs fail (0 points).")
+    first_fails = median_finding([f("fail", 0.0)], planned=3, by="worst")
+    assert spread_text(first_fails.decided | {"outcomes": [{"status": "fail", "points": 0}]}) == (
+        "Graded by the worst of 1 run (it has to work in every run): 1 of 1 run fail (0 points); a further 2 "
+        "run(s) could not have raised it.")
+
+
+def test_worst_runs_stop_at_the_first_run_that_fails_every_item_and_not_before() -> None:
+    assert settled([[("fail", 0.0)], [("pass", 1.0), ("fail", 0.0)]], planned=3, by="worst")
+    assert not settled([[("fail", 0.0)], [("pass", 1.0), ("pass", 1.0)]], planned=3, by="worst")
+    assert not settled([[("pass", 1.0), ("pass", 1.0)]], planned=3, by="worst")       # working code: every run
+    assert not settled([[("partial", 0.5)]], planned=3, by="worst")                   # a later run may be lower
+    assert settled([[("pass", 1.0), ("pass", 1.0)]], planned=3)                       # the median would stop
+    made: list[int] = []
+
+    def record(k: int, folder: Path) -> dict:
+        made.append(k)
+        return {"errors": []}
+
+    run_until_settled(record, Path("/nonexistent"), "sc", 3, lambda folders: len(folders) == 1)
+    assert made == [1]                  # a first run that settles it (a worst of fail) is the only one
+
+
+@pytest.mark.parametrize("spec, ok", [({"repeat": 1}, True), ({"repeat": 3}, True), ({"repeat": 2}, False),
+                                      ({"repeat": 11}, False), ({"repeat": 2, "repeat_by": "worst"}, True),
+                                      ({"repeat": 1, "repeat_by": "worst"}, False),
+                                      ({"repeat": 3, "repeat_by": "mean"}, False)])
+def test_the_rubric_loader_takes_odd_repeats_up_to_nine_and_any_for_the_worst(spec: dict, ok: bool) -> None:
     from pydantic import ValidationError
 
     from grader.scenario.model import Scenario
 
-    spec = {"repeat": repeat, "steps": [{"id": "w", "wait": 1}]}
+    spec = {**spec, "steps": [{"id": "w", "wait": 1}]}
     if ok:
-        assert Scenario.model_validate(spec).repeat == repeat
+        assert Scenario.model_validate(spec).repeat == spec["repeat"]
     else:
         with pytest.raises(ValidationError):
             Scenario.model_validate(spec)
@@ -105,7 +143,7 @@ def test_the_report_and_the_class_view_show_unstable_items() -> None:
     assert "Graded by the median of 3 runs: 2 of 3 runs pass (4 points), 1 of 3 runs fail (0 points)." in page
     index = render_index({"alice": Result(lab="x", title="X", items=(shaky,)),
                           "bob": Result(lab="x", title="X", items=(steady,))})
-    assert 'id="unstable-h"' in index and "2 item result(s) were graded by the median" in index
+    assert 'id="unstable-h"' in index and "2 item result(s) were graded from repeated runs" in index
     assert 'data-submission="alice" data-item="ex3.timeout"' in index and 'data-submission="bob" data-item' not in index
     quiet = render_index({"bob": Result(lab="x", title="X", items=(steady,))})
     assert 'id="unstable-none"' in quiet
