@@ -14,9 +14,9 @@ import re
 import shutil
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable, cast
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence, cast
 
 from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
@@ -182,8 +182,10 @@ def analyze_item(item: Item, frames: dict) -> Finding:
     return finding
 
 
-def combine_findings(item: Item, per_scenario: list) -> Finding | None:
-    """One finding for an item run on several scenarios: the worst one counts.
+def combine_findings(item: Item, per_scenario: list, scenarios: Sequence[str] = ()) -> Finding | None:
+    """One finding for an item run on several scenarios: the worst one counts (of equals, the
+    first listed). With ``scenarios`` (their ids, in order), its ``decided`` lists how each
+    scenario came out, so an item whose worst is one run still says it had repeated ones too.
 
     An integrity check is judged on the scenarios where it could run: a scenario in which the
     student's node never started (or recorded nothing to check) gives no evidence either way, so
@@ -192,10 +194,15 @@ def combine_findings(item: Item, per_scenario: list) -> Finding | None:
     """
     from grader.rubric.score import worst_finding
 
+    each = [{"scenario": sc, "by": (f.decided or {}).get("by", "one run"), "runs": (f.decided or {}).get("runs", 1),
+             "status": f.status} for sc, f in zip(scenarios, per_scenario) if f is not None]
     if item.kind == "integrity":
         checked = [f for f in per_scenario if f is not None and f.status != "error"]
         per_scenario = checked or per_scenario
-    return cast("Finding | None", worst_finding(per_scenario)) if per_scenario else None
+    chosen = cast("Finding | None", worst_finding(per_scenario)) if per_scenario else None
+    if chosen is not None and len(each) > 1:
+        chosen = replace(chosen, decided={**(chosen.decided or {}), "scenarios": each})
+    return chosen
 
 
 class Findings(dict):
@@ -252,7 +259,7 @@ def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
             per_scenario.append(median_finding(per_run, scenario.repeat if scenario else 1,
                                                lockstep=exact_lockstep(sub_out / SCENARIOS_DIR / sc),
                                                by=scenario.repeat_by if scenario else "median"))
-        findings[item.id] = combine_findings(item, per_scenario)
+        findings[item.id] = combine_findings(item, per_scenario, item.scenario)
     mismatches = {}
     for sc, frames in frames_cache.items():
         if not isinstance(frames, Exception):

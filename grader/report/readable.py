@@ -237,9 +237,29 @@ def raw_json(evidence: Mapping[str, Any], hidden: set[str] | None = None, max_li
 
 def spread_text(decided: Mapping[str, Any] | None) -> str:
     """The report's sentence: "Graded by the median of 3 runs: 2 of 3 runs partial (1.5 points),
-    1 of 3 pass (3 points)." (or "by the worst of 3 runs (it has to work in every run)"). Empty
-    for an item decided by one run."""
-    if not decided or max(int(decided.get("runs") or 1), int(decided.get("planned") or 1)) <= 1:
+    1 of 3 pass (3 points)." (or "by the worst of 3 runs (it has to work in every run)"), and for
+    an item on several scenarios of which one was repeated, how each came out. Empty for an item
+    decided by one run."""
+    if not decided:
+        return ""
+    text = _runs_text(decided)
+    each = decided.get("scenarios") or ()
+    if any(" of repeated runs" in str(s.get("by")) for s in each):
+        said = "; ".join(f"{s.get('scenario')} ({_how(s)}: {s.get('status')})" for s in each)
+        text = (text + " " if text else "") + f"The item takes the worst of its scenarios: {said}."
+    return text
+
+
+def _how(one: Mapping[str, Any]) -> str:
+    """"one lockstep run", "the worst of 3 runs", "the median of 2 runs": a scenario's runs."""
+    runs, by = int(one.get("runs") or 1), str(one.get("by") or "one run")
+    if " of repeated runs" not in by:
+        return by
+    return f"the {by.split(' ')[0]} of {runs} run{'s' if runs > 1 else ''}"
+
+
+def _runs_text(decided: Mapping[str, Any]) -> str:
+    if max(int(decided.get("runs") or 1), int(decided.get("planned") or 1)) <= 1:
         return ""
     runs = int(decided["runs"])
     counts: Counter = Counter((o.get("status"), o.get("points")) for o in decided.get("outcomes") or ())

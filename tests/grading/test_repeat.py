@@ -148,3 +148,26 @@ def test_the_report_and_the_class_view_show_unstable_items() -> None:
     quiet = render_index({"bob": Result(lab="x", title="X", items=(steady,))})
     assert 'id="unstable-none"' in quiet
     assert 'id="unstable-h"' not in render_index({"carol": Result(lab="x", title="X", items=(_score_auto(item, f("pass", 1.0)),))})
+
+
+def test_an_item_on_a_repeated_and_a_single_scenario_says_how_each_came_out() -> None:
+    from grader.grading.pipeline import combine_findings
+
+    item = Item.model_validate({"id": "spawn.turtle2", "title": "t", "section": {"part": 1}, "points": 3,
+                                "scenario": ["chase", "spawn"], "analyzer": "logged",
+                                "params": {"logger": "x", "pattern": "y"}})
+    chase = median_finding([f("pass", 1.0)], planned=1, lockstep=True)
+    lucky_once = median_finding([f("pass", 1.0), f("fail", 0.0)], planned=3, by="worst")
+    got = combine_findings(item, [chase, lucky_once], item.scenario)
+    assert got is not None and got.status == "fail"
+    assert got.decided["scenarios"] == [
+        {"scenario": "chase", "by": "one lockstep run", "runs": 1, "status": "pass"},
+        {"scenario": "spawn", "by": "worst of repeated runs", "runs": 2, "status": "fail"}]
+    res = _score_auto(item, got)
+    assert spread_text(res.decided).endswith(
+        "The item takes the worst of its scenarios: chase (one lockstep run: pass); spawn (the worst of 2 runs: fail).")
+    both = combine_findings(item, [chase, median_finding([f("pass", 1.0)] * 3, planned=3, by="worst")], item.scenario)
+    assert both is not None and spread_text(both.decided) == (
+        "The item takes the worst of its scenarios: chase (one lockstep run: pass); spawn (the worst of 3 runs: pass).")
+    plain = combine_findings(item, [chase, median_finding([f("pass", 1.0)], planned=1)], item.scenario)
+    assert plain is not None and spread_text(plain.decided) == ""          # nothing repeated: nothing to say
