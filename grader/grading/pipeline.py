@@ -195,7 +195,8 @@ def combine_findings(item: Item, per_scenario: list, scenarios: Sequence[str] = 
     from grader.rubric.score import worst_finding
 
     each = [{"scenario": sc, "by": (f.decided or {}).get("by", "one run"), "runs": (f.decided or {}).get("runs", 1),
-             "status": f.status} for sc, f in zip(scenarios, per_scenario) if f is not None]
+             "stable": (f.decided or {}).get("stable", True), "status": f.status}
+            for sc, f in zip(scenarios, per_scenario) if f is not None]
     if item.kind == "integrity":
         checked = [f for f in per_scenario if f is not None and f.status != "error"]
         per_scenario = checked or per_scenario

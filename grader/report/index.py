@@ -161,16 +161,30 @@ def _item_table(subs: Sequence[Submission]) -> str:
             f'</table></div></section>')
 
 
+def _repeated(decided: Mapping[str, Any]) -> bool:
+    """Whether an item's grade came from repeated runs: its own, or those of one of its scenarios."""
+    return int(decided.get("runs") or 1) > 1 or any(" of repeated runs" in str(sc.get("by"))
+                                                    for sc in decided.get("scenarios") or ())
+
+
+def _unsteady(decided: Mapping[str, Any]) -> bool:
+    """Whether its runs disagreed: within a repeated run, or between its scenarios (chase's spawn
+    items: the chase run and the start-up runs are the same start-up)."""
+    each = decided.get("scenarios") or ()
+    return (decided.get("stable") is False or any(sc.get("stable") is False for sc in each)
+            or len({sc.get("status") for sc in each}) > 1)
+
+
 def _unstable(subs: Sequence[Submission]) -> str:
     """Items graded from repeated runs (``repeat:`` in the rubric: the median run, or the worst
     with ``repeat_by: worst``) whose runs disagreed: the grades a student may question first,
     with how each run came out."""
     from grader.report.readable import spread_text
 
-    repeated = [(s, i) for s in subs for i in s.result.items if int((i.decided or {}).get("runs") or 1) > 1]
+    repeated = [(s, i) for s in subs for i in s.result.items if _repeated(i.decided or {})]
     if not repeated:
         return ""
-    unstable = [(s, i) for s, i in repeated if (i.decided or {}).get("stable") is False]
+    unstable = [(s, i) for s, i in repeated if _unsteady(i.decided or {})]
     lead = (f"{len(repeated)} item result(s) were graded from repeated runs; "
             f"{len(unstable)} of them came out differently from run to run.")
     if not unstable:

@@ -161,8 +161,8 @@ def test_an_item_on_a_repeated_and_a_single_scenario_says_how_each_came_out() ->
     got = combine_findings(item, [chase, lucky_once], item.scenario)
     assert got is not None and got.status == "fail"
     assert got.decided["scenarios"] == [
-        {"scenario": "chase", "by": "one lockstep run", "runs": 1, "status": "pass"},
-        {"scenario": "spawn", "by": "worst of repeated runs", "runs": 2, "status": "fail"}]
+        {"scenario": "chase", "by": "one lockstep run", "runs": 1, "stable": True, "status": "pass"},
+        {"scenario": "spawn", "by": "worst of repeated runs", "runs": 2, "stable": False, "status": "fail"}]
     res = _score_auto(item, got)
     assert spread_text(res.decided).endswith(
         "The item takes the worst of its scenarios: chase (one lockstep run: pass); spawn (the worst of 2 runs: fail).")
@@ -171,3 +171,25 @@ def test_an_item_on_a_repeated_and_a_single_scenario_says_how_each_came_out() ->
         "The item takes the worst of its scenarios: chase (one lockstep run: pass); spawn (the worst of 3 runs: pass).")
     plain = combine_findings(item, [chase, median_finding([f("pass", 1.0)], planned=1)], item.scenario)
     assert plain is not None and spread_text(plain.decided) == ""          # nothing repeated: nothing to say
+
+
+def test_the_class_view_lists_an_item_whose_repeated_scenario_disagreed_with_its_other_one() -> None:
+    from grader.grading.pipeline import combine_findings
+    from grader.report.index import render_index
+    from grader.rubric.score import Result
+
+    item = Item.model_validate({"id": "spawn.turtle2", "title": "spawns turtle2", "section": {"part": 1},
+                                "points": 3, "scenario": ["chase", "spawn"], "analyzer": "logged",
+                                "params": {"logger": "x", "pattern": "y"}})
+    chase_lost = median_finding([f("fail", 0.0)], planned=1, lockstep=True)
+    chase_won = median_finding([f("pass", 1.0)], planned=1, lockstep=True)
+    lost_once = median_finding([f("fail", 0.0)], planned=3, by="worst")        # stopped at its first run
+    works = median_finding([f("pass", 1.0)] * 3, planned=3, by="worst")
+    never = combine_findings(item, [chase_lost, lost_once], item.scenario)       # the same every time
+    raced = combine_findings(item, [chase_won, lost_once], item.scenario)        # won once, lost once
+    steady = combine_findings(item, [chase_won, works], item.scenario)
+    index = render_index({name: Result(lab="x", title="X", items=(_score_auto(item, fd),))
+                          for name, fd in (("ann", never), ("ben", raced), ("cy", steady))})
+    assert "3 item result(s) were graded from repeated runs; 1 of them came out differently" in index
+    assert 'data-submission="ben" data-item="spawn.turtle2"' in index
+    assert 'data-submission="ann" data-item' not in index and 'data-submission="cy" data-item' not in index
