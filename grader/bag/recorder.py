@@ -11,7 +11,13 @@ Behaviour, as rosbag2 does it: the graph is polled (default every 0.1 s) and top
 later are subscribed too, hidden ones (``_action/...``, ``_service_event``) included (rclpy's
 ``get_topic_names_and_types`` lists them; rosbag2 calls that ``include_hidden_topics``); the
 subscription QoS is adapted to the publishers (reliable only if all are, transient-local only
-if all are); every publisher's offered QoS is kept in metadata. Subscriptions are raw (CDR bytes
+if all are); every publisher's offered QoS is kept in metadata. A topic seen before any of its
+publishers (another node's subscription made it appear) is subscribed as its publishers are
+known to offer it: ``/rosout`` transient local (rcl's profile for every node), anything else
+volatile; since a subscription is never upgraded, a volatile ``/rosout`` lost every line a node
+logged before the recorder matched it (bench_flake at a load of ~20: a chaser's "Spawned
+turtle2", logged 0.4 s into its start-up, missing from 1 of 223 chase recordings, turtlesim's
+start-up lines with it). Subscriptions are raw (CDR bytes
 are written untouched) and drained through our own wait set instead of an executor, which
 costs a few microseconds per message instead of tens. While traffic is light the loop wakes at
 most every ``--batch`` seconds (default 0.05) and drains what arrived meanwhile: the time stamps
@@ -112,6 +118,11 @@ def wait_ready(stdout_path: Path | str, timeout: float = 15.0, proc: Any = None)
 
 # --------------------------------------------------------------------------------------------
 # the recorder process
+
+#: topics subscribed transient local while no publisher is known: every ``/rosout`` publisher
+#: offers it (rcl), and a volatile subscription would lose what a node logs before it is matched
+TRANSIENT_BEFORE_PUBLISHERS = frozenset({"/rosout"})
+
 
 @dataclass
 class _Sub:
@@ -220,8 +231,8 @@ class Recorder:
             _log(f"{sub.topic}: {count} publisher(s), offers "
                  + ", ".join(f"{d['reliability']}/{d['durability']}" for d in sub.offers.values()))
         reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
-        transient = bool(infos) and all(
-            i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
+        transient = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos) \
+            if infos else sub.topic in TRANSIENT_BEFORE_PUBLISHERS
         if sub.topic not in self.writer.topics:
             self.add_to_bag(sub, type_hash)
         self.writer.update_qos(sub.topic, list(sub.offers.values()))

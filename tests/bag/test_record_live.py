@@ -190,6 +190,51 @@ def test_late_topics_qos_adaptation_and_service_events(graph, tmp_path: Path) ->
     assert check_bag(bag) == []      # QoS of channels and metadata.yaml agree, events decode
 
 
+_LISTENER = """
+import time, rclpy
+from rcl_interfaces.msg import Log
+rclpy.init()
+node = rclpy.create_node("rosout_listener", enable_rosout=False)   # a subscriber only
+node.create_subscription(Log, "/rosout", lambda m: None, 10)
+print("UP", flush=True)
+time.sleep(60)
+"""
+
+_EARLY_LOGGER = """
+import time, rclpy
+rclpy.init()
+node = rclpy.create_node("early_logger")
+node.get_logger().info("logged before the recorder matched me")
+print("LOGGED", flush=True)
+time.sleep(4.0)                                                     # alive while it is matched
+"""
+
+
+def test_rosout_seen_before_its_publishers_keeps_what_a_node_logs_before_it_is_matched(graph, tmp_path: Path) -> None:
+    """The scenario's driver subscribes to /rosout before any node logs, so the recorder sees the
+    topic with no publisher: subscribed volatile (the QoS of no publishers), every line a node
+    logged before the recorder matched it was lost (bench_flake: a chaser's "Spawned turtle2")."""
+    from grader.runner import ProcessSpec
+
+    listener = graph.start(ProcessSpec(name="listener", argv=[sys.executable, "-c", _LISTENER]))
+    assert wait_for(lambda: "UP" in listener.output(), 30), listener.errors()[-1500:]
+    bag = tmp_path / "rosout"
+    rec = start_recorder(graph, bag, "/rosout", extra=("--verbose",))
+    assert wait_for(lambda: "/rosout: 0 publisher(s)" in rec.errors(), 10), rec.errors()[-1500:]
+    # the recorder stopped while the node starts and logs: it cannot have matched the node before
+    # the line was published, which is what a loaded machine does now and then
+    os.kill(rec.pid, signal.SIGSTOP)
+    try:
+        logger = graph.start(ProcessSpec(name="early", argv=[sys.executable, "-c", _EARLY_LOGGER]))
+        assert wait_for(lambda: "LOGGED" in logger.output(), 60), logger.errors()[-1500:]
+    finally:
+        os.kill(rec.pid, signal.SIGCONT)
+    assert logger.wait(60) == 0, logger.errors()[-1500:]
+    stop_recorder(rec)
+    lines = load_frames(bag)["/rosout"]
+    assert "logged before the recorder matched me" in lines[lines["name"] == "early_logger"]["msg"].tolist()
+
+
 def test_sigkill_keeps_every_completed_chunk(graph, tmp_path: Path) -> None:
     early, late = tmp_path / "early", tmp_path / "late"
     rec_early = start_recorder(graph, early, "/p", name="rec_early")
