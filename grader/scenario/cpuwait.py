@@ -20,20 +20,27 @@ from grader.scenario.quiescence import descendants
 _TICKS = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
 
+def thread_schedstat(pid: int) -> dict[int, tuple[int, int]]:
+    """``tid -> (ns on a CPU, ns waiting on a run queue)`` for each live thread of the process."""
+    out: dict[int, tuple[int, int]] = {}
+    try:
+        tids = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            with open(f"/proc/{pid}/task/{tid}/schedstat") as f:
+                a, b = f.read().split()[:2]
+            out[int(tid)] = (int(a), int(b))
+        except (OSError, ValueError):
+            continue
+    return out
+
+
 def schedstat(pid: int) -> tuple[int, int]:
     """Nanoseconds on a CPU and waiting on a run queue, summed over the process's live threads."""
-    cpu = wait = 0
-    try:
-        for tid in os.listdir(f"/proc/{pid}/task"):
-            try:
-                with open(f"/proc/{pid}/task/{tid}/schedstat") as f:
-                    a, b = f.read().split()[:2]
-                cpu, wait = cpu + int(a), wait + int(b)
-            except (OSError, ValueError):
-                continue
-    except OSError:
-        pass
-    return cpu, wait
+    threads = thread_schedstat(pid).values()
+    return sum(c for c, _ in threads), sum(w for _, w in threads)
 
 
 def _age_s(pid: int) -> float | None:

@@ -18,8 +18,8 @@ Either one sends the scenario back to 1x. A node that is simply wrong (10 Hz ins
 is then graded at 1x too, which only costs time: the grade is never taken from a run that might
 differ from 1x. Two more signals: anyone but the grader's clock publishing ``/clock``, and a
 student process busy for ``BUSY_SHARE`` of a CPU core or more since its node came up (or, on a
-loaded machine where it cannot get that, running or waiting for a CPU ``RUNNABLE_SHARE`` of the
-time): at K x it
+loaded machine where it cannot get that, with a thread running or waiting for a CPU
+``RUNNABLE_SHARE`` of the time): at K x it
 handles K times the messages per wall second (every ``/clock`` included), and a process near a
 full core falls behind simulated time. Measured on Lab 3's action server (rclpy's
 MultiThreadedExecutor with ``Rate.sleep`` in its execute callback): 53-102 % of a core at 4x
@@ -48,27 +48,34 @@ QUIET_PERIODS = 4.0
 #: share of a CPU core a student process may use (averaged over at least BUSY_WINDOW_S of wall
 #: time since its node came up) before it counts as unable to keep pace
 BUSY_SHARE = 0.75
-#: ... or the share of the time it was running or ready to run (waiting on a run queue): a busy
-#: loop on a loaded machine gets half a core or less and waits for the rest (the test's loop
-#: beside a test session, load ~4 on 2 cores: 0.4-0.6 of a core, runnable ~1.0 of the time),
-#: where a node that waits for its timers is runnable a small share even at load 20 (the
-#: simulator waits ~0.1 of its time there, :mod:`grader.scenario.cpuwait`)
+#: ... or the share of the time one of its threads was running or ready to run (waiting on a run
+#: queue): a busy loop on a loaded machine gets half a core or less and waits for the rest (the
+#: test's loop beside a test session, load ~4 on 2 cores: 0.4-0.6 of a core, runnable ~1.0 of the
+#: time), where a node that waits for its timers sleeps between them. Per thread, not summed: the
+#: Lab 3 subscriber at 4x (31-39 % of a core, 14 threads) had its busiest thread runnable 0.51-0.70
+#: of the time at load 2.3-6.2, its threads summed 0.72-0.93, and 1.13 in a CI run, which sent it
+#: back to 1x for nothing (the simulator waits ~0.1 of its time at load 20,
+#: :mod:`grader.scenario.cpuwait`)
 RUNNABLE_SHARE = 0.9
 BUSY_WINDOW_S = 2.0
 
 
-def tree_times(pids: dict[str, int]) -> dict[str, tuple[float, float]]:
+def tree_times(pids: dict[str, int]) -> dict[str, tuple[float, dict[int, float]]]:
     """Per named process and all its descendants (a sandbox's wrapper and the node inside count
     as one; the tree the lockstep quiet checks wait for, :func:`quiescence.descendants`), read
-    from /proc: CPU seconds (user + system, reaped children included) and runnable seconds
-    (on a CPU or waiting for one, live threads: ``schedstat``)."""
-    from grader.scenario.cpuwait import schedstat
+    from /proc: CPU seconds (user + system, reaped children included) and, per live thread
+    (``tid``), runnable seconds (on a CPU or waiting for one: ``schedstat``). Runnable time is
+    kept per thread: summed, a DDS node's half-dozen threads each waiting a little on a busy
+    machine add up to more than the wall time (the Lab 3 subscriber at 4x: 113 % summed at 31 %
+    of a core, load ~3.6) though none of them is busy."""
+    from grader.scenario.cpuwait import thread_schedstat
     from grader.scenario.quiescence import descendants
 
     tick = os.sysconf("SC_CLK_TCK")
     out = {}
     for name, root in pids.items():
-        total = runnable = 0.0
+        total = 0.0
+        runnable: dict[int, float] = {}
         for pid in descendants([root]):
             try:
                 with open(f"/proc/{pid}/stat") as f:
@@ -76,8 +83,8 @@ def tree_times(pids: dict[str, int]) -> dict[str, tuple[float, float]]:
             except OSError:                  # exited meanwhile
                 continue
             total += sum(int(v) for v in stat[stat.rindex(")") + 2:].split()[11:15]) / tick
-            on_cpu, waiting = schedstat(pid)
-            runnable += (on_cpu + waiting) / 1e9
+            for tid, (on_cpu, waiting) in thread_schedstat(pid).items():
+                runnable[tid] = (on_cpu + waiting) / 1e9
         out[name] = (total, runnable)
     return out
 
@@ -118,8 +125,8 @@ class RateWatchdog:
     clock_owner: str
     arrivals: dict[str, tuple[list[float], list[float]]] = field(default_factory=dict)
     advertised_at: dict[str, float] = field(default_factory=dict)   # sim time a student publisher was seen
-    #: process -> (cpu s, runnable s, wall s) when first seen
-    cpu_base: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    #: process -> (cpu s, runnable s per thread, wall s) when first seen
+    cpu_base: dict[str, tuple[float, dict[int, float], float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.arrivals = {e.topic: ([], []) for e in self.expected}
@@ -132,22 +139,23 @@ class RateWatchdog:
 
     def busy(self, pids: dict[str, int]) -> str | None:
         """A student process (``name -> pid`` of those running) that used ``BUSY_SHARE`` of a
-        core, or was runnable ``RUNNABLE_SHARE`` of the time, since the first call that saw it
-        (its node was up by then)."""
+        core, or had a thread runnable ``RUNNABLE_SHARE`` of the time, since the first call that
+        saw it (its node was up by then; a thread started since counts from its start)."""
         now = time.monotonic()
         for name, (cpu, runnable) in tree_times(pids).items():
             base = self.cpu_base.setdefault(name, (cpu, runnable, now))
             wall = now - base[2]
             if wall < BUSY_WINDOW_S:
                 continue
-            used, wanted = (cpu - base[0]) / wall, (runnable - base[1]) / wall
+            used = (cpu - base[0]) / wall
+            wanted = max((r - base[1].get(tid, 0.0) for tid, r in runnable.items()), default=0.0) / wall
             if used >= BUSY_SHARE:
                 return (f"{name} used {100 * used:.0f} % of a CPU core for {wall:.1f} s: "
                         "a process that busy cannot keep pace with simulated time")
             if wanted >= RUNNABLE_SHARE:
-                return (f"{name} was running or waiting for a CPU {100 * wanted:.0f} % of {wall:.1f} s "
-                        f"({100 * used:.0f} % of a core on this busy machine): a process that busy "
-                        "cannot keep pace with simulated time")
+                return (f"a thread of {name} was running or waiting for a CPU {100 * wanted:.0f} % of "
+                        f"{wall:.1f} s ({100 * used:.0f} % of a core on this busy machine): a process "
+                        "that busy cannot keep pace with simulated time at this speed")
         return None
 
     def verdict(self, node: Any, sim_now: float, student_publishes: Any = None) -> str | None:

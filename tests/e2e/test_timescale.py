@@ -69,7 +69,14 @@ def test_each_scenario_says_how_it_ran(batch: Path) -> None:
     for name in ("reference", "no_wrap"):
         ts = result(batch, name)["time_scale"]
         assert set(ts) == scenarios
-        assert all(t["requested"] == 4.0 and t["used"] == 4.0 for sc, t in ts.items() if sc != "ex3_action"), ts
+        scaled = {sc: t for sc, t in ts.items() if sc != "ex3_action"}
+        assert all(t["requested"] == 4.0 for t in scaled.values()), ts
+        # these nodes keep pace at 4x; only a starved machine (the watchdog's busy signal, a
+        # measurement of the machine) may send one of them back, never their rates or the scan
+        at_1x = {sc: t for sc, t in scaled.items() if t["used"] != 4.0}
+        assert len(at_1x) <= 1, ts
+        assert all(t["used"] == 1.0 and "cannot keep pace with simulated time" in t["fallback"]
+                   for t in at_1x.values()), ts
         # the rubric runs the action scenario in lockstep at any --time-scale (its server cannot
         # keep pace at 4x, and a chaotic one must draw the same path in every run)
         assert ts["ex3_action"]["clock"] == "lockstep" and "requested" not in ts["ex3_action"], ts
@@ -116,8 +123,9 @@ def test_check_at_4x_reuses_scaled_recordings_and_says_so(batch: Path, tmp_path:
     assert "was not run again" in out                   # the batch's 4x recordings, reused
     assert "scenario ex3_action ran on lockstep simulated time" in out, out
     doc = json.loads((ws / ".grader-check" / "check" / "result.json").read_text())
-    assert {sc for sc, t in doc["time_scale"].items() if t["used"] == 4.0} == \
-        {"ex1_publisher", "ex1_subscriber", "ex2_controller", "ex2_goal_publisher"}
+    batch_4x = {sc for sc, t in result(batch, "reference")["time_scale"].items() if t.get("used") == 4.0}
+    assert len(batch_4x) >= 3                            # test_each_scenario_says_how_it_ran
+    assert {sc for sc, t in doc["time_scale"].items() if t["used"] == 4.0} == batch_4x
 
 
 def test_time_scale_must_be_a_speed_up(capsys) -> None:

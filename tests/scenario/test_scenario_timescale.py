@@ -157,10 +157,13 @@ def test_busy_process_tree_is_flagged_an_idle_one_is_not(tmp_path: Path) -> None
         time.sleep(BUSY_WINDOW_S + 0.5)
         assert dog.busy({"idle": idle.pid}) is None
         reason = dog.busy({"busy": busy.pid})
-        assert reason and reason.startswith("busy ") and "cannot keep pace" in reason
+        # a whole core on a free machine; on a busy one (a test session beside it) the share it
+        # gets may fall under BUSY_SHARE, and its thread runnable all the time says it instead
+        assert reason and reason.startswith(("busy used", "a thread of busy was running")), reason
+        assert "cannot keep pace" in reason
         # at most ~half a core beside the burner, but runnable all the time
         reason = dog.busy({"shared": shared.pid})
-        assert reason and reason.startswith("shared was running or waiting for a CPU"), reason
+        assert reason and reason.startswith("a thread of shared was running or waiting for a CPU"), reason
     finally:
         for p in (busy, shared):
             os.killpg(p.pid, signal.SIGKILL)                          # the group: the loop too
