@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence, cast
 
 from grader.analyze._common import events, stdout_lines
 from grader.errors import GraderError
-from grader.grading.repeat import exact_lockstep, median_finding, run_folders, run_until_settled, settles_check
+from grader.grading.repeat import exact_lockstep, repeated_finding, run_folders, run_until_settled, settles_check
 from grader.scenario.events import Event
 
 if TYPE_CHECKING:
@@ -196,6 +196,7 @@ def combine_findings(item: Item, per_scenario: list, scenarios: Sequence[str] = 
 
     each = [{"scenario": sc, "by": (f.decided or {}).get("by", "one run"), "runs": (f.decided or {}).get("runs", 1),
              "stable": (f.decided or {}).get("stable", True), "status": f.status}
+            | ({"repeat_by": f.decided["repeat_by"]} if "repeat_by" in (f.decided or {}) else {})
             for sc, f in zip(scenarios, per_scenario) if f is not None]
     if item.kind == "integrity":
         checked = [f for f in per_scenario if f is not None and f.status != "error"]
@@ -257,7 +258,7 @@ def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
                 else:
                     per_run.append(analyze_item(item, frames))
             scenario = rubric.scenarios.get(sc)
-            per_scenario.append(median_finding(per_run, scenario.repeat if scenario else 1,
+            per_scenario.append(repeated_finding(per_run, scenario.repeat if scenario else 1,
                                                lockstep=exact_lockstep(sub_out / SCENARIOS_DIR / sc),
                                                by=scenario.repeat_by if scenario else "median"))
         findings[item.id] = combine_findings(item, per_scenario, item.scenario)

@@ -140,11 +140,11 @@ def run_until_settled(record_one: Callable[[int, Path], dict], scenarios_dir: Pa
     return first
 
 
-def median_finding(findings: Sequence[Any], planned: int, lockstep: bool = False, by: str = "median") -> Any:
-    """The median of one item's findings over its runs (by fraction, then status: fail <
-    partial < error < pass), or the lowest of them (``by="worst"``), with ``decided`` saying how
-    it was decided. One finding: itself, ``decided`` = one run (``lockstep``: one exact lockstep
-    run, which a repetition repeats)."""
+def repeated_finding(findings: Sequence[Any], planned: int, lockstep: bool = False, by: str = "median") -> Any:
+    """One item's finding over its runs: the median (by fraction, then status: fail < partial <
+    error < pass), or the lowest (``by="worst"``), with ``decided`` saying how it was decided
+    (``repeat_by``: the scenario's field, ``median`` or ``worst``). One finding: itself,
+    ``decided`` = one run (``lockstep``: one exact lockstep run, which a repetition repeats)."""
     from grader.rubric.score import _RANK
 
     if len(findings) == 1 and lockstep:
@@ -157,7 +157,7 @@ def median_finding(findings: Sequence[Any], planned: int, lockstep: bool = False
     mine = outcome(chosen)
     agree = sum(1 for f in findings if outcome(f) == mine)
     decided = {
-        "by": f"{by} of repeated runs", "runs": len(findings), "planned": planned, "agree": agree,
+        "by": f"{by} of repeated runs", "repeat_by": by, "runs": len(findings), "planned": planned, "agree": agree,
         "stable": agree == len(findings),
         "outcomes": [{"run": i + 1, "status": f.status, "fraction": round(float(f.fraction), 4),
                       "value": f.value} for i, f in enumerate(findings)],

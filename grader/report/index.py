@@ -163,8 +163,7 @@ def _item_table(subs: Sequence[Submission]) -> str:
 
 def _repeated(decided: Mapping[str, Any]) -> bool:
     """Whether an item's grade came from repeated runs: its own, or those of one of its scenarios."""
-    return int(decided.get("runs") or 1) > 1 or any(" of repeated runs" in str(sc.get("by"))
-                                                    for sc in decided.get("scenarios") or ())
+    return int(decided.get("runs") or 1) > 1 or any(sc.get("repeat_by") for sc in decided.get("scenarios") or ())
 
 
 def _unsteady(decided: Mapping[str, Any]) -> bool:

@@ -244,7 +244,7 @@ def spread_text(decided: Mapping[str, Any] | None) -> str:
         return ""
     text = _runs_text(decided)
     each = decided.get("scenarios") or ()
-    if any(" of repeated runs" in str(s.get("by")) for s in each):
+    if any(s.get("repeat_by") for s in each):
         said = "; ".join(f"{s.get('scenario')} ({_how(s)}: {s.get('status')})" for s in each)
         text = (text + " " if text else "") + f"The item takes the worst of its scenarios: {said}."
     return text
@@ -252,10 +252,10 @@ def spread_text(decided: Mapping[str, Any] | None) -> str:
 
 def _how(one: Mapping[str, Any]) -> str:
     """"one lockstep run", "the worst of 3 runs", "the median of 2 runs": a scenario's runs."""
-    runs, by = int(one.get("runs") or 1), str(one.get("by") or "one run")
-    if " of repeated runs" not in by:
-        return by
-    return f"the {by.split(' ')[0]} of {runs} run{'s' if runs > 1 else ''}"
+    runs, by = int(one.get("runs") or 1), one.get("repeat_by")
+    if not by:
+        return str(one.get("by") or "one run")
+    return f"the {by} of {runs} run{'s' if runs > 1 else ''}"
 
 
 def _runs_text(decided: Mapping[str, Any]) -> str:
@@ -268,7 +268,7 @@ def _runs_text(decided: Mapping[str, Any]) -> str:
         amount = f" ({points:g} points)" if isinstance(points, (int, float)) else ""
         parts.append(f"{n} of {runs} run{'s' if runs > 1 else ''} {status}{amount}")
     planned = int(decided.get("planned") or runs)
-    if str(decided.get("by", "")).startswith("worst"):
+    if decided.get("repeat_by") == "worst":
         extra = (f"; a further {planned - runs} run(s) could not have raised it" if planned > runs else "")
         return (f"Graded by the worst of {runs} run{'s' if runs > 1 else ''} (it has to work in every run): "
                 + ", ".join(parts) + extra + ".")

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from grader.analyze import Finding
-from grader.grading.repeat import (median_finding, run_folder, run_folders, run_until_settled, scenario_of,
+from grader.grading.repeat import (repeated_finding, run_folder, run_folders, run_until_settled, scenario_of,
                                    settled)
 from grader.report.readable import spread_text
 from grader.rubric.schema import Item
@@ -20,16 +20,16 @@ def f(status: str, fraction: float, value: str = "") -> Finding:
 
 
 def test_the_median_run_grades_and_the_spread_is_recorded() -> None:
-    m = median_finding([f("pass", 1.0), f("partial", 0.5), f("pass", 1.0)], planned=3)
+    m = repeated_finding([f("pass", 1.0), f("partial", 0.5), f("pass", 1.0)], planned=3)
     assert (m.status, m.fraction) == ("pass", 1.0)
-    assert m.decided["by"] == "median of repeated runs"
+    assert m.decided["by"] == "median of repeated runs" and m.decided["repeat_by"] == "median"
     assert (m.decided["runs"], m.decided["agree"], m.decided["stable"]) == (3, 2, False)
     assert [o["status"] for o in m.decided["outcomes"]] == ["pass", "partial", "pass"]
-    low = median_finding([f("fail", 0.0), f("partial", 0.25), f("pass", 1.0)], planned=3)
+    low = repeated_finding([f("fail", 0.0), f("partial", 0.25), f("pass", 1.0)], planned=3)
     assert (low.status, low.fraction) == ("partial", 0.25)                 # the middle one, not a mean
-    same = median_finding([f("fail", 0.0), f("error", 0.0), f("fail", 0.0)], planned=3)
+    same = repeated_finding([f("fail", 0.0), f("error", 0.0), f("fail", 0.0)], planned=3)
     assert same.status == "fail"
-    one = median_finding([f("partial", 0.5)], planned=1)
+    one = repeated_finding([f("partial", 0.5)], planned=1)
     assert one.decided == {"by": "one run", "runs": 1} and one.status == "partial"
 
 
@@ -66,31 +66,31 @@ def test_result_and_report_say_how_an_item_was_decided() -> None:
     item = Item.model_validate({"id": "ex3.timeout", "title": "t", "section": {"exercise": 3}, "points": 4,
                                 "scenario": "a", "analyzer": "logged", "partial": "none",
                                 "params": {"logger": "x", "pattern": "y"}})
-    res = _score_auto(item, median_finding([f("pass", 1.0), f("partial", 0.5), f("pass", 1.0)], planned=3))
+    res = _score_auto(item, repeated_finding([f("pass", 1.0), f("partial", 0.5), f("pass", 1.0)], planned=3))
     assert res.points == 4 and res.decided["runs"] == 3
     assert [o["points"] for o in res.decided["outcomes"]] == [4.0, 0.0, 4.0]     # partial: none
     assert spread_text(res.decided) == ("Graded by the median of 3 runs: 2 of 3 runs pass (4 points), "
                                         "1 of 3 runs fail (0 points).")
-    two = _score_auto(item, median_finding([f("pass", 1.0), f("pass", 1.0)], planned=3))
+    two = _score_auto(item, repeated_finding([f("pass", 1.0), f("pass", 1.0)], planned=3))
     assert two.decided["stable"] and "a further 1 run(s) could not have changed the median" in spread_text(two.decided)
     single = _score_auto(item, f("pass", 1.0))
     assert single.decided == {"by": "one run", "runs": 1} and spread_text(single.decided) == ""
 
 
 def test_the_worst_run_grades_a_start_up_that_has_to_work_every_time() -> None:
-    lucky = median_finding([f("pass", 1.0), f("fail", 0.0), f("pass", 1.0)], planned=3, by="worst")
+    lucky = repeated_finding([f("pass", 1.0), f("fail", 0.0), f("pass", 1.0)], planned=3, by="worst")
     assert (lucky.status, lucky.fraction) == ("fail", 0.0)          # the median would have paid it
-    assert lucky.decided["by"] == "worst of repeated runs"
+    assert lucky.decided["by"] == "worst of repeated runs" and lucky.decided["repeat_by"] == "worst"
     assert (lucky.decided["runs"], lucky.decided["agree"], lucky.decided["stable"]) == (3, 1, False)
-    low = median_finding([f("pass", 1.0), f("partial", 0.5), f("partial", 0.25)], planned=3, by="worst")
+    low = repeated_finding([f("pass", 1.0), f("partial", 0.5), f("partial", 0.25)], planned=3, by="worst")
     assert (low.status, low.fraction) == ("partial", 0.25)
-    steady = median_finding([f("pass", 1.0)] * 3, planned=3, by="worst")
+    steady = repeated_finding([f("pass", 1.0)] * 3, planned=3, by="worst")
     assert steady.status == "pass" and steady.decided["stable"]
     assert spread_text(lucky.decided | {"outcomes": [{"status": "pass", "points": 3}, {"status": "fail", "points": 0},
                                                      {"status": "pass", "points": 3}]}) == (
         "Graded by the worst of 3 runs (it has to work in every run): 2 of 3 runs pass (3 points), "
         "1 of 3 runs fail (0 points).")
-    first_fails = median_finding([f("fail", 0.0)], planned=3, by="worst")
+    first_fails = repeated_finding([f("fail", 0.0)], planned=3, by="worst")
     assert spread_text(first_fails.decided | {"outcomes": [{"status": "fail", "points": 0}]}) == (
         "Graded by the worst of 1 run (it has to work in every run): 1 of 1 run fail (0 points); a further 2 "
         "run(s) could not have raised it.")
@@ -137,8 +137,8 @@ def test_the_report_and_the_class_view_show_unstable_items() -> None:
     item = Item.model_validate({"id": "ex3.timeout", "title": "gives up in time", "section": {"exercise": 3},
                                 "points": 4, "scenario": "a", "analyzer": "logged",
                                 "params": {"logger": "x", "pattern": "y"}})
-    shaky = _score_auto(item, median_finding([f("pass", 1.0), f("fail", 0.0), f("pass", 1.0)], planned=3))
-    steady = _score_auto(item, median_finding([f("pass", 1.0), f("pass", 1.0)], planned=3))
+    shaky = _score_auto(item, repeated_finding([f("pass", 1.0), f("fail", 0.0), f("pass", 1.0)], planned=3))
+    steady = _score_auto(item, repeated_finding([f("pass", 1.0), f("pass", 1.0)], planned=3))
     page = render_html(Result(lab="x", title="X", items=(shaky,)), "alice")
     assert "Graded by the median of 3 runs: 2 of 3 runs pass (4 points), 1 of 3 runs fail (0 points)." in page
     index = render_index({"alice": Result(lab="x", title="X", items=(shaky,)),
@@ -156,20 +156,21 @@ def test_an_item_on_a_repeated_and_a_single_scenario_says_how_each_came_out() ->
     item = Item.model_validate({"id": "spawn.turtle2", "title": "t", "section": {"part": 1}, "points": 3,
                                 "scenario": ["chase", "spawn"], "analyzer": "logged",
                                 "params": {"logger": "x", "pattern": "y"}})
-    chase = median_finding([f("pass", 1.0)], planned=1, lockstep=True)
-    lucky_once = median_finding([f("pass", 1.0), f("fail", 0.0)], planned=3, by="worst")
+    chase = repeated_finding([f("pass", 1.0)], planned=1, lockstep=True)
+    lucky_once = repeated_finding([f("pass", 1.0), f("fail", 0.0)], planned=3, by="worst")
     got = combine_findings(item, [chase, lucky_once], item.scenario)
     assert got is not None and got.status == "fail"
     assert got.decided["scenarios"] == [
         {"scenario": "chase", "by": "one lockstep run", "runs": 1, "stable": True, "status": "pass"},
-        {"scenario": "spawn", "by": "worst of repeated runs", "runs": 2, "stable": False, "status": "fail"}]
+        {"scenario": "spawn", "by": "worst of repeated runs", "runs": 2, "stable": False, "status": "fail",
+         "repeat_by": "worst"}]
     res = _score_auto(item, got)
     assert spread_text(res.decided).endswith(
         "The item takes the worst of its scenarios: chase (one lockstep run: pass); spawn (the worst of 2 runs: fail).")
-    both = combine_findings(item, [chase, median_finding([f("pass", 1.0)] * 3, planned=3, by="worst")], item.scenario)
+    both = combine_findings(item, [chase, repeated_finding([f("pass", 1.0)] * 3, planned=3, by="worst")], item.scenario)
     assert both is not None and spread_text(both.decided) == (
         "The item takes the worst of its scenarios: chase (one lockstep run: pass); spawn (the worst of 3 runs: pass).")
-    plain = combine_findings(item, [chase, median_finding([f("pass", 1.0)], planned=1)], item.scenario)
+    plain = combine_findings(item, [chase, repeated_finding([f("pass", 1.0)], planned=1)], item.scenario)
     assert plain is not None and spread_text(plain.decided) == ""          # nothing repeated: nothing to say
 
 
@@ -181,10 +182,10 @@ def test_the_class_view_lists_an_item_whose_repeated_scenario_disagreed_with_its
     item = Item.model_validate({"id": "spawn.turtle2", "title": "spawns turtle2", "section": {"part": 1},
                                 "points": 3, "scenario": ["chase", "spawn"], "analyzer": "logged",
                                 "params": {"logger": "x", "pattern": "y"}})
-    chase_lost = median_finding([f("fail", 0.0)], planned=1, lockstep=True)
-    chase_won = median_finding([f("pass", 1.0)], planned=1, lockstep=True)
-    lost_once = median_finding([f("fail", 0.0)], planned=3, by="worst")        # stopped at its first run
-    works = median_finding([f("pass", 1.0)] * 3, planned=3, by="worst")
+    chase_lost = repeated_finding([f("fail", 0.0)], planned=1, lockstep=True)
+    chase_won = repeated_finding([f("pass", 1.0)], planned=1, lockstep=True)
+    lost_once = repeated_finding([f("fail", 0.0)], planned=3, by="worst")        # stopped at its first run
+    works = repeated_finding([f("pass", 1.0)] * 3, planned=3, by="worst")
     never = combine_findings(item, [chase_lost, lost_once], item.scenario)       # the same every time
     raced = combine_findings(item, [chase_won, lost_once], item.scenario)        # won once, lost once
     steady = combine_findings(item, [chase_won, works], item.scenario)

@@ -21,7 +21,7 @@ import pytest
 from pydantic import ValidationError
 
 from grader.bag.timebase import TimeMap
-from grader.grading.repeat import lockstep_record_exact, median_finding, run_until_settled
+from grader.grading.repeat import lockstep_record_exact, repeated_finding, run_until_settled
 from grader.scenario.model import Scenario
 from grader.scenario.quiescence import Quiescence, descendants
 
@@ -347,8 +347,8 @@ def test_an_item_of_a_lockstep_run_says_so() -> None:
     from grader.analyze import Finding
 
     one = Finding(value=1.0, fraction=1.0, status="pass", feedback="", evidence={})
-    assert median_finding([one], 3, lockstep=True).decided == {"by": "one lockstep run", "runs": 1, "stable": True}
-    assert median_finding([one], 1).decided == {"by": "one run", "runs": 1}
+    assert repeated_finding([one], 3, lockstep=True).decided == {"by": "one lockstep run", "runs": 1, "stable": True}
+    assert repeated_finding([one], 1).decided == {"by": "one run", "runs": 1}
 
 
 # -- live: the same path in every run ---------------------------------------------------------------
