@@ -11,8 +11,8 @@ moving. Judged on the simulator's own poses (``/turtle1/pose`` at 62.5 Hz).
   heading; the pose's ``linear_velocity`` is a speed, without a sign). (2, -1) and (-2, 1) make
   the same radius and period as (2, 1), round another centre.
 * ``keeps_moving``: the commands arrive before turtlesim's 1 s command timeout stops the turtle,
-  and the turtle is moving (judged from its positions, not its commanded velocity) for (almost)
-  the whole run.
+  the turtle is moving (judged from its positions, not its commanded velocity) for (almost)
+  the whole run, and no student process crashed while it ran.
 * ``no_wall_contact``: turtlesim clamps the turtle at the walls and logs "Oh no! I hit the
   wall!"; neither may happen. The closest approach to a wall is reported; with ``approach_m``
   it must be at most that: a turtle that circles in the middle never meets a wall to avoid.
@@ -33,10 +33,11 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, provenance, register
 from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (sim_pose, sim_tick_times, Frames, fmt, held_mask, missing_topic_feedback,
-                                    rosout_lines, scenario_end_time, thin, times, topic)
+from grader.analyze._common import (events, sim_pose, sim_tick_times, Frames, fmt, held_mask,
+                                    missing_topic_feedback, rosout_lines, scenario_end_time, thin, times, topic)
 from grader.spec.world import WORLD_SIZE_M
 from grader.analyze.rate import rate_stats
+from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -57,7 +58,7 @@ EVIDENCE = {
     "contacts": ("poses touching a wall", ""), "world_max": ("world size", "m"), "min_clearance": ("clearance required", "m"),
     "pose_topic": ("pose topic", ""), "cmd_topic": ("command topic", ""), "sim_logger": ("the simulator's logger", ""),
     "world_max_m": ("world size", "m"), "contact_points": None,
-    "approach_m": ("must come this close to a wall", "m"),
+    "approach_m": ("must come this close to a wall", "m"), "crashed": ("crashed while it ran", ""),
     "turn": ("turning", ""), "drive": ("driving", ""), "forward_share": ("share of the path driven nose first", SHARE),
     "direction_credit": ("credit for the right radius the wrong way round", SHARE),
 }
@@ -242,6 +243,17 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
           "held_s": float(np.sum(np.diff(pt)[held[1:]])) if len(pt) > 1 else 0.0}
     value = f"{share:.0%} of the time moving"
     problems = []
+    # a process that crashed while the scenario ran stops the turtle for the rest of it; how much
+    # of that stop the recording holds depends only on how soon the run ended after the crash
+    # (wall_pen's hits_wall.flip_sign: moving 90 % in one run, 100 % in two, the same crash)
+    crashes = [e for e in events(frames, Event.PROCESS_EXIT)
+               if not e.get("stopped_by_grader") and e.get("returncode") not in (0, None)]
+    if crashes:
+        first = min(crashes, key=lambda e: float(e.get("t") or 0.0))
+        ev["crashed"] = f"{first.get('process')} (exit code {first.get('returncode')})"
+        problems.append(f"a student process ({first.get('process')}) crashed (exit code "
+                        f"{first.get('returncode')}) while the scenario ran, so nothing drove the turtle "
+                        "for the rest of it")
     slow = bool(len(gaps)) and gaps.max() >= p["max_gap_s"]
     if slow:
         problems.append(f"commands were {gaps.max():.2f} s apart at the longest, so the simulator's "
@@ -255,6 +267,7 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"Commands every {fmt(1 / stats['rate_hz'] if stats['rate_hz'] else float('nan'))} s "
                        f"on average (at most {gaps.max() if len(gaps) else 0:.2f} s apart): the turtle never stopped.", ev)
     advice = (": publish faster than once a second (a timer period below 1 s)" if slow else
+              "" if crashes and len(problems) == 1 else
               ": it stopped going anywhere (check for turning on the spot or pushing against a wall)")
     return Finding(value, 0.0, "fail", "; ".join(problems)[0].upper() + "; ".join(problems)[1:] + advice + ".", ev)
 

@@ -112,3 +112,29 @@ def test_the_coast_after_the_scenario_ended_is_not_the_students() -> None:
     coasting = walls(ended_at(0.8))
     assert coasting.status == "pass" and coasting.evidence["min_clearance_m"] < 2.0, coasting.feedback
     assert walls(ended_at(1.3)).status == "fail"             # the contact before the end still counts
+
+
+def test_a_crash_while_it_ran_is_a_stop_however_soon_the_run_ended() -> None:
+    """A controller that crashed stopped the turtle; how much of the stop the bag holds depends
+    only on how soon the run ended after it (wall_pen's hits_wall.flip_sign, a SystemError at its
+    first set_pen: moving 90 % in one run of three, 100 % in the others, bench_flake, issue 22).
+    The crash decides, not the tail; the grader stopping a node at the end is no crash."""
+    import pandas as pd
+    from analyze_synth import T0, events_frame
+
+    frames = run(box(), duration=20.0)
+    params = dict(RUBRIC.item("motion.keeps_moving").params)
+    assert check(analyze.run("keeps_moving", frames, params)).status == "pass"
+
+    def exited(**payload) -> dict:
+        fr = dict(frames)
+        fr["/grader/events"] = pd.concat([fr["/grader/events"], events_frame(
+            [(T0 + 19.5, "process_exit", {"process": "controller", **payload})])]).sort_index()
+        return fr
+
+    crashed = check(analyze.run("keeps_moving", exited(returncode=1), params))
+    assert crashed.status == "fail" and crashed.evidence["crashed"] == "controller (exit code 1)"
+    assert crashed.feedback.startswith("A student process (controller) crashed (exit code 1) while the "
+                                       "scenario ran"), crashed.feedback
+    stopped = exited(returncode=-15, stopped_by_grader=True)
+    assert check(analyze.run("keeps_moving", stopped, params)).status == "pass"
