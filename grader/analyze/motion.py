@@ -208,14 +208,16 @@ def circle_period(frames: Frames, p: dict) -> Finding:
 
 
 @register("keeps_moving", evidence={**EVIDENCE, "value": ('time moving', '')},
-          expect='commands less than {max_gap_s:g} s apart, moving {min_moving_share:.0%} of the time', defaults={
+          expect='commands less than {max_gap_s:g} s apart, moving {min_moving_share:.0%} of the time, no crash',
+          defaults={
     **_POSE,
     "cmd_topic": "/turtle1/cmd_vel",
     "max_gap_s": 1.0,          # turtlesim stops the turtle 1 s after the last command
     "min_moving_share": 0.95,  # share of the time after the first move with speed > min_speed
 })
 def keeps_moving(frames: Frames, p: dict) -> Finding:
-    """Commands arrive before the simulator's command timeout and the turtle never stalls."""
+    """Commands arrive before the simulator's command timeout, the turtle never stalls, and no
+    student process crashed while it ran."""
     moved = provenance.moves(frames, p["pose_topic"])
     if moved:
         return provenance.moved_finding(frames, moved, "its motion")
