@@ -245,11 +245,13 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
           "held_s": float(np.sum(np.diff(pt)[held[1:]])) if len(pt) > 1 else 0.0}
     value = f"{share:.0%} of the time moving"
     problems = []
-    # a process that crashed while the scenario ran stops the turtle for the rest of it; how much
-    # of that stop the recording holds depends only on how soon the run ended after the crash
-    # (wall_pen's hits_wall.flip_sign: moving 90 % in one run, 100 % in two, the same crash)
+    # a driving process that crashed while the scenario ran stops the turtle for the rest of it;
+    # how much of that stop the recording holds depends only on how soon the run ended after the
+    # crash (wall_pen's hits_wall.flip_sign: moving 90 % in one run, 100 % in two, the same
+    # crash). It drove the turtle if the commands ended with it (a bystander's crash does not count)
     crashes = [e for e in events(frames, Event.PROCESS_EXIT)
-               if not e.get("stopped_by_grader") and e.get("returncode") not in (0, None)]
+               if not e.get("stopped_by_grader") and e.get("returncode") not in (0, None)
+               and e.get("t") is not None and ct[-1] <= float(e["t"]) + p["max_gap_s"]]
     if crashes:
         first = min(crashes, key=lambda e: float(e.get("t") or 0.0))
         ev["crashed"] = f"{first.get('process')} (exit code {first.get('returncode')})"

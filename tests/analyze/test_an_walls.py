@@ -138,3 +138,8 @@ def test_a_crash_while_it_ran_is_a_stop_however_soon_the_run_ended() -> None:
                                        "scenario ran"), crashed.feedback
     stopped = exited(returncode=-15, stopped_by_grader=True)
     assert check(analyze.run("keeps_moving", stopped, params)).status == "pass"
+    # another process of the scenario that crashed early while the turtle was driven on
+    bystander = dict(frames)
+    bystander["/grader/events"] = pd.concat([frames["/grader/events"], events_frame(
+        [(T0 + 5.0, "process_exit", {"process": "listener", "returncode": 1})])]).sort_index()
+    assert check(analyze.run("keeps_moving", bystander, params)).status == "pass"
