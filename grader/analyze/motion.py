@@ -251,9 +251,9 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
     # crash). It drove the turtle if the commands ended with it (a bystander's crash does not count)
     crashes = [e for e in events(frames, Event.PROCESS_EXIT)
                if not e.get("stopped_by_grader") and e.get("returncode") not in (0, None)
-               and e.get("t") is not None and ct[-1] <= float(e["t"]) + p["max_gap_s"]]
+               and ct[-1] <= e["t"] + p["max_gap_s"]]          # events() gives every event its t
     if crashes:
-        first = min(crashes, key=lambda e: float(e.get("t") or 0.0))
+        first = min(crashes, key=lambda e: e["t"])
         ev["crashed"] = f"{first.get('process')} (exit code {first.get('returncode')})"
         problems.append(f"a student process ({first.get('process')}) crashed (exit code "
                         f"{first.get('returncode')}) while the scenario ran, so nothing drove the turtle "

@@ -64,10 +64,8 @@ def tree_times(pids: dict[str, int]) -> dict[str, tuple[float, dict[int, float]]
     """Per named process and all its descendants (a sandbox's wrapper and the node inside count
     as one; the tree the lockstep quiet checks wait for, :func:`quiescence.descendants`), read
     from /proc: CPU seconds (user + system, reaped children included) and, per live thread
-    (``tid``), runnable seconds (on a CPU or waiting for one: ``schedstat``). Runnable time is
-    kept per thread: summed, a DDS node's half-dozen threads each waiting a little on a busy
-    machine add up to more than the wall time (the Lab 3 subscriber at 4x: 113 % summed at 31 %
-    of a core, load ~3.6) though none of them is busy."""
+    (``tid``), runnable seconds (on a CPU or waiting for one: ``schedstat``); per thread, since
+    summed they overstate a DDS node's wait (:data:`RUNNABLE_SHARE`)."""
     from grader.scenario.cpuwait import thread_schedstat
     from grader.scenario.quiescence import descendants
 
