@@ -228,6 +228,13 @@ def events(frames: Frames, kind: str | Iterable[str] | None = None) -> list[dict
     return out
 
 
+def own_exits(frames: Frames) -> list[dict]:
+    """``process_exit`` events of student processes that ended on their own (a crash, or a return
+    while the scenario ran), not those the grader stopped at its end: what the run's summary, a
+    node that never appeared and a turtle that stopped are each explained by."""
+    return [e for e in events(frames, Event.PROCESS_EXIT) if not e.get("stopped_by_grader")]
+
+
 def has_events(frames: Frames) -> bool:
     return topic(frames, EVENTS) is not None
 

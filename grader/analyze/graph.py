@@ -10,7 +10,7 @@ from __future__ import annotations
 from typing import cast
 
 from grader.analyze import REQUIRED, Finding, graded, register
-from grader.analyze._common import Frames, events
+from grader.analyze._common import Frames, events, own_exits
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -86,7 +86,7 @@ def _why_absent(frames: Frames, name: str, seen: list[str]) -> str:
                    if not e.get("node_name") or _full(e.get("node_name") or "") == name]
     if not mine and unavailable:
         return f"{unavailable[0].get('process')} could not be started"
-    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") in mine and not e.get("stopped_by_grader")]
+    exits = [e for e in own_exits(frames) if e.get("process") in mine]
     if exits:
         code = exits[0].get("returncode")
         return (f"{exits[0].get('process')} crashed with exit code {code}" if code not in (0, None)

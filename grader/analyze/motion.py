@@ -33,11 +33,10 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, provenance, register
 from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.analyze._common import (events, sim_pose, sim_tick_times, Frames, fmt, held_mask,
+from grader.analyze._common import (own_exits, sim_pose, sim_tick_times, Frames, fmt, held_mask,
                                     missing_topic_feedback, rosout_lines, scenario_end_time, thin, times, topic)
 from grader.spec.world import WORLD_SIZE_M
 from grader.analyze.rate import rate_stats
-from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -249,9 +248,8 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
     # how much of that stop the recording holds depends only on how soon the run ended after the
     # crash (wall_pen's hits_wall.flip_sign: moving 90 % in one run, 100 % in two, the same
     # crash). It drove the turtle if the commands ended with it (a bystander's crash does not count)
-    crashes = [e for e in events(frames, Event.PROCESS_EXIT)
-               if not e.get("stopped_by_grader") and e.get("returncode") not in (0, None)
-               and ct[-1] <= e["t"] + p["max_gap_s"]]          # events() gives every event its t
+    crashes = [e for e in own_exits(frames)
+               if e.get("returncode") not in (0, None) and ct[-1] <= e["t"] + p["max_gap_s"]]
     if crashes:
         first = min(crashes, key=lambda e: e["t"])
         ev["crashed"] = f"{first.get('process')} (exit code {first.get('returncode')})"

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence, cast
 
-from grader.analyze._common import events, stdout_lines
+from grader.analyze._common import events, own_exits, stdout_lines
 from grader.errors import GraderError
 from grader.grading.repeat import exact_lockstep, repeated_finding, run_folders, run_until_settled, settles_check
 from grader.scenario.events import Event
@@ -139,17 +139,16 @@ def _crashed_nodes(frames: dict) -> list[str]:
     starts = sorted((float(e["t"]), str(e.get("step"))) for e in events(frames, Event.STEP_START)
                     if e.get("step") is not None and e.get("t") is not None)
     out = []
-    for e in events(frames, Event.PROCESS_EXIT):
-        if not e.get("stopped_by_grader"):
-            name = e.get("process", "?")
-            tail = last_line.get(name, "")
-            code = e.get("returncode")
-            # the step it died in: the rubric's scenario description says what that step sends
-            step = [s for t, s in starts if e.get("t") is not None and t <= float(e["t"])]
-            when = f" during step '{step[-1]}'" if step else ""
-            what = (f"{name} returned on its own (exit code 0){when} while the scenario ran: does it keep spinning?"
-                    if code == 0 else f"{name} crashed (exit code {code}){when}")
-            out.append(what + (f" ({tail[:160]})" if tail else ""))
+    for e in own_exits(frames):
+        name = e.get("process", "?")
+        tail = last_line.get(name, "")
+        code = e.get("returncode")
+        # the step it died in: the rubric's scenario description says what that step sends
+        step = [s for t, s in starts if t <= e["t"]]
+        when = f" during step '{step[-1]}'" if step else ""
+        what = (f"{name} returned on its own (exit code 0){when} while the scenario ran: does it keep spinning?"
+                if code == 0 else f"{name} crashed (exit code {code}){when}")
+        out.append(what + (f" ({tail[:160]})" if tail else ""))
     if out and limits:
         out.append("limit reached: " + "; ".join(dict.fromkeys(m for m in limits if m)))
     return out
