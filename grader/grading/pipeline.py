@@ -136,8 +136,8 @@ def _crashed_nodes(frames: dict) -> list[str]:
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
     limits = [str(e.get("detail") or e.get("limit") or e.get("what") or "") for e in events(frames, Event.LIMIT_HIT)]
-    starts = sorted((float(e["t"]), str(e.get("step"))) for e in events(frames, Event.STEP_START)
-                    if e.get("step") is not None and e.get("t") is not None)
+    starts = sorted((e["t"], str(e["step"])) for e in events(frames, Event.STEP_START)     # every event has a t
+                    if e.get("step") is not None)
     out = []
     for e in own_exits(frames):
         name = e.get("process", "?")
