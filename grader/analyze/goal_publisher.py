@@ -16,7 +16,8 @@ import numpy as np
 
 from grader.analyze import Finding, register
 from grader.analyze.evidence import SHARE, TIME
-from grader.analyze._common import (Frames, events, missing_topic_feedback, stdout_lines, times, topic)
+from grader.analyze._common import (Frames, events, missing_topic_feedback, own_exits, stdout_lines, times,
+                                    topic)
 from grader.scenario.events import Event
 
 
@@ -155,8 +156,7 @@ _TRACEBACK = re.compile(r"^\s*(Traceback \(most recent call last\)|\w+(Error|Exc
 def _exits_and_traceback(frames: Frames, proc: str | None, bad: dict) -> tuple[list[dict], list[str]]:
     """The process's own exits (not the grader's stopping it) from the malformed line ``bad`` on,
     and the traceback lines it printed from then."""
-    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") == proc and e["t"] >= bad["t"]
-             and not e.get("stopped_by_grader")]
+    exits = [e for e in own_exits(frames) if e.get("process") == proc and e["t"] >= bad["t"]]
     out = stdout_lines(frames)
     tb: list[str] = []
     if len(out):
