@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "dds" / "fastdds_profile.xml"
+#: the reference simulator's own: the same discovery, readers that repair a lost request at once
+SIMULATOR_DDS_PROFILE = FASTDDS_PROFILE.with_name("fastdds_profile_simulator.xml")
 PY_SITE = f"lib/python{sys.version_info.major}.{sys.version_info.minor}/site-packages"
 
 
@@ -149,3 +151,13 @@ def child_env(*, domain_id: int | None = None, prefixes: Iterable[Path] = (),
     if extra:
         env.update(extra)
     return env
+
+
+def simulator_env(env: Mapping[str, str]) -> dict[str, str]:
+    """What the reference simulator's process gets on top of the graph's ``env``: its own Fast DDS
+    profile (``SIMULATOR_DDS_PROFILE``: readers that repair a request lost to discovery at once,
+    so a lockstep tick does not go on before it) where the graph uses the grader's profile; a
+    profile of the machine's own (a lab's FASTRTPS_DEFAULT_PROFILES_FILE) is left as it is."""
+    if env.get("FASTDDS_DEFAULT_PROFILES_FILE") or env.get("FASTRTPS_DEFAULT_PROFILES_FILE") != str(FASTDDS_PROFILE):
+        return {}
+    return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(SIMULATOR_DDS_PROFILE)}

@@ -218,8 +218,10 @@ class CgroupSet:
     def pids(self) -> set[int]:
         found: set[int] = set()
         for d in self.dirs.values():
-            for sub in [d, *sorted(p for p in d.rglob("*") if p.is_dir())]:
-                found.update(_read_pids(sub / "cgroup.procs"))
+            # os.walk passes over a group removed while it lists (another grader's sweep of the
+            # same stale group, or the group's own end); rglob raised there and ended the batch
+            for sub, _groups, _files in os.walk(d):
+                found.update(_read_pids(Path(sub) / "cgroup.procs"))
         return found
 
     def kill(self, timeout_s: float = 5.0) -> int:

@@ -38,6 +38,7 @@ from typing import Any, Callable
 
 from grader.scenario.cpuwait import TreeCpu
 from grader.scenario.quiescence import Quiescence
+from grader.scenario.simtime import LOCKSTEP_WALL_FACTOR
 from grader.sim.clock import HOLD_SERVICE, STEP_CLOCK_SERVICE, STEP_WORLD_SERVICE, TICK_NS, hold_point
 
 #: wall seconds a tick waits for every process to be quiet before it goes on regardless
@@ -47,7 +48,10 @@ STEP_WAIT_S = 10.0
 #: ticks that went on without quiet before the lockstep run is given up
 MAX_QUIET_TIMEOUTS = 5
 #: a lockstep run is given up, and runs on the wall clock, once its ticks take more than
-#: ``MAX_SLOWDOWN`` times their simulated time of wall time *and* its processes (the simulator's
+#: ``MAX_SLOWDOWN`` times their simulated time of wall time (the factor of a wait's own wall limit,
+#: ``LOCKSTEP_WALL_FACTOR``: slower, its step would be cut short anyway, and a cut run is not
+#: exact; at 8, that node's run was given up at its tick 3968 of 4033, at 8.2 times, two gradings
+#: side by side, where it would have ended exact) *and* its processes (the simulator's
 #: and the students', not the driver's) used more than ``MAX_CPU_PER_SIM_S`` CPU seconds per
 #: simulated second since its first tick, from ``SLOW_AFTER_TICKS`` on: slow, and slow because
 #: of its own nodes, not the machine's load. A node that keeps waking the others (wall_pen's
@@ -61,7 +65,7 @@ MAX_QUIET_TIMEOUTS = 5
 #: of an executor that spins (chase's correct ``alt_multithreaded``, rclpy's busy loop under
 #: ``/clock`` at times: 0.4 at load 9-26, 1.1 in one fixture batch and 0.09 in the next, with its
 #: ticks fast in both).
-MAX_SLOWDOWN = 8.0
+MAX_SLOWDOWN = LOCKSTEP_WALL_FACTOR
 MAX_CPU_PER_SIM_S = 1.5
 SLOW_AFTER_TICKS = 250
 #: ticks between two readings of the processes' CPU (62: about one simulated second)

@@ -270,6 +270,7 @@ def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dic
                        scale: float | None) -> ManagedProcess | None:
     """The reference simulator (with the clock on simulated time), or without one on simulated
     time ``grader_clock``; returns the simulator's process (None without a simulator)."""
+    from grader.rosenv import simulator_env
     from grader.sim import sim_argv
 
     if run.scenario.sim:
@@ -277,7 +278,7 @@ def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dic
         record["canvas"] = str(canvas)
         return graph.start(ProcessSpec("turtlesim", sim_argv(
             canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale,
-            pose_record=out / SIM_RECORD, lockstep=run.lockstep)))
+            pose_record=out / SIM_RECORD, lockstep=run.lockstep), env=simulator_env(graph.env)))
     if scale:
         graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
     return None
