@@ -70,12 +70,18 @@ def python_argv(module: str, *args: str) -> list[str]:
     return [sys.executable, "-m", module, *args]
 
 
+def die_with_parent() -> None:
+    """Between fork and exec: the kernel kills this child when the thread that started it ends
+    (the grader killed, a batch stopped by Slurm or Gradescope), so nothing it started runs on."""
+    if _LIBC is not None:
+        _LIBC.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+
+
 def _preexec(spec: "ProcessSpec", prepared: Prepared | None = None) -> None:
     """Runs in the child between fork and exec: new session, die with parent, rlimits, and the
     sandbox's own steps (join the scenario's cgroup)."""
     os.setsid()
-    if _LIBC is not None:
-        _LIBC.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    die_with_parent()
     limits = spec.limits
     pairs = [(resource.RLIMIT_CPU, limits.cpu_s),
              (resource.RLIMIT_AS, limits.memory_mb and limits.memory_mb * 2**20),

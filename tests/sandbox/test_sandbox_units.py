@@ -286,3 +286,36 @@ def test_listing_a_groups_members_passes_over_a_group_removed_meanwhile(tmp_path
     finally:
         stop.set()
         thread.join()
+
+
+def test_a_scenario_child_dies_with_the_grader_killed_outright(tmp_path: Path) -> None:
+    """``run_scenario`` starts its child from a batch's worker thread, in a session of its own; a
+    grader killed with SIGKILL left it running, a lockstep drive up to 1000 s beside the next
+    batch. Started the same way (``die_with_parent``, from a thread that waits on it), the child
+    goes with the grader."""
+    import signal
+    import time
+
+    script = ("import subprocess, sys, threading\n"
+              "from grader.runner import die_with_parent\n"
+              "def start():\n"
+              "    p = subprocess.Popen(['sleep', '120'], start_new_session=True, preexec_fn=die_with_parent)\n"
+              "    print(p.pid, flush=True)\n"
+              "    p.wait()\n"
+              "threading.Thread(target=start).start()\n")
+    grader = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True, cwd=REPO)
+    child = int(grader.stdout.readline())
+    assert Path(f"/proc/{child}").exists()
+    grader.send_signal(signal.SIGKILL)
+    grader.wait(10)
+    deadline = time.monotonic() + 5
+    while Path(f"/proc/{child}").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    try:
+        assert not Path(f"/proc/{child}").exists() or \
+            Path(f"/proc/{child}/stat").read_text().split()[2] == "Z"
+    finally:
+        try:
+            os.kill(child, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
