@@ -107,6 +107,7 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
     if CANCELLED.is_set():
         raise KeyboardInterrupt
     t0 = time.monotonic()
+    from grader.runner import die_with_parent      # (grader.runner imports this package's model)
     from grader.sandbox import ScenarioSandbox     # namespaces + cgroups; see grader/sandbox
 
     sandbox = ScenarioSandbox(prefixes=run.prefixes, env=env, memory_mb=run.scenario.limits.memory_mb,
@@ -116,8 +117,6 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
     env = trusted_env(env, [Path(p) for p in run.prefixes], [Path(p) for p in run.interfaces])
     with sandbox, open(out / "scenario.log", "wb") as log:
         argv = sandbox.argv([sys.executable, "-m", "grader.scenario.run", str(run_file), str(out)])
-        from grader.runner import die_with_parent
-
         # a grader killed outright (SIGKILL, a scheduler's limit) takes its scenarios with it: they
         # ran on for up to their wall limit otherwise (a lockstep drive: 1000 s), beside the next batch
         proc = subprocess.Popen(argv, env=sandbox.env(env), stdout=log, stderr=subprocess.STDOUT,
