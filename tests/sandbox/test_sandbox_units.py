@@ -118,7 +118,12 @@ def test_an_installed_grader_package_inside_a_bound_tree_is_covered(tmp_path: Pa
     """A non-editable install puts the grader in the venv's site-packages, which student code
     needs (rclpy): the package directory is covered by an empty tmpfs, its siblings stay."""
     require_protections("filesystem")
-    jail = Jail(bwrap=probe().bwrap, ro=(str(REPO),), uid=65534 if probe().uid_drop else None)
+    # the checkout stands in for the venv here, bound with its own mode: in a clone made in a
+    # `mktemp -d` folder (0700) the sandbox's uid cannot reach the interpreter through it (the
+    # grader binds the venv itself, whose parents bubblewrap makes), so drop the uid only where
+    # the checkout lets it through
+    drop = probe().uid_drop and bool(REPO.stat().st_mode & 0o001)
+    jail = Jail(bwrap=probe().bwrap, ro=(str(REPO),), uid=65534 if drop else None)
     code = "import os, sys; print(len(os.listdir(sys.argv[1])), os.path.exists(sys.argv[2]))"
     p = prepare(jail, [sys.executable, "-c", code, str(REPO / "grader"), str(REPO / "pyproject.toml")], {})
     done = subprocess.run(p.argv, env=p.env, cwd=p.cwd, preexec_fn=p.preexec, capture_output=True, text=True)
