@@ -28,8 +28,9 @@ from grader.sim import sim_argv
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 
 CALLS = 200
-#: a repaired request takes ~27 ms at the 20 ms heartbeat; a 3 s heartbeat cannot pass this
-LATE_S = 0.5
+#: a repair on the 20 ms heartbeat takes ~30 ms (0.32 s the slowest seen, at load 12); one on
+#: Fast DDS's 3 s heartbeat takes 3.0 s
+LATE_S = 1.5
 
 CLIENT = """
 import json, sys, time
