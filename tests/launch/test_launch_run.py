@@ -59,6 +59,11 @@ def test_include_parameters_remappings_and_timer(built, tmp_path: Path) -> None:
                if e["event"] == "node_started"}
     gap = started["app.late"] - started["app.greeter"]
     assert 0.95 < gap < 2.5, started
+    # the messages that ended the step are in the bag: `until: messages` counts from the moment
+    # the recorder has matched the publisher (the driver alone heard the first 3 before the
+    # recorder matched them, and a loaded CI machine's bag had none)
+    end = next(e["wall"] for e in map(json.loads, ev["data"]) if e["event"] == "step_end")
+    assert (frames["/chatter"]["pub_t"] <= end).sum() >= 3, (end, frames["/chatter"]["pub_t"].tolist())
     assert frames["/chatter"].index[0] > frames["/announcements"].index[0]
 
 
