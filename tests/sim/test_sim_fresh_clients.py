@@ -7,20 +7,24 @@ request, which the writer sends again on its next heartbeat. On Fast DDS's 3 s h
 40-60 such requests arrived 3.0 s late on an idle machine, 1-3 % of calls beside a grading (this
 test without the grader's setting: 1 of 200 late on each profile); under lockstep time those 3 s
 were ~4.4 simulated seconds and CI once graded the lab text's own code 13.73/20. The grader's
-profiles set 20 ms: 0 of 200 late, the slowest repairs ~30 ms. Real processes, the real
+profiles set 20 ms on the writers rmw_fastrtps gives the profile named ``client`` (requests):
+0 of 200 late, the slowest repairs ~30 ms (replies need nothing: a late one would show here too). Real processes, the real
 simulator with the profile a scenario gives it, a client process on each profile a student's node
-gets (the main one outside the sandbox, the sandbox's UDP-only one inside).
+gets (the main one outside the sandbox, the sandbox's UDP-only one inside). A second test proves
+the names reach those writers (a misspelt one would leave them on 3 s and the calls above would
+still pass most runs).
 """
 
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
 import pytest
 
-from grader.rosenv import FASTDDS_PROFILE, simulator_env
+from grader.rosenv import FASTDDS_PROFILE, SIMULATOR_DDS_PROFILE, simulator_env
 from grader.runner import ProcessSpec, RosGraph
 from grader.sandbox.jail import SANDBOX_DDS_PROFILE
 from grader.sim import sim_argv
@@ -68,3 +72,49 @@ def test_a_request_from_a_just_made_client_is_answered_at_once(tmp_path: Path, p
         trips = json.loads(out.read_text())
     late = [(i, t) for i, t in enumerate(trips) if t is None or t > LATE_S]
     assert len(trips) == CALLS and not late, f"calls answered late or never (call, seconds): {late}"
+
+
+PROBE = """
+import json, sys
+import rclpy
+from rclpy.node import Node
+from std_msgs.msg import String
+from std_srvs.srv import Empty
+
+rclpy.init(args=["probe", "--ros-args", "-p", "start_type_description_service:=false"])
+node = Node("probe", enable_rosout=False, start_parameter_services=False)   # no services of its own
+made = {}
+for kind, make in [("publisher", lambda i: node.create_publisher(String, f"topic{i}", 10)),
+                   ("client", lambda i: node.create_client(Empty, f"client{i}")),
+                   ("service", lambda i: node.create_service(Empty, f"service{i}", lambda q, r: r))]:
+    made[kind] = 0
+    for i in range(2):
+        try:
+            make(i)
+            made[kind] += 1
+        except Exception:
+            pass
+open(sys.argv[1], "w").write(json.dumps(made))
+"""
+
+
+@pytest.mark.parametrize("profile", [FASTDDS_PROFILE, SANDBOX_DDS_PROFILE, SIMULATOR_DDS_PROFILE],
+                         ids=["main", "sandbox", "simulator"])
+def test_rmw_gives_the_client_profile_to_request_writers_only(tmp_path: Path, profile: Path) -> None:
+    """The profile, with its ``heartbeatPeriod`` swapped for a fixed writer entity id: a second
+    writer that takes such a profile cannot be made (two writers of one participant with one id),
+    so what fails shows which writers take it. The second client fails; the second publisher and
+    the second service do not (they keep Fast DDS's default writer)."""
+    text = profile.read_text()
+    probe, swapped = re.subn(r"<times>\s*<heartbeatPeriod>.*?</heartbeatPeriod>\s*</times>",
+                             "<userDefinedID>3</userDefinedID><entityID>77</entityID>", text)
+    assert swapped == 1, f"{profile.name}: expected the client writers' heartbeat"
+    (tmp_path / "probe.xml").write_text(probe)
+    (tmp_path / "probe.py").write_text(PROBE)
+    out = tmp_path / "made.json"
+    with RosGraph(tmp_path / "graph") as graph:
+        proc = graph.start(ProcessSpec("probe", [sys.executable, str(tmp_path / "probe.py"), str(out)],
+                                       env={"FASTRTPS_DEFAULT_PROFILES_FILE": str(tmp_path / "probe.xml")}))
+        proc.wait(60)
+    assert out.exists(), proc.stderr_path.read_text()[-2000:]
+    assert json.loads(out.read_text()) == {"publisher": 2, "client": 1, "service": 2}
