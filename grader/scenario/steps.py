@@ -340,8 +340,8 @@ def _messages(rt: Runtime, cond: m.Messages, state: StepState) -> Predicate:
     """Counts from the step's start, or from the moment the recorder has matched every publisher
     of the topic if that comes later: the messages that end the step are in the bag. (Counting
     what the driver heard ended a step on a 10 Hz talker's first 3 messages 0.6 s after it
-    started, while the recorder, another participant, matched it 0.08 s after that; on a loaded
-    CI machine the bag then had no message of the topic at all.)"""
+    started, and the recorder, another participant, recorded its first message 0.08 s after
+    that; on a loaded CI machine the bag then had no message of the topic at all.)"""
     driver, topic = rt.driver, cond.topic
     driver.count_messages(topic, None, wait_s=0.0)
     base = [driver.counts.get(topic, 0)] if driver.topic_recorded(topic) else []
