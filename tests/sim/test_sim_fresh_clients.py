@@ -8,11 +8,11 @@ request, which the writer sends again on its next heartbeat. On Fast DDS's 3 s h
 test without the grader's setting: 1 of 200 late on each profile); under lockstep time those 3 s
 were ~4.4 simulated seconds and CI once graded the lab text's own code 13.73/20. The grader's
 profiles set 20 ms on the writers rmw_fastrtps gives the profile named ``client`` (requests):
-0 of 200 late, the slowest repairs ~30 ms (replies need nothing: a late one would show here too). Real processes, the real
-simulator with the profile a scenario gives it, a client process on each profile a student's node
-gets (the main one outside the sandbox, the sandbox's UDP-only one inside). A second test proves
-the names reach those writers (a misspelt one would leave them on 3 s and the calls above would
-still pass most runs).
+0 of 200 late, the slowest repairs ~30 ms (replies need nothing: a late one would show here
+too). Real processes, the real simulator with the profile a scenario gives it, a client process
+on each profile a student's node gets (the main one outside the sandbox, the sandbox's UDP-only
+one inside). A second test proves the name reaches those writers (a misspelt one would leave
+them on 3 s and the calls above would still pass most runs).
 """
 
 from __future__ import annotations
