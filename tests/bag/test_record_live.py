@@ -168,6 +168,8 @@ def test_late_topics_qos_adaptation_and_service_events(graph, tmp_path: Path) ->
     # publishes before anyone listens; transient local keeps the samples for a late subscriber
     tl = loadgen(graph, "tl", "turtlesim/msg/Pose", ["/latched"], rate=200, count=10,
                  extra=["--transient-local", "--wait-subscribers", "0", "--linger", "2.0"])
+    # calls its own service once the recorder subscribes the events (transient local, so a
+    # subscription that matches a moment later still gets all of them)
     sv = loadgen(graph, "sv", "turtlesim/msg/Pose", ["/with_service"], rate=50, count=5,
                  extra=["--service-calls", "3"])
     for p in (be, tl, sv):
@@ -178,6 +180,8 @@ def test_late_topics_qos_adaptation_and_service_events(graph, tmp_path: Path) ->
               for e in meta["topics_with_message_count"]}
     assert [q["reliability"] for q in offers["/be"]] == ["best_effort"]
     assert [q["durability"] for q in offers["/latched"]] == ["transient_local"]
+    # two event publishers (the service's and the client's), each offer kept
+    assert [q["durability"] for q in offers["/loadgen/teleport/_service_event"]] == ["transient_local"] * 2
     frames = load_frames(bag)
     assert frames["/be"]["x"].tolist() == [float(i) for i in range(25)]
     assert frames["/latched"]["x"].tolist() == [float(i) for i in range(10)]
