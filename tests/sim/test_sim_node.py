@@ -320,9 +320,10 @@ def test_wall_clamps_and_warns_on_rosout(client: Client) -> None:
 def test_set_pen_teleports_and_color_sensor(client: Client) -> None:
     client.spawn("pen", 2.0, 2.0, 0.0)
     events: list[Any] = []
-    client.node.create_subscription(TeleportAbsolute.Event, "/pen/teleport_absolute/_service_event",
-                                    events.append, 10)
-    client.spin_for(0.3)
+    sub = client.node.create_subscription(TeleportAbsolute.Event, "/pen/teleport_absolute/_service_event",
+                                          events.append, 10)
+    # the events are volatile: call only once DDS has matched the simulator's event writer
+    assert client.spin_until(lambda: sub.get_publisher_count() >= 1)
     client.call(SetPen, "/pen/set_pen", SetPen.Request(r=255, g=0, b=0, width=5, off=0))
     client.call(TeleportAbsolute, "/pen/teleport_absolute", TeleportAbsolute.Request(x=4.0, y=2.0))
     assert (client.fresh_pose("pen").x, client.fresh_color("pen")) == (4.0, (255, 0, 0))
