@@ -334,7 +334,7 @@ def main() -> int:
         copies, made = make_class(out, args.n, args.copies)
         print(f"class of {args.n} made in {time.perf_counter() - t0:.1f} s ({len(copies)} copies of "
               f"{len(set(copies.values()))} submissions); load average {os.getloadavg()[0]:.1f}")
-        from grader.grading.pipeline import scenario_frames
+        from grader.grading.analysis import scenario_frames
         spent = 0.0
         for sc_dir in sorted((Path(tmp) / "reference-regrade" / "reference" / "scenarios").iterdir()):
             frames = scenario_frames(sc_dir)

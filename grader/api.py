@@ -226,7 +226,8 @@ def regrade(path: PathLike, rubric: PathLike | Rubric, *,
     or one submission (``OUT/<id>``). ``on_done`` gets each one as it is regraded.
     """
     from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import SCENARIOS_DIR, regrade_submission
+    from grader.grading.analysis import SCENARIOS_DIR
+    from grader.grading.pipeline import regrade_submission
 
     loaded = _rubric(rubric)
     path = Path(path)
@@ -257,7 +258,7 @@ def read_frames(path: PathLike, topics: Sequence[str] | None = None) -> dict[str
     of a bag (naming one the bag lacks is an error).
     """
     from grader.bag.frames import load_frames
-    from grader.grading.pipeline import scenario_frames
+    from grader.grading.analysis import scenario_frames
 
     where = Path(path)
     if not where.exists():
@@ -274,7 +275,7 @@ def analyze(rubric: PathLike | Rubric, item_id: str,
     :func:`read_frames`), as grading runs it: the item's parameters over the analyzer's
     defaults; never raises for the recording's sake (an analysis that cannot happen is an
     ``error`` finding). Scoring (partial credit, ``requires``, the contract) is not applied."""
-    from grader.grading.pipeline import analyze_item
+    from grader.grading.analysis import analyze_item
 
     loaded = _rubric(rubric)
     try:

@@ -25,7 +25,7 @@ the accepted ones with ``file:line`` errors, whichever source defined the analyz
 Every process that analyzes gets the same analyzers: built-ins and entry points are loaded by the
 first ``grader.analyze.get``/``names``; a rubric's files by ``load_rubric`` (grade, regrade, check,
 gradescope-run all load their rubric with it) and again, idempotently, by
-``grader.grading.pipeline.analyze_bags`` for a Rubric built another way. The scenario child
+``grader.grading.analysis.analyze_bags`` for a Rubric built another way. The scenario child
 analyzes nothing (it records), so it loads none.
 """
 

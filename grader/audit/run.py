@@ -248,7 +248,8 @@ def _with_untouched_support(rubric: Any, reference: Path, chosen: list[Mutant]) 
 def _regrade_all(rubric: Any, graded: Path, ids: list[str], say: Callable[[str], None]) -> None:
     """Analyze and score the recorded mutants again (no ROS); refuse recordings of a scenario
     that is not the rubric's any more."""
-    from grader.grading.pipeline import SCENARIOS_DIR, regrade_submission
+    from grader.grading.analysis import SCENARIOS_DIR
+    from grader.grading.pipeline import regrade_submission
     from grader.scenario.model import Scenario
 
     stale = []

@@ -21,7 +21,7 @@ from typing import Any
 def scenario_recordings(sub_out: Path) -> dict[str, dict[str, Any]]:
     """``{scenario: {"key", "made_by", "reused_from"?}}`` from each ``scenario.json`` of a
     graded submission (``made_by`` None: recorded by a grader that did not note it)."""
-    from grader.grading.pipeline import SCENARIOS_DIR
+    from grader.grading.analysis import SCENARIOS_DIR
 
     out: dict[str, dict[str, Any]] = {}
     for record_file in sorted(Path(sub_out).glob(f"{SCENARIOS_DIR}/*/scenario.json")):

@@ -88,7 +88,7 @@ def settles_check(items: list, planned: int, by: str = "median") -> Callable[[li
         if by == "median" and 2 * len(folders) <= planned:
             return False            # no majority yet: not worth reading the bags
         from grader.errors import GraderError
-        from grader.grading.pipeline import analyze_item, scenario_frames
+        from grader.grading.analysis import analyze_item, scenario_frames
 
         try:
             frames = [scenario_frames(f) for f in folders]

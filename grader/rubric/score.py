@@ -242,7 +242,7 @@ def score(rubric: Rubric, findings: Mapping[str, FindingLike | None], *,
     ``findings``: item id -> Finding, or None when the analysis could not run (scenario crashed,
     bag missing); absent ids count as None. ``manual``: points a person gave to manual items.
     ``contract``: the contract names the recordings show under another name (default: the
-    ``contract`` of ``findings``, as ``grader.grading.pipeline.analyze_bags`` returns them);
+    ``contract`` of ``findings``, as ``grader.grading.analysis.analyze_bags`` returns them);
     each blocks the items that depend on it and did not pass. Unknown ids in ``findings`` are a
     programming error (ValueError); bad manual points are a user error (GraderError).
     """

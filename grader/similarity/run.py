@@ -90,7 +90,7 @@ def _scenario_features(sub_out: Path) -> list[behaviour.Feature]:
     for sc_dir in _first_runs(sub_out):
         stored = behaviour.read_fingerprint(sc_dir)
         if stored is None and (sc_dir / "bag").exists():
-            from grader.grading.pipeline import scenario_frames
+            from grader.grading.analysis import scenario_frames
 
             try:
                 behaviour.write_fingerprint(sc_dir, scenario_frames(sc_dir))

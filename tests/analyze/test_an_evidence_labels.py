@@ -13,7 +13,7 @@ import pytest
 
 import grader.analyze as A
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
-from grader.grading.pipeline import analyze_item, scenario_frames
+from grader.grading.analysis import analyze_item, scenario_frames
 from grader.rubric.load import load_rubric
 
 REPO = Path(__file__).resolve().parents[2]

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from analyze_synth import T0, events_frame, law, simulate, with_meta
-from grader.grading.pipeline import analyze_item, combine_findings
+from grader.grading.analysis import analyze_item, combine_findings
 from grader.rubric import load_rubric
 
 RUBRIC = load_rubric(Path(__file__).resolve().parents[2] / "rubrics" / "enee467_lab3.yaml")

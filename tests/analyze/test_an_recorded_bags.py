@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from grader.grading.pipeline import analyze_item, scenario_frames
+from grader.grading.analysis import analyze_item, scenario_frames
 from grader.rubric.load import load_rubric
 from grader.rubric.score import score
 

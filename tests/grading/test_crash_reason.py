@@ -16,7 +16,7 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "analyze"))
 
 from analyze_synth import T0, law, simulate, stdout_frame, string_frame, with_meta  # noqa: E402
-from grader.grading.pipeline import analyze_item  # noqa: E402
+from grader.grading.analysis import analyze_item  # noqa: E402
 from grader.rubric import load_rubric  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]

@@ -151,7 +151,7 @@ def test_the_report_and_the_class_view_show_unstable_items() -> None:
 
 
 def test_an_item_on_a_repeated_and_a_single_scenario_says_how_each_came_out() -> None:
-    from grader.grading.pipeline import combine_findings
+    from grader.grading.analysis import combine_findings
 
     item = Item.model_validate({"id": "spawn.turtle2", "title": "t", "section": {"part": 1}, "points": 3,
                                 "scenario": ["chase", "spawn"], "analyzer": "logged",
@@ -175,7 +175,7 @@ def test_an_item_on_a_repeated_and_a_single_scenario_says_how_each_came_out() ->
 
 
 def test_the_class_view_lists_an_item_whose_repeated_scenario_disagreed_with_its_other_one() -> None:
-    from grader.grading.pipeline import combine_findings
+    from grader.grading.analysis import combine_findings
     from grader.report.index import render_index
     from grader.rubric.score import Result
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from grader.grading.outputs import effective_params
-from grader.grading.pipeline import analyze_item, scenario_frames
+from grader.grading.analysis import analyze_item, scenario_frames
 from grader.report.figures import FigureContext, Plot, _FIGURES, figure, figures_for, registered
 from grader.rubric import score
 

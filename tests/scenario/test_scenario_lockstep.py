@@ -388,7 +388,7 @@ def _poses(folder: Path) -> tuple[bytes, int]:
 
 def _events(folder: Path, *names: str) -> list[tuple[float, dict]]:
     """The driver's events of these kinds, at their simulated times in the bag."""
-    from grader.grading.pipeline import scenario_frames
+    from grader.grading.analysis import scenario_frames
 
     events = scenario_frames(folder)["/grader/events"]
     out = []
@@ -408,7 +408,7 @@ def _typed(folder: Path) -> list[tuple[float, str]]:
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(pacing_build, tmp_path: Path) -> None:
-    from grader.grading.pipeline import scenario_frames
+    from grader.grading.analysis import scenario_frames
     from grader.grading.timescale import run_at_scale
     from grader.scenario import resolve
 

@@ -237,7 +237,7 @@ def ticks_scenario(package: str, executable: str) -> Scenario:
 @pytest.mark.slow
 @pytest.mark.timeout(400)
 def test_ros_timer_node_runs_at_4x_and_keeps_its_rate(pacing_build, tmp_path: Path) -> None:
-    from grader.grading.pipeline import scenario_frames
+    from grader.grading.analysis import scenario_frames
 
     run = resolve("ticks", ticks_scenario("pacers", "timer_node"), pacing_build)
     assert pacing_reason(pacing_build, run) is None
@@ -275,7 +275,7 @@ def test_sleep_paced_node_is_found_by_the_scan_and_runs_at_1x(pacing_build, tmp_
 def test_wall_paced_node_the_scan_misses_is_caught_at_run_time(pacing_build, tmp_path: Path) -> None:
     """spin_once(timeout_sec=0.5) paces by the wall clock (and wakes on every /clock): the scan
     cannot see it, the watchdog does, and the scenario is recorded again at 1x."""
-    from grader.grading.pipeline import scenario_frames
+    from grader.grading.analysis import scenario_frames
 
     run = resolve("ticks", ticks_scenario("pacers", "spin_node"), pacing_build)
     assert pacing_reason(pacing_build, run) is None

@@ -221,7 +221,7 @@ def test_every_style_starts_from_rubric_executables_and_a_cpp_node_says_what_it_
     assert missing["process"] == "cpp_node"
     assert missing["error"].startswith("package 'styles_rclcpp' failed to build: grading machine lacks rclcpp"), missing
     # an item that needed the C++ node says so, in one sentence naming what is needed
-    from grader.grading.pipeline import analyze_item
+    from grader.grading.analysis import analyze_item
     from grader.rubric import load_rubric
 
     item = load_rubric(Path(__file__).resolve().parents[2] / "rubrics" / "goal_setter.yaml").item("service.success")
