@@ -71,7 +71,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         raise GraderError(f"--time-scale must be between 1 and {MAX_TIME_SCALE:g}, got {args.time_scale:g}")
     if args.clock_only and args.time_scale is None:
         raise GraderError("--clock-only needs --time-scale K (the clock it publishes)")
-    from grader.sim.node import run  # noqa: PLC0415 - rclpy only when actually running
+    from grader.sim.process import run  # noqa: PLC0415 - rclpy only when actually running
 
     return run(ros_argv(args), canvas_out=args.canvas_out, time_scale=args.time_scale,
                clock_only=args.clock_only, pose_record=args.pose_record, lockstep=args.lockstep)

@@ -18,17 +18,15 @@ scale (:mod:`grader.sim.clock`) the node owns simulated time: every tick advance
 
 A little over the project's ~400 lines: one method per endpoint of turtlesim's interface (8
 services, the rotate action, parameters, per-turtle topics), each a few lines, kept in the one
-class that owns the node, as the C++ original keeps them.
+class that owns the node, as the C++ original keeps them. The process around the node (executor,
+signals, what it saves on exit) is :mod:`grader.sim.process`.
 """
 
 from __future__ import annotations
 
-import os
-import signal
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import rclpy
 from geometry_msgs.msg import Twist
@@ -36,7 +34,6 @@ from rcl_interfaces.msg import IntegerRange, ParameterDescriptor, ParameterEvent
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidServiceNameException, InvalidTopicNameException
-from rclpy.executors import ExternalShutdownException
 from rclpy.expand_topic_name import expand_topic_name
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.logging import LoggingSeverity
@@ -45,7 +42,6 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityP
                        qos_profile_sensor_data)
 from rclpy.serialization import serialize_message
 from rclpy.service_introspection import ServiceIntrospectionState
-from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.validate_full_topic_name import validate_full_topic_name
 from std_srvs.srv import Empty, SetBool, Trigger
@@ -53,10 +49,9 @@ from turtlesim.action import RotateAbsolute
 from turtlesim.msg import Color, Pose
 from turtlesim.srv import Kill, SetPen, Spawn, TeleportAbsolute, TeleportRelative
 
-from grader.executors import make_executor as shared_make_executor
 from grader.sim import HOLD_TURTLES_SERVICE, truth_pose_topic
 from grader.sim.canvas import Canvas
-from grader.sim.clock import STEP_CLOCK_SERVICE, STEP_WORLD_SERVICE, SimClock, make_clock_node
+from grader.sim.clock import STEP_CLOCK_SERVICE, STEP_WORLD_SERVICE, SimClock
 from grader.sim.record import PoseRecord, record_topic
 from grader.sim.physics import DEFAULT_BACKGROUND, METER, TICK_MS, RotateGoal, Turtle, World
 
@@ -478,67 +473,3 @@ class TurtlesimNode(Node):
             return None
         turtles = [(t.x * METER, t.ys * METER, t.orient) for t in self.world.ordered()]
         return self.world.canvas.save_png(target, self.background(), turtles)  # type: ignore[union-attr]
-
-
-def make_executor(context: rclpy.context.Context) -> Any:
-    """The executor of the sim: ``GRADER_SIM_EXECUTOR`` = ``events`` (default) or ``single``.
-
-    EventsExecutor keeps the 16 ms cadence on a loaded 2-core machine with 20 turtles, where the
-    SingleThreadedExecutor rebuilds its wait set from ~200 entities on every wake.
-    """
-    return shared_make_executor(context, os.environ.get("GRADER_SIM_EXECUTOR", "events"))
-
-
-def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = None,
-        time_scale: float | None = None, clock_only: bool = False,
-        pose_record: str | Path | None = None, lockstep: bool = False) -> int:
-    """Run the node until SIGINT/SIGTERM or ROS shutdown; save the canvas; return 0.
-
-    ``args`` is the full argv for rclpy (ROS arguments after ``--ros-args``). ``time_scale``:
-    simulated time K times faster than the wall clock, published on ``/clock``;
-    ``clock_only``: no turtles, only the clock (node ``grader_clock``); ``pose_record``: the
-    file of :mod:`grader.sim.record`.
-    """
-    context = rclpy.Context()
-    rclpy.init(args=list(args) if args is not None else None, context=context,
-               signal_handler_options=SignalHandlerOptions.NO)
-    stop = {"flag": False}
-
-    def _request_stop(_signum: int, _frame: Any) -> None:
-        stop["flag"] = True
-
-    previous = {sig: signal.signal(sig, _request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
-    node = None
-    executor = None
-    try:
-        if clock_only:
-            node = make_clock_node(context, time_scale or 1.0)
-        else:
-            node = TurtlesimNode(context=context, canvas_out=canvas_out, time_scale=time_scale,
-                                 pose_record=pose_record, lockstep=lockstep)
-        executor = make_executor(context)
-        executor.add_node(node)
-        while not stop["flag"] and context.ok():
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        if isinstance(node, TurtlesimNode):
-            if node.caught_up_ticks or node.resynced_ticks:
-                print(f"turtlesim: ran {node.caught_up_ticks} timer ticks late, dropped "
-                      f"{node.resynced_ticks} after long stalls", file=sys.stderr)
-            try:
-                node.save_canvas()
-            except OSError as exc:
-                print(f"turtlesim: could not save canvas: {exc}", file=sys.stderr)
-            if node.pose_record is not None:
-                node.pose_record.close()
-        if executor is not None:
-            executor.shutdown(timeout_sec=1.0)
-        if node is not None:
-            node.destroy_node()
-        if context.ok():
-            rclpy.shutdown(context=context)
-    return 0
