@@ -91,7 +91,8 @@ def parts() -> None:
 def _scenario(tmp: Path, i: int, sandbox: bool) -> tuple[float, float]:
     from grader.bag.frames import load_frames
     from grader.scenario import run_scenario
-    from grader.scenario.model import LaunchedProcess, Scenario, ScenarioRun
+    from grader.scenario.model import Scenario
+    from grader.scenario.runspec import LaunchedProcess, ScenarioRun
 
     prefix = tmp / "build" / "install" / "bench"
     (prefix / "lib").mkdir(parents=True, exist_ok=True)

@@ -27,7 +27,7 @@ import shutil
 from pathlib import Path
 from typing import Any, Iterable
 
-from grader.scenario.model import RateExpectation, ScenarioRun
+from grader.scenario.runspec import RateExpectation, ScenarioRun
 
 #: calls (and attributes) that read or wait on the wall clock; a node using any of them is not
 #: run faster than real time

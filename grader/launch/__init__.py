@@ -1,7 +1,7 @@
 """Student launch files: what a rubric's ``launch:`` process starts.
 
 ``resolve_launch`` turns ``{package: turtle_goal, launch: goal.launch.py}`` into the OS processes
-the scenario child starts (:class:`~grader.scenario.model.LaunchedProcess`), at resolution time,
+the scenario child starts (:class:`~grader.scenario.runspec.LaunchedProcess`), at resolution time,
 in the parent, so ``run.json`` shows exactly what will run:
 
 * Without a system ROS 2 (PyPI wheels have no ``launch``/``launch_ros``), the launch file is run
@@ -27,7 +27,8 @@ from pathlib import Path
 from typing import Any, cast
 
 from grader.errors import GraderError
-from grader.scenario.model import LaunchedProcess, Process, param_text
+from grader.scenario.model import Process, param_text
+from grader.scenario.runspec import LaunchedProcess
 
 DESCRIBE_TIMEOUT_S = 30.0
 SIM_PACKAGE, SIM_EXECUTABLE = "turtlesim", "turtlesim_node"

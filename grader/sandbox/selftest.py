@@ -40,7 +40,8 @@ sys.exit(0 if len(got) >= 10 else 1)
 
 def sandbox_selftest(timeout_s: float = 30.0) -> tuple[bool, str]:
     from grader.scenario import run_scenario
-    from grader.scenario.model import LaunchedProcess, Scenario, ScenarioRun
+    from grader.scenario.model import Scenario
+    from grader.scenario.runspec import LaunchedProcess, ScenarioRun
 
     from grader.sandbox.probe import protections
 

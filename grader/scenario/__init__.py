@@ -1,7 +1,7 @@
 """Scenarios: run a submission's nodes against the reference simulator while recording a bag.
 
 The parent side (this module) resolves a rubric scenario against a build (:func:`resolve`: the
-argv of every process, a launch file's nodes) into a :class:`~grader.scenario.model.ScenarioRun`
+argv of every process, a launch file's nodes) into a :class:`~grader.scenario.runspec.ScenarioRun`
 and runs it in a child process (``grader.scenario.run``) with the build's environment and a
 wall-clock limit.
 """
@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from grader.errors import GraderError
-from grader.scenario.model import LaunchedProcess, PackageFacts, Scenario, ScenarioRun
+from grader.scenario.model import Scenario
+from grader.scenario.runspec import LaunchedProcess, PackageFacts, ScenarioRun
 
 __all__ = ["Scenario", "ScenarioRun", "resolve", "run_scenario", "cancel_all", "CANCELLED"]
 

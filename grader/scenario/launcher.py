@@ -18,7 +18,8 @@ from typing import Any, Sequence
 
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
 from grader.scenario.events import Event
-from grader.scenario.model import LaunchedProcess, Limits, Process, ScenarioRun
+from grader.scenario.model import Limits, Process
+from grader.scenario.runspec import LaunchedProcess, ScenarioRun
 
 #: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles
 #: SIGINT itself) and would otherwise cost the full default grace at the end of every scenario

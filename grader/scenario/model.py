@@ -1,8 +1,9 @@
 """The scenario model: what to start, what to send, when a step is over. One model, three users.
 
 A rubric's ``scenarios:`` section is validated into these classes (``grader.rubric.load``), the
-grading pipeline hands them, as they are, to the scenario child process (serialised with
-``model_dump_json`` and read back with :func:`ScenarioRun.model_validate_json`), and the child
+grading pipeline hands them, as they are, to the scenario child process (inside a
+:class:`grader.scenario.runspec.ScenarioRun`, serialised with ``model_dump_json`` and read back
+with ``ScenarioRun.model_validate_json``), and the child
 dispatches every step action and every ``until`` condition on its class. So a field has one name
 everywhere, and what a rubric can say is exactly what the runner does; what it cannot say,
 validation rejects (the loader turns each rejection into ``file:line: field: message``).
@@ -428,70 +429,3 @@ class Scenario(Model):
             out.append(("limits.wall_s", f"the steps may take up to {self.budget_s:g} s (start delays + "
                         f"step limits) but wall_s is {self.limits.wall_s:g}; raise it or shorten the steps"))
         return out
-
-
-# ------------------------------------------------------------------ what the scenario child reads
-class LaunchedProcess(Model):
-    """One OS process the child starts for a rubric process (a launch file gives several)."""
-
-    name: str                          # unique in the scenario: "server", "app.goal_setter"
-    process: str                       # the rubric process it belongs to
-    argv: Annotated[tuple[str, ...], Field(strict=False)] = ()
-    env: dict[str, str] = {}
-    start_delay: NonNegativeFloat = 0.0   # after its rubric process started (launch TimerAction)
-    node_name: str | None = None       # the node name a launch file gave it
-    package: str | None = None         # what a launch file declared (for "starts these nodes")
-    executable: str | None = None
-    stand_in: bool = False             # played by the grader's reference simulator: not started
-    error: str = ""                    # why it cannot run (build failed, no such executable...)
-
-
-class RateExpectation(Model):
-    """A publish rate the rubric expects on a topic (a ``publish_rate`` item of the scenario):
-    on simulated time the watchdog checks that the student's node keeps it in simulated time."""
-
-    topic: RosName
-    expected_hz: PositiveFloat
-    rel_tol: PositiveFloat = 0.3
-
-
-class PackageFacts(Model):
-    """What the build made of one package of the submission: the names a contract may fix."""
-
-    status: str                        # built | failed | skipped
-    executables: Annotated[tuple[str, ...], Field(strict=False)] = ()
-    launch_files: Annotated[tuple[str, ...], Field(strict=False)] = ()
-    #: executables it installed under another package's lib/ folder (``lib/<other>/<name>``)
-    stray_executables: Annotated[tuple[str, ...], Field(strict=False)] = ()
-
-
-class ScenarioRun(Model):
-    """What crosses to the scenario child: the rubric's scenario as it is, plus what the parent
-    resolved against the build (argv of every process, install prefixes, the simulator's name)
-    and how fast to run it (``time_scale`` > 1: on simulated time, see grader.scenario.simtime;
-    ``lockstep``: on the simulator's lockstep clock, see grader.scenario.lockstep)."""
-
-    id: str
-    scenario: Scenario
-    launched: dict[str, Annotated[tuple[LaunchedProcess, ...], Field(strict=False)]]  # rubric process -> OS processes
-    prefixes: Annotated[tuple[str, ...], Field(strict=False)] = ()
-    #: the grader's own builds of the build's interface packages: the only student types grader
-    #: processes import (``grader.workspace.trusted_interfaces``)
-    interfaces: Annotated[tuple[str, ...], Field(strict=False)] = ()
-    sim_node: str = "turtlesim"
-    notes: dict[str, Annotated[tuple[str, ...], Field(strict=False)]] = {}  # process -> remarks (launch)
-    launch_installed: dict[str, bool] = {}   # process -> its launch file is in the package's share
-    time_scale: Annotated[float, Field(ge=1.0, le=16.0, strict=False)] = 1.0   # 1: the wall clock
-    lockstep: bool = False                   # run on the simulator's lockstep clock (grader.scenario.lockstep)
-    expected_rates: Annotated[tuple[RateExpectation, ...], Field(strict=False)] = ()   # watchdog
-    packages: dict[str, PackageFacts] = {}   # the build's packages (``packages`` event: contract names)
-    launch_files: dict[str, str] = {}        # process -> the launch file found for its ``launch:``
-
-    @property
-    def wall_limit_s(self) -> float:
-        """Wall seconds the scenario's processes may run: the scenario's limit, times
-        ``LOCKSTEP_WALL_FACTOR`` in lockstep (a tick may take longer than 16 ms of wall time
-        on a busy machine; a process that keeps it from ticking ends the lockstep run first)."""
-        from grader.scenario.simtime import LOCKSTEP_WALL_FACTOR
-
-        return self.scenario.time_limit_s * (LOCKSTEP_WALL_FACTOR if self.lockstep else 1.0)

@@ -1,6 +1,6 @@
 """Scenario child process: ``python -m grader.scenario.run RUN.json OUT_DIR``.
 
-Runs one scenario (a :class:`grader.scenario.model.ScenarioRun`) in its own isolated ROS graph:
+Runs one scenario (a :class:`grader.scenario.runspec.ScenarioRun`) in its own isolated ROS graph:
 recorder first (so it sees everything; a thread of this process, see
 ``grader.bag.recorder_thread``), then the reference simulator, the driver, the student's
 processes, the steps; then stops the student's processes, the simulator (which saves its canvas)
@@ -36,7 +36,7 @@ from grader.scenario.cpuwait import cpu_wait
 from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 from grader.scenario.launcher import FIRST_CLOCK_S, Launcher
 from grader.scenario.lockstep import LockstepFailed
-from grader.scenario.model import ScenarioRun
+from grader.scenario.runspec import ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
 from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
 

@@ -27,6 +27,7 @@ from grader.scenario.lockstep import LockstepFailed
 from grader.scenario.pacing import Pacer
 from grader.scenario.placement import (SPAWN_SERVICE, SPAWN_TYPE, TELEPORT_TYPE, handoff_topic, place_and_hold,
                                       placement_topic, teleport_service)
+from grader.scenario.runspec import ScenarioRun
 
 
 @dataclass
@@ -45,7 +46,7 @@ class StepState:
 class Runtime:
     """What handlers need besides the driver: the scenario, its processes, how to start them."""
 
-    def __init__(self, driver: Driver, run: m.ScenarioRun,
+    def __init__(self, driver: Driver, run: ScenarioRun,
                  start: Callable[[str], list[str]], members: dict[str, list[str]]) -> None:
         self.driver = driver
         self.run = run

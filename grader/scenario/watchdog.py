@@ -38,7 +38,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from grader.scenario.model import RateExpectation
+from grader.scenario.runspec import RateExpectation
 from grader.sim.clock import CLOCK_TOPIC
 
 #: intervals longer than this many expected periods are pauses, not the rate

@@ -53,7 +53,8 @@ def run_hostile(prefix: Path, out: Path, procs: dict[str, list[str]], *, wait_s:
     """One scenario whose student processes are ``SCRIPT ARGS`` from the fake build's lib folder
     (``procs``: name -> [script, args...])."""
     from grader.scenario import run_scenario
-    from grader.scenario.model import LaunchedProcess, Scenario, ScenarioRun
+    from grader.scenario.model import Scenario
+    from grader.scenario.runspec import LaunchedProcess, ScenarioRun
 
     lib = prefix / "lib" / "hostile"
     scenario = Scenario.model_validate({

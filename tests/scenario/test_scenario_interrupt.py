@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from grader.scenario import run as scenario_run
-from grader.scenario.model import Scenario, ScenarioRun, Step
+from grader.scenario.model import Scenario, Step
+from grader.scenario.runspec import ScenarioRun
 
 
 @pytest.mark.ros

@@ -16,7 +16,8 @@ import pytest
 
 from grader.grading.timescale import pacing_reason, run_at_scale, scan_source
 from grader.scenario import resolve, run_scenario
-from grader.scenario.model import RateExpectation, Scenario
+from grader.scenario.model import Scenario
+from grader.scenario.runspec import RateExpectation
 from grader.scenario.watchdog import RateWatchdog, off_rate, rate
 
 HERE = Path(__file__).resolve().parent
