@@ -31,7 +31,8 @@ from scipy import stats
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import ROSOUT, Frames, meta_row, stdout_lines, thin, topic
 from grader.analyze.evidence import SHARE
-from grader.analyze.boxmuller_pairing import (COMMON_DEFAULTS, FORMULAS, _examples, _inputs, _no_output_finding, _pair_series,
+from grader.analyze.boxmuller_formulas import FORMULAS
+from grader.analyze.boxmuller_pairing import (COMMON_DEFAULTS, _examples, _inputs, _no_output_finding, _pair_series,
                                               _sources, _unanswered, select)
 
 #: labels and units of the evidence (see grader.analyze.evidence)

@@ -7,7 +7,8 @@ import pytest
 
 from analyze_synth import T0, check, frame, rosout_frame, stdout_frame, with_meta
 from grader.analyze import get
-from grader.analyze.boxmuller_pairing import FORMULAS, parse_numbers
+from grader.analyze.boxmuller_formulas import FORMULAS
+from grader.analyze.boxmuller_pairing import parse_numbers
 
 BUGS = [n for n in FORMULAS if n != "correct"]
 
