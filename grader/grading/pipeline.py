@@ -22,7 +22,7 @@ from grader.grading.repeat import run_until_settled, settles_check
 if TYPE_CHECKING:
     from grader.grading.schedule import Slots
     from grader.rubric.schema import Item, Rubric
-    from grader.rubric.score import Result
+    from grader.rubric.result import Result
     from grader.scenario.model import Scenario
 
 

@@ -13,7 +13,7 @@ from grader.errors import GraderError
 from grader.report.index import read_docs, write_index
 from grader.report.result import read_result, write_grades_csv
 from grader.rubric.schema import Rubric
-from grader.rubric.score import Result
+from grader.rubric.result import Result
 
 
 def load_results(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> dict[str, Result]:

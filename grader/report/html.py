@@ -19,7 +19,7 @@ from grader.report import readable
 from grader.report.figures import FigureContext, figures_for
 from grader.report.result import atomic_write, check_submission_id, plain_file_name
 from grader.report.style import CSS
-from grader.rubric.score import PENDING, ItemResult, Notice, Result, SectionResult
+from grader.rubric.result import PENDING, ItemResult, Notice, Result, SectionResult
 
 STATUS_LABEL = {"pass": "✓ pass", "partial": "◐ partial", "fail": "✗ fail", "error": "! not checked",
                 PENDING: "… pending"}

@@ -19,7 +19,7 @@ from typing import Any, Mapping, Sequence
 
 from grader.report.result import atomic_write, check_submission_id
 from grader.report.style import CSS, INDEX_JS
-from grader.rubric.score import ItemResult, Result
+from grader.rubric.result import ItemResult, Result
 
 NUMERIC = {"auto", "total", "time", "delta", "late"}      # right-aligned columns of the submissions table
 CATEGORIES = (("pass", "passed"), ("partial", "partly"), ("fail", "failed"), ("error", "not checked"))

@@ -19,7 +19,8 @@ from typing import Any, Iterable, Mapping
 from grader.analyze import evidence_labels, expected_text
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
 from grader.report.result import compact_number_lists
-from grader.rubric.score import ItemResult, render_template, strip_keys
+from grader.rubric.score import render_template
+from grader.rubric.result import ItemResult, strip_keys
 
 MAX_ROWS = 12
 MAX_LIST = 8

@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 from grader.errors import GraderError
 from grader.rubric.schema import Rubric, Section, SectionSpec
-from grader.rubric.score import ItemResult, Notice, Result
+from grader.rubric.result import ItemResult, Notice, Result
 from grader.spec.jsonable import jsonable
 
 RESULT_SCHEMA = 1

@@ -42,7 +42,7 @@ from grader.errors import GraderError
 from grader.report.batch import intake_docs, load_results
 from grader.report.index import read_docs
 from grader.report.result import atomic_write
-from grader.rubric.score import Result
+from grader.rubric.result import Result
 from grader.scores.errors import ScoresError
 from grader.scores.roster import Roster, Student
 

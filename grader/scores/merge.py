@@ -23,7 +23,7 @@ from grader.errors import GraderError
 from grader.report.html import write_html
 from grader.report.index import read_docs, write_index
 from grader.report.result import read_result, result_to_dict, write_grades_csv, write_result
-from grader.rubric.score import Result
+from grader.rubric.result import Result
 from grader.scores import transaction
 from grader.scores.sheet import LATE, SheetRow, read_sheet
 from grader.scores.store import (MANUAL_SCORES, ManualScore, apply_manual_scores, load_late_override,

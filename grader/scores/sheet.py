@@ -32,7 +32,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Mapping
 
-from grader.rubric.score import ItemResult, Result
+from grader.rubric.result import ItemResult, Result
 from grader.scores.csvfile import Table, read_table
 from grader.scores.errors import ScoresError
 

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 from grader.errors import GraderError
-from grader.rubric.score import PENDING, ItemResult, Result
+from grader.rubric.result import PENDING, ItemResult, Result
 
 MANUAL_SCORES = "manual_scores.json"
 STORE_SCHEMA = 1

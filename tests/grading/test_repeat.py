@@ -132,7 +132,7 @@ def test_the_rubric_loader_takes_odd_repeats_up_to_nine_and_any_for_the_worst(sp
 def test_the_report_and_the_class_view_show_unstable_items() -> None:
     from grader.report.html import render_html
     from grader.report.index import render_index
-    from grader.rubric.score import Result
+    from grader.rubric.result import Result
 
     item = Item.model_validate({"id": "ex3.timeout", "title": "gives up in time", "section": {"exercise": 3},
                                 "points": 4, "scenario": "a", "analyzer": "logged",
@@ -177,7 +177,7 @@ def test_an_item_on_a_repeated_and_a_single_scenario_says_how_each_came_out() ->
 def test_the_class_view_lists_an_item_whose_repeated_scenario_disagreed_with_its_other_one() -> None:
     from grader.grading.analysis import combine_findings
     from grader.report.index import render_index
-    from grader.rubric.score import Result
+    from grader.rubric.result import Result
 
     item = Item.model_validate({"id": "spawn.turtle2", "title": "spawns turtle2", "section": {"part": 1},
                                 "points": 3, "scenario": ["chase", "spawn"], "analyzer": "logged",

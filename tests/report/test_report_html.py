@@ -16,7 +16,7 @@ from grader.grading.outputs import effective_params
 from grader.report import render_html, write_html
 from grader.report.html import _to_fix
 from grader.rubric import score
-from grader.rubric.score import ItemResult
+from grader.rubric.result import ItemResult
 
 PNG_1x1 = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8DwHwAFBQIAX8jx0gAAAABJRU5ErkJggg==")
 

@@ -327,7 +327,7 @@ def finding_analyzer(item_id: str) -> str:
 def test_the_lab_file_draws_the_distance_figure() -> None:
     """The lab's file registers a report figure too; it draws the real evidence and ignores junk."""
     from grader.report.figures import FigureContext, figures_for
-    from grader.rubric.score import ItemResult
+    from grader.rubric.result import ItemResult
     from grader.rubric.schema import Section
 
     found = grade(simulate(p_law(0.0, 4.0, speed=0.5, stop=0.3)))

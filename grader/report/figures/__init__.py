@@ -38,7 +38,7 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
-from grader.rubric.score import ItemResult
+from grader.rubric.result import ItemResult
 
 __all__ = ["FigureContext", "Plot", "RenderedFigure", "figure", "figures_for", "registered"]
 
