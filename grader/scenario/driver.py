@@ -87,6 +87,7 @@ class Driver(GraphQueries):
                  *, time_scale: float = 1.0, clock_node: str | None = None,
                  sink: Callable[[str, bytes], None] | None = None,
                  recording_matched: Callable[[str, int], bool] | None = None,
+                 recorded_count: Callable[[str], int | None] | None = None,
                  lockstep: Callable[[], list[int]] | None = None,
                  lockstep_exclude: Callable[[], set[int]] = set) -> None:
         import rclpy
@@ -118,6 +119,9 @@ class Driver(GraphQueries):
         self.sink = sink
         #: (topic, publishers) -> the recorder's subscription is matched with that many (RecorderThread.matched)
         self.recording_matched = recording_matched
+        #: topic -> messages the recorder has written on it so far (RecorderThread.recorded), None
+        #: for a topic this recording does not take
+        self.recorded_count = recorded_count
         from rclpy.serialization import serialize_message
         self._serialize = serialize_message
         latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,

@@ -117,6 +117,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
                             clock_node=clock_node, sink=recorder.post,
                             recording_matched=lambda t, n: not recorder.records(t) or recorder.matched(t, n),
+                            recorded_count=lambda t: recorder.recorded(t) if recorder.records(t) else None,
                             lockstep=(lambda: [p.pid for p in [sim, *students.values()]
                                                if p is not None and p.alive()]) if run.lockstep else None,
                             lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None})

@@ -338,24 +338,20 @@ def _output(rt: Runtime, cond: m.Output, state: StepState) -> Predicate:
 
 
 def _messages(rt: Runtime, cond: m.Messages, state: StepState) -> Predicate:
-    """Counts from the step's start, or from the moment the recorder has matched every publisher
-    of the topic if that comes later: the messages that end the step are in the bag. (Counting
-    what the driver heard ended a step on a 10 Hz talker's first 3 messages 0.6 s after it
-    started, and the recorder, another participant, recorded its first message 0.08 s after
-    that; on a loaded CI machine the bag then had no message of the topic at all.)"""
+    """Counts the messages the recorder has written on the topic since the step began: the
+    messages that end the step are in the bag. (Counting what the driver heard ended a step on a
+    10 Hz talker's first 3 messages while the bag had none of them. Counting what it heard once
+    the recorder's subscription showed the talker matched still ended one with 2 of them in the
+    bag, on CI: DDS matches each side of a pair on its own, and the talker's writer had not yet
+    matched the recorder's reader.) A topic this recording does not take is counted as the
+    driver hears it."""
     driver, topic = rt.driver, cond.topic
     driver.count_messages(topic, None, wait_s=0.0)
-    base = [driver.counts.get(topic, 0)] if driver.topic_recorded(topic) else []
-
-    def check() -> bool:
-        n = driver.counts.get(topic, 0)
-        if not base:
-            if not driver.topic_recorded(topic):
-                return False
-            base.append(n)
-        return n - base[0] >= cond.count
-
-    return check
+    in_bag = driver.recorded_count
+    if in_bag is not None and (base := in_bag(topic)) is not None:
+        return lambda: (in_bag(topic) or 0) - base >= cond.count
+    heard = driver.counts.get(topic, 0)
+    return lambda: driver.counts.get(topic, 0) - heard >= cond.count
 
 
 def _advertised(rt: Runtime, cond: m.Advertised, state: StepState) -> Predicate:
