@@ -66,7 +66,9 @@ class Output(Model):
 
 
 class Messages(Model):
-    """At least ``count`` messages on ``topic`` since the step began."""
+    """At least ``count`` messages on ``topic`` since the step began, counted as the recorder writes
+    them, so the messages that end the step are in the recording (a topic the scenario does not
+    record: as the grader hears them)."""
 
     condition: Literal["messages"]
     topic: RosName
