@@ -97,16 +97,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.service_calls:
         _setup_service(node, service_state)
 
-    deadline = time.monotonic() + args.wait_timeout
     from rclpy.executors import SingleThreadedExecutor
+
+    from grader.testing.ros import spin_until
 
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)
-    while time.monotonic() < deadline:
-        if all(pub.get_subscription_count() >= args.wait_subscribers for pub in pubs):
-            break
-        ex.spin_once(timeout_sec=0.02)
-    else:
+    if not spin_until(ex, lambda: all(pub.get_subscription_count() >= args.wait_subscribers for pub in pubs),
+                      args.wait_timeout):
         print("TIMEOUT waiting for subscribers", flush=True)
         return 3
     print("READY", flush=True)
@@ -124,7 +122,10 @@ def main(argv: list[str] | None = None) -> int:
             time.sleep(min(wait, 0.01) if wait < 0.002 else wait - 0.001)
     elapsed = time.monotonic() - t0
     if args.service_calls:
-        if not _wait_event_subscribers(node, ex, args.wait_subscribers, deadline=time.monotonic() + args.wait_timeout):
+        # the graph shows the subscriptions; their DDS match may follow, which the events'
+        # transient-local history covers
+        if not spin_until(ex, lambda: node.count_subscribers(EVENT_TOPIC) >= args.wait_subscribers,
+                          args.wait_timeout):
             print("TIMEOUT waiting for subscribers of the service events", flush=True)
             return 3
         _call_service(node, ex, service_state, args.service_calls)
@@ -158,16 +159,6 @@ def _setup_service(node: Any, state: dict) -> None:
     cli = node.create_client(TeleportAbsolute, "/loadgen/teleport")
     cli.configure_introspection(node.get_clock(), events, ServiceIntrospectionState.CONTENTS)
     state.update(srv=srv, cli=cli, cls=TeleportAbsolute)
-
-
-def _wait_event_subscribers(node: Any, ex: Any, n: int, deadline: float) -> bool:
-    """Until the graph shows ``n`` subscriptions of the service events (their DDS match may
-    follow; the events' transient-local history covers that)."""
-    while node.count_subscribers(EVENT_TOPIC) < n:
-        if time.monotonic() > deadline:
-            return False
-        ex.spin_once(timeout_sec=0.02)
-    return True
 
 
 def _call_service(node: Any, ex: Any, state: dict, n: int) -> None:
