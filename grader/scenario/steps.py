@@ -342,9 +342,9 @@ def _messages(rt: Runtime, cond: m.Messages, state: StepState) -> Predicate:
     messages that end the step are in the bag. (Counting what the driver heard ended a step on a
     10 Hz talker's first 3 messages while the bag had none of them. Counting what it heard once
     the recorder's subscription showed the talker matched still ended one with 2 of them in the
-    bag, on CI: DDS matches each side of a pair on its own, and the talker's writer had not yet
-    matched the recorder's reader.) A topic this recording does not take is counted as the
-    driver hears it."""
+    bag, in a fresh clone's make test: DDS matches each side of a pair on its own, and the
+    talker's writer had not yet matched the recorder's reader.) A topic this recording does not
+    take is counted as the driver hears it."""
     driver, topic = rt.driver, cond.topic
     driver.count_messages(topic, None, wait_s=0.0)
     in_bag = driver.recorded_count

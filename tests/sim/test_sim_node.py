@@ -398,8 +398,8 @@ def feedback_matched(client: Client, action: ActionClient, turtle: str) -> int:
     """Goals to the turtle's own heading (it does not move; one feedback, then success) until
     one's feedback arrives; returns how many were sent. Answered goal requests prove only that
     the simulator knows this client's writers: DDS matches each side of a pair on its own, and
-    on CI a goal sent at once lost its first 8 feedback messages to the simulator's feedback
-    writer not having matched this client's reader yet."""
+    in a fresh clone's make test a goal sent at once lost its first 8 feedback messages to the
+    simulator's feedback writer not having matched this client's reader yet."""
     for sent in range(1, 21):
         warm = Goal(client, action, client.fresh_pose(turtle).theta)
         assert warm.result()[0] == GoalStatus.STATUS_SUCCEEDED
