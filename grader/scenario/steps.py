@@ -21,9 +21,10 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, cast
 
 from grader.scenario import model as m
-from grader.scenario.driver import Driver, fill, import_type, to_plain
+from grader.scenario.driver import Driver
 from grader.scenario.events import Event
 from grader.scenario.lockstep import LockstepFailed
+from grader.scenario.messages import fill, import_type, to_plain
 from grader.scenario.pacing import Pacer
 from grader.scenario.placement import (SPAWN_SERVICE, SPAWN_TYPE, TELEPORT_TYPE, handoff_topic, place_and_hold,
                                       placement_topic, teleport_service)
