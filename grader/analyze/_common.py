@@ -228,6 +228,11 @@ def events(frames: Frames, kind: str | Iterable[str] | None = None) -> list[dict
     return out
 
 
+def sim_node(frames: Frames) -> str:
+    """The reference simulator's node name (from ``scenario_start``): never a student's node."""
+    return str(next((e.get("sim_node") for e in events(frames, Event.SCENARIO_START)), None) or "turtlesim")
+
+
 def own_exits(frames: Frames) -> list[dict]:
     """``process_exit`` events of student processes that ended on their own (a crash, or a return
     while the scenario ran), not those the grader stopped at its end: what the run's summary, a

@@ -10,7 +10,7 @@ from __future__ import annotations
 from typing import cast
 
 from grader.analyze import REQUIRED, Finding, graded, register
-from grader.analyze._common import Frames, events, own_exits
+from grader.analyze._common import Frames, events, own_exits, sim_node
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -43,6 +43,7 @@ def nodes_running(frames: Frames, p: dict) -> Finding:
     if not snapshots:
         return Finding.error("The scenario recorded no graph snapshots (scenario problem).")
     seen = sorted({_full(n) for e in snapshots for n in (e.get("nodes") or [])})
+    stale = [n for n in expected if n in seen and not _seen_running(frames, snapshots, n)]
     declared: list[str] | None = None
     launch = None
     if p["launch_process"]:
@@ -59,29 +60,59 @@ def nodes_running(frames: Frames, p: dict) -> Finding:
                            f"The launch file could not be used: {failed[0]}", {"launch": launch, "nodes": nodes})
     rows, problems = [], []
     for name in expected:
-        running = name in seen
+        running = name in seen and name not in stale
         in_launch = declared is None or name in declared
         rows.append({"node": name, "running": running, "declared": in_launch})
         if not in_launch:
             problems.append(f"{name} is not declared by {launch} (it declares "
                             f"{', '.join(declared or ()) or 'no named node'}; set name='{name.strip('/')}')")
         elif not running:
-            problems.append(f"{name} never appeared in the ROS graph ({_why_absent(frames, name, seen)})")
+            problems.append(f"{name} was never seen running in the ROS graph ({_why_absent(frames, name, seen)})")
     ok = sum(1 for r in rows if r["running"] and r["declared"])
     frac = ok / len(rows)
     ev = {"nodes": rows, "seen": seen, "declared": declared, "launch": launch}
+    if stale:
+        ev["stale"] = stale
     value = f"{ok}/{len(rows)} nodes"
     if not problems:
         return Finding(value, 1.0, "pass", f"All {len(rows)} nodes ran: {', '.join(expected)}.", ev)
     return Finding(value, frac, graded(frac), "; ".join(problems) + ".", ev)
 
 
+def _makers(frames: Frames, name: str) -> list[str]:
+    """The student processes that could have created node ``name``: those started to make it
+    (a launch file's node), else those whose node names nobody declared (``ros2 run``) unless
+    ``name`` is the reference simulator's or the grader's own."""
+    started = events(frames, Event.NODE_STARTED)
+    declared = [str(e.get("process")) for e in started if _full(e.get("node_name") or "") == name]
+    if declared or name in (_full(sim_node(frames)),) or name.rsplit("/", 1)[-1].startswith("grader_"):
+        return declared
+    return [str(e.get("process")) for e in started if not e.get("node_name")]
+
+
+def _seen_running(frames: Frames, snapshots: list[dict], name: str) -> bool:
+    """Node ``name`` is in a snapshot taken while a process that could have made it was alive.
+
+    The graph lags behind a process that has died, so a snapshot taken after the crash of the
+    only process that could have made the node shows a node no one could reach any more: a
+    greeter that raised in its constructor was once credited with its name by the snapshot its
+    crash ended the step with, and not in other runs. Not a student process's node (the
+    reference simulator's), or a bag from before snapshots said what was ``running``: seen is seen.
+    """
+    makers = set(_makers(frames, name))
+    for e in snapshots:
+        if name not in {_full(n) for n in (e.get("nodes") or [])}:
+            continue
+        running = e.get("running")
+        if not makers or running is None or makers & set(running):
+            return True
+    return False
+
+
 def _why_absent(frames: Frames, name: str, seen: list[str]) -> str:
     """What became of the process that should have created node ``name``: it could not be
     started, it exited (crashed, or returned on its own), or it ran and created other nodes."""
-    started = events(frames, Event.NODE_STARTED)
-    mine = [e.get("process") for e in started if _full(e.get("node_name") or "") == name] or \
-        [e.get("process") for e in started if not e.get("node_name")]
+    mine = _makers(frames, name)
     unavailable = [e for e in events(frames, Event.NODE_UNAVAILABLE)
                    if not e.get("node_name") or _full(e.get("node_name") or "") == name]
     if not mine and unavailable:
@@ -90,7 +121,7 @@ def _why_absent(frames: Frames, name: str, seen: list[str]) -> str:
     if exits:
         code = exits[0].get("returncode")
         return (f"{exits[0].get('process')} crashed with exit code {code}" if code not in (0, None)
-                else f"{exits[0].get('process')} returned on its own before its node appeared")
+                else f"{exits[0].get('process')} returned on its own before its node was seen running")
     others = [n for n in seen if not n.rsplit("/", 1)[-1].startswith("grader_")]
     return ("its process kept running; the nodes seen are " + ", ".join(others)) if others else \
         "its process kept running without creating a node"

@@ -21,7 +21,7 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SHARE
 from grader.analyze._common import (EVENTS, Frames, events, missing_topic_feedback, rosout_lines,
-                                    stdout_lines, times, topic, traceback_mask)
+                                    sim_node, stdout_lines, times, topic, traceback_mask)
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -64,7 +64,7 @@ def _logged_by_others(frames: Frames, pattern: re.Pattern, loggers: set[str]) ->
     """Matching lines logged under another logger than ``loggers`` (on /rosout, or in the ROS
     console format on a student's stdout): logger -> its lines. The grader's own and the
     simulator's loggers are not students'."""
-    sim = _sim_node(frames)
+    sim = sim_node(frames)
     mine = {_short(n) for n in loggers}
     out: dict[str, list[str]] = {}
     console = stdout_lines(frames)
@@ -92,13 +92,9 @@ def _console_only(frames: Frames, pattern: re.Pattern, loggers: set[str]) -> lis
             if _short(lg) in mine and pattern.search(str(t)) and str(t) not in on_rosout]
 
 
-def _sim_node(frames: Frames) -> str:
-    return str(next((e.get("sim_node") for e in events(frames, Event.SCENARIO_START)), None) or "turtlesim")
-
-
 def _subscribers(frames: Frames, name: str) -> set[str]:
     """Student nodes seen subscribing to ``name`` in the driver's graph snapshots."""
-    sim = _sim_node(frames)
+    sim = sim_node(frames)
     out = set()
     for e in events(frames, Event.GRAPH):
         subs: dict = e["subscribers"] if isinstance(e.get("subscribers"), dict) else {}
@@ -274,7 +270,7 @@ def heard_messages(frames: Frames, p: dict) -> Finding:
         loggers, who = subscribers, "Your subscriber " + ", ".join(sorted(subscribers))
     else:                           # nobody subscribed (or an older bag without graph snapshots)
         loggers = {str(n) for n in rosout_lines(frames)["logger"]
-                   if not _short(n).startswith("grader_") and _short(n) != _sim_node(frames)}
+                   if not _short(n).startswith("grader_") and _short(n) != sim_node(frames)}
         who = "No node"
     lines = _logger_lines(frames, loggers)
     pattern = re.compile(p["pattern"])

@@ -55,4 +55,5 @@ class Event(StrEnum):
     LIMIT_HIT = "limit_hit"                  # limit (memory|processes|cpu|output), detail; process, stream (output)
     # the ROS graph
     GRAPH = "graph"                          # nodes, publishers {topic: [node]}, subscribers, services,
-    #                                          topic_types {topic: [type]}, servers {service: [node]}, service_types
+    #                                          topic_types {topic: [type]}, servers {service: [node]}, service_types,
+    #                                          running [student process alive once the graph was read]

@@ -21,6 +21,7 @@ class GraphQueries:
 
     node: Any
     sim_node: str
+    processes: dict[str, Any]      # the student processes, by name (ManagedProcess)
 
     def event(self, event: Event, **fields: Any) -> None:
         raise NotImplementedError
@@ -38,7 +39,13 @@ class GraphQueries:
     def graph_snapshot(self) -> None:
         """Publish the nodes, and who publishes, subscribes and serves what (with the types):
         integrity checks, "the launch file starts these nodes" and the contract's names found by
-        behaviour (the node that serves /set_goal, whatever it is called) need it."""
+        behaviour (the node that serves /set_goal, whatever it is called) need it.
+
+        ``running``: the student processes still alive once the graph was read. The graph lags
+        behind a process that has died (DDS forgets its participant a moment later, or a lease
+        later), so a node seen in a snapshot counts as running only while a process that could
+        have made it was alive: CI once credited a greeter that raised in its constructor with
+        "the node is called /my_first_node", from the snapshot taken once its crash ended the step."""
         pubs: dict[str, list[str]] = {}
         subs: dict[str, list[str]] = {}
         names = self.node.get_node_names_and_namespaces()
@@ -62,9 +69,10 @@ class GraphQueries:
             for service, types in offered:
                 servers.setdefault(service, []).append(name)
                 service_types[service] = list(types)
+        running = sorted(name for name, proc in self.processes.items() if proc.alive())
         self.event(Event.GRAPH, nodes=nodes, publishers=pubs, subscribers=subs, services=services,
                    topic_types=topic_types, servers={k: sorted(set(v)) for k, v in servers.items()},
-                   service_types=service_types)
+                   service_types=service_types, running=running)
 
     # -- readiness -------------------------------------------------------------------------
     def _student_endpoint(self, topic: str, publisher: bool) -> bool:

@@ -221,6 +221,30 @@ def test_a_missing_node_says_what_became_of_its_process(code, words) -> None:
     assert f.status == "fail" and words in f.feedback and "did it crash" not in f.feedback
 
 
+@pytest.mark.parametrize("running,status", [(["node"], "pass"), ([], "fail"), (None, "pass")])
+def test_a_node_counts_only_while_its_process_ran(running, status) -> None:
+    """The graph lags behind a dead process: a greeter that raised in its constructor was in the
+    snapshot its crash ended the step with once in CI, and got the name's point; a snapshot with
+    no process that could have made the node alive does not count it (a bag without ``running``
+    keeps the old reading; the reference simulator's node counts whoever runs)."""
+    graph = {"nodes": ["/grader_driver", "/my_first_node", "/turtlesim"]}
+    if running is not None:
+        graph["running"] = running
+    rows = [(T0, "scenario_start", {"sim_node": "turtlesim"}),
+            (T0 + 0.5, "node_started", {"process": "node", "node_name": None}),
+            (T0 + 1, "process_exit", {"process": "node", "returncode": 1, "stopped_by_grader": False}),
+            (T0 + 1.1, "graph", graph)]
+    f = get("nodes_running")(with_meta({"/grader/events": events_frame(rows)}),
+                             {"nodes": ["/my_first_node", "/turtlesim"]})
+    assert f.status == ("partial" if status == "fail" else status), f.feedback
+    if status == "fail":
+        assert f.value == "1/2 nodes" and f.evidence["stale"] == ["/my_first_node"]
+        assert "/my_first_node was never seen running in the ROS graph (node crashed with exit code 1)" \
+            in f.feedback
+    else:
+        assert f.value == "2/2 nodes"
+
+
 def test_logged_to_the_console_only_is_not_printed() -> None:
     """A bare rclpy.logging.get_logger('my_first_node') prints in the ROS format, not to /rosout."""
     line = f"[INFO] [{T0 + 1:.3f}] [my_first_node]: {HELLO}"
