@@ -85,7 +85,7 @@ def _makers(frames: Frames, name: str) -> list[str]:
     ``name`` is the reference simulator's or the grader's own."""
     started = events(frames, Event.NODE_STARTED)
     declared = [str(e.get("process")) for e in started if _full(e.get("node_name") or "") == name]
-    if declared or name in (_full(sim_node(frames)),) or name.rsplit("/", 1)[-1].startswith("grader_"):
+    if declared or name == _full(sim_node(frames)) or name.rsplit("/", 1)[-1].startswith("grader_"):
         return declared
     return [str(e.get("process")) for e in started if not e.get("node_name")]
 

@@ -269,8 +269,9 @@ def heard_messages(frames: Frames, p: dict) -> Finding:
     elif subscribers:
         loggers, who = subscribers, "Your subscriber " + ", ".join(sorted(subscribers))
     else:                           # nobody subscribed (or an older bag without graph snapshots)
+        sim = sim_node(frames)
         loggers = {str(n) for n in rosout_lines(frames)["logger"]
-                   if not _short(n).startswith("grader_") and _short(n) != sim_node(frames)}
+                   if not _short(n).startswith("grader_") and _short(n) != sim}
         who = "No node"
     lines = _logger_lines(frames, loggers)
     pattern = re.compile(p["pattern"])

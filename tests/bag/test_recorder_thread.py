@@ -23,14 +23,14 @@ def test_in_process_recorder_keeps_every_message_with_dds_receive_times(graph, t
     # thread from running for the 0.2 s that 1000 messages at 5 kHz take. That is a rate the
     # machine cannot always follow, not a message the recorder dropped: what is asserted here is
     # that whatever reaches its queue is written, in order, at its DDS receive time
-    depth = ["--qos-depth", "6000"]
-    rec = RecorderThread(bag, ["/slow", "/burst"], domain_id=graph.domain_id, extra=depth)
+    depth = "6000"
+    rec = RecorderThread(bag, ["/slow", "/burst"], domain_id=graph.domain_id, extra=["--qos-depth", depth])
     rec.start(30)
     # 40 Hz: well under the 20 wakes a second of a light load, so messages wait for a batch
     slow = loadgen(graph, "slow", "turtlesim/msg/Pose", ["/slow"], rate=40, count=80)
     # 5000 messages at 5 kHz: more per 50 ms than a light batch, drained without waiting
     burst = loadgen(graph, "burst", "turtlesim/msg/Pose", ["/burst"], rate=5000, count=5000,
-                    extra=["--depth", "6000"])
+                    extra=["--depth", depth])
     for gen in (slow, burst):
         assert wait_for(lambda g=gen: "READY" in g.output(), 30)
     finish(slow)
