@@ -1,4 +1,4 @@
-"""Why Lab 3's action scenario stays at 1x: rclpy's executors next to the simulator, per time scale.
+"""rclpy's executors next to the simulator, per time scale: the MultiThreadedExecutor busy loop and its fix.
 
 A minimal student-like node (one ``/turtle1/pose`` subscription, optionally a 30 Hz
 ``create_rate`` like the lab's action server) spins next to the reference simulator for a few
@@ -8,7 +8,7 @@ SingleThreadedExecutor and MultiThreadedExecutor, at 1x and on simulated time (`
 side by side in one run. With ``--lab3`` also the Lab 3 reference action server itself.
 
 Measured on the 2-core development machine, quiet (load 0.5), rclpy 7.1.6 from the Jazzy wheels
-(ranges over three runs):
+as the wheel ships it (ranges over three runs):
 
 ```
 executor   node               1x          2x     4x   (CPU s per s, idle next to the simulator)
@@ -18,15 +18,21 @@ multi      pose + rate       0.08-1.02   1.01-1.02  -
 lab 3 action server          0.07-0.08   1.01-1.02  1.02-1.03
 ```
 
-The MultiThreadedExecutor takes a whole core as soon as ``/clock`` arrives, whatever the scale
-(and, with a rate timer, now and then at 1x too: a state it tips into and stays in):
-its spin thread yields the same subscription tasks again before a worker thread has started them
-(counted: 100-4,000 queued copies of the same two tasks) and rescans its list of futures on every
-spin (profile: 16.7 million ``Task.done`` calls in 8 s). This is ros2/rclpy issue 1452, fixed
-upstream after this wheel (pull request 1547). A node busy for a core cannot keep pace with
-simulated time (the watchdog's ``BUSY_SHARE``), so Lab 3's ``ex3_action`` is ``real_time: true``.
-On a machine whose rclpy has the fix, this script shows it: the ``multi`` rows stay near the
-``single`` ones, and the pin can be lifted.
+The MultiThreadedExecutor took a whole core as soon as ``/clock`` arrived, whatever the scale
+(and, with a rate timer, now and then at 1x too: a state it tips into and stays in): its spin
+thread yielded the same subscription tasks again before a worker thread had started them, and
+while a task waited its reader still had data, so the wait set woke at once with nothing to hand
+out. This is ros2/rclpy issue 1452, fixed upstream after this wheel (pull request 1547).
+``make bootstrap`` and ``grader setup`` now fix it in the grader's venv (``grader/rclpy_fix.py``);
+the same machine, with the fix (2026-12-01):
+
+```
+executor   node               1x     2x     4x
+single     pose              0.04   0.09     -
+multi      pose              0.05   0.13     -
+multi      pose + rate       0.06   0.13     -
+lab 3 action server          0.07   0.14   0.24
+```
 
     PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_executor.py [--seconds S] [--lab3]
 """
@@ -37,57 +43,13 @@ import argparse
 import os
 import sys
 import tempfile
-import textwrap
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from grader.runner import ProcessSpec, RosGraph  # noqa: E402
-from grader.sim import sim_argv  # noqa: E402
-
-NODE = textwrap.dedent("""
-    import sys
-    import rclpy
-    from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
-    from rclpy.node import Node
-    from turtlesim.msg import Pose
-
-    executor_kind, with_rate = sys.argv[1], sys.argv[2] == "rate"
-    rclpy.init(args=sys.argv)
-    node = Node("bench_executor")
-    node.create_subscription(Pose, "/turtle1/pose", lambda msg: None, 10)
-    if with_rate:
-        rate = node.create_rate(30.0, node.get_clock())
-    executor = MultiThreadedExecutor(num_threads=4) if executor_kind == "multi" else SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-""")
-
-
-def cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
-def share(argv: list[str], scale: float, seconds: float, prefixes: list[Path] = ()) -> float:
-    """CPU share of the process ``argv`` idling next to the simulator at ``scale``."""
-    with tempfile.TemporaryDirectory(prefix="bench-executor-") as tmp, RosGraph(Path(tmp), prefixes=prefixes) as graph:
-        sim_scale = scale if scale > 1 else None
-        graph.start(ProcessSpec("turtlesim", sim_argv(time_scale=sim_scale)))
-        time.sleep(1.5)
-        sim_args = ["--ros-args", "-p", "use_sim_time:=true"] if scale > 1 else []
-        node = graph.start(ProcessSpec("node", [*argv, *sim_args], untrusted=True))   # a student's node
-        time.sleep(3.0)         # start-up and discovery are not what is measured
-        c0, t0 = cpu_seconds(node.pid), time.monotonic()
-        time.sleep(seconds)
-        return (cpu_seconds(node.pid) - c0) / (time.monotonic() - t0)
-
+from grader.testing.executor_load import NODE, share  # noqa: E402
 
 def lab3_server() -> tuple[list[str], list[Path]]:
     from grader.workspace.build import build_workspace

@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from grader.analyze import Finding
-    from grader.grading.pipeline import GradedSubmission
+    from grader.grading.graded import GradedSubmission
     from grader.intake.batch import IntakeBatch
     from grader.rubric.schema import Rubric
     from grader.similarity.run import Settings as SimilaritySettings
@@ -104,7 +104,7 @@ def due_override(rubric: Rubric, due: str | None, timezone: str | None) -> dict[
 def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
           jobs: int | None = None, only: Sequence[str] | None = None, shard: tuple[int, int] | None = None,
           resume: bool = False, reuse: bool = True, cache_dir: PathLike | None = None,
-          time_scale: float = 1.0, intake: str = "auto", roster: PathLike | None = None,
+          time_scale: float | None = None, intake: str = "auto", roster: PathLike | None = None,
           roster_map: Sequence[str] = (), classroom_prefix: str | None = None,
           due: str | None = None, timezone: str | None = None, cache_max_size: str | None = None,
           similarity: SimilaritySettings | None = None,
@@ -118,7 +118,7 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     a folder of submissions or one submission (``intake`` says which when its shape does not).
     Writes ``out/<id>/`` (result.json, report.html, bags, logs), ``out/grades.csv``,
     ``out/index.html`` and ``out/intake.csv``. ``jobs``: scenarios and builds at once (default:
-    twice the cores); ``only``: these ids; ``shard=(k, n)``: shard k of n (``grader merge``);
+    twice the CPUs the grader is given: its cgroup's quota, not the host's cores); ``only``: these ids; ``shard=(k, n)``: shard k of n (``grader merge``);
     ``resume``: skip ids that have a result.json; ``reuse``: copy identical earlier recordings;
     ``time_scale`` > 1: simulated time where the rubric allows; ``roster`` (+ ``roster_map``
     ``FIELD=COLUMN`` entries): match each submission to a student; ``due``/``timezone``: replace
@@ -161,13 +161,13 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     if shard:
         subs = [s for s in subs if in_shard(s.id, *shard)]
         write_shard_note(out, loaded, *shard)
-    todo = [s for s in subs if not (resume and (out / s.id / "result.json").exists())]
+    todo = [s for s in subs if not (resume and graded_and_measured(out / s.id))]
     if on_start is not None:
         on_start(len(subs), len(subs) - len(todo))
 
     def done(sid: str, graded: GradedSubmission | None, error: str | None) -> None:
-        if graded is not None:
-            batch.graded.append(graded)
+        if graded is not None:          # graded again at the end of the batch (starved): replaced
+            batch.graded = [g for g in batch.graded if g.id != sid] + [graded]
         if on_done is not None:
             on_done(sid, graded, error)
 
@@ -188,9 +188,23 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     return batch
 
 
+def graded_and_measured(sub_out: Path) -> bool:
+    """``--resume`` skips this submission: it has a result, and no item of it waits for a
+    recording the grading machine did not starve (``Result.starved``)."""
+    from grader.report.result import read_result
+
+    path = sub_out / "result.json"
+    if not path.exists():
+        return False
+    try:
+        return not read_result(path)[1].starved
+    except GraderError:
+        return False        # unreadable: graded again
+
+
 def check(workspace: PathLike = ".", *, lab: str | None = None, rubric: PathLike | Rubric | None = None,
           out: PathLike | None = None, jobs: int | None = None, cache_dir: PathLike | None = None,
-          reuse: bool = True, time_scale: float = 1.0, cache_max_size: str | None = None,
+          reuse: bool = True, time_scale: float | None = None, cache_max_size: str | None = None,
           progress: Callable[[str], None] | None = None) -> GradedSubmission:
     """``grader check``: a student's self-check of ``workspace`` on the lab's public items.
 
@@ -199,6 +213,7 @@ def check(workspace: PathLike = ".", *, lab: str | None = None, rubric: PathLike
     """
     from grader.grading.pipeline import grade_submission
     from grader.grading.schedule import Slots, default_jobs
+    from grader.grading.timescale import machine_time_scale
     from grader.labs import rubric_for_lab
 
     if rubric is None and lab is None:
@@ -211,7 +226,8 @@ def check(workspace: PathLike = ".", *, lab: str | None = None, rubric: PathLike
 
     graded = grade_submission(ws, loaded, where, cache_dir=Path(cache_dir) if cache_dir else None,
                               public_only=True, sid="check", progress=progress,
-                              slots=Slots(jobs or default_jobs()), reuse=reuse, time_scale=time_scale)
+                              slots=Slots(jobs or default_jobs(time_scale=machine_time_scale(time_scale))), reuse=reuse,
+                              time_scale=time_scale)
     ended = end_batch(Path(cache_dir or default_cache_dir()), [graded.cache], cache_max_size)
     if ended.get("message"):
         print(f"grader: {ended['message']}", file=sys.stderr)

@@ -28,6 +28,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from grader.rclpy_fix import RclpyFixError, ensure_fixed
+
 ROOT = Path(__file__).resolve().parent.parent
 VENV = Path(os.environ.get("GRADER_VENV", ROOT / ".venv"))
 REQ_DIR = ROOT / "requirements"
@@ -250,6 +252,21 @@ def repair_cmake_exports(t: Target, state: dict) -> None:
     state["cmake_repair"] = "done"
 
 
+def fix_executor(t: Target, state: dict) -> None:
+    """The wheel's MultiThreadedExecutor busy loop (ros2/rclpy#1452), fixed in this venv only
+    (grader.rclpy_fix); a system ROS install is never edited. Probed again after every pip
+    install, which may have brought back the original file."""
+    if state.get("executor_fix") == state.get("pip"):
+        return
+    try:
+        done = ensure_fixed(str(t.python), env=ros_build_env(t))
+    except RclpyFixError as exc:
+        raise BootstrapError(f"rclpy's MultiThreadedExecutor: {exc}") from None
+    if done == "applied":
+        log("fixed rclpy's MultiThreadedExecutor busy loop (ros2/rclpy#1452) in this environment")
+    state["executor_fix"] = state.get("pip")
+
+
 def ros_build_env(t: Target) -> dict[str, str]:
     env = dict(os.environ)
     prefix = str(t.prefix)
@@ -315,6 +332,7 @@ def prepare(t: Target, mode: str) -> None:
     pip_install(t, mode, state)
     if mode == "wheels":
         repair_cmake_exports(t, state)
+        fix_executor(t, state)
     build_interfaces(t, mode, state)
     state["mode"] = mode
     t.stamp.write_text(json.dumps(state, indent=1))

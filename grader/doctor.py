@@ -11,7 +11,9 @@ import time
 from pathlib import Path
 
 from grader import __version__
+from grader import rclpy_fix
 from grader.rosenv import ros_info
+from grader.sandbox import allotment
 
 INTERFACE_PACKAGES = ("turtlesim", "std_msgs", "geometry_msgs", "std_srvs", "action_msgs",
                       "rcl_interfaces", "service_msgs")
@@ -55,6 +57,9 @@ def run(args: argparse.Namespace) -> int:
     mode = {"wheels": "PyPI wheels in this venv", "system": "system install (sourced)",
             "missing": "NOT FOUND"}[info["mode"]]
     print(f"ROS 2    {info['distro']} from {mode}; rclpy {info['rclpy']}; RMW {info['rmw']}")
+    executor, sentence = rclpy_fix.state()
+    print(f"{'WARN' if executor == 'busy' else 'executor'} {sentence}")
+    print(f"machine  {allotment.describe()}")
     discovery = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE",
                                "SUBNET (default; runs use LOCALHOST, or SUBNET in a scenario's own network namespace)")
     print(f"network  discovery range {discovery}")

@@ -210,7 +210,7 @@ _STEER = ("Steer toward turtle1: angular.z = K_w * e with e = atan2(dy, dx) - th
           "K_w > 0, and a speed that grows with the distance, linear.x = K_v * d.")
 
 
-@register("chase_catches", evidence={**EVIDENCE, "value": ("moves caught", "")},
+@register("chase_catches", timing="catching the turtle within the scenario's time", evidence={**EVIDENCE, "value": ("moves caught", "")},
           expect="turtle2 within {catch_m:g} m of turtle1 at most {time_limit_s:g} s after every move of turtle1",
           defaults={
     "steps": REQUIRED,          # the steps that each move turtle1 (and place turtle2)

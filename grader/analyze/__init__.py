@@ -33,15 +33,18 @@ import functools
 import math
 import traceback
 from dataclasses import asdict, dataclass, field
-from typing import Any, Callable, Collection, Mapping
+from typing import Any, Callable, Mapping
 
 import pandas as pd
 
+from grader.analyze.plugins import load_builtin_and_installed
+from grader.analyze.registry import (_DEFAULTS, _EXPECT, _JUDGES, _LABELS, _ORIGIN, _REGISTRY, _TIMING,
+                                     DuplicateAnalyzer, _defining, forget)
 from grader.errors import GraderError
 from grader.spec.jsonable import jsonable
 from grader.spec.status import STATUSES
 
-__all__ = ["Finding", "register", "get", "names", "defaults", "required", "run", "jsonable", "STATUSES",
+__all__ = ["Finding", "register", "get", "names", "forget", "defaults", "required", "run", "jsonable", "STATUSES",
            "evidence_labels", "expected_text", "REQUIRED", "DuplicateAnalyzer", "origin", "graded",
            "builtin_names"]
 
@@ -61,19 +64,6 @@ REQUIRED = _Required()
 
 Frames = Mapping[str, pd.DataFrame]
 AnalyzerFn = Callable[[Frames, dict], "Finding"]
-
-_REGISTRY: dict[str, AnalyzerFn] = {}
-_DEFAULTS: dict[str, dict[str, Any]] = {}
-_LABELS: dict[str, dict[str, Any]] = {}
-_EXPECT: dict[str, str] = {}
-_ORIGIN: dict[str, str] = {}      # name -> where it was defined (a module, an entry point, a file)
-#: set by grader.analyze.plugins while it imports a plug-in, so a name says where it came from
-_defining: list[str] = []
-
-
-class DuplicateAnalyzer(GraderError, ValueError):
-    """An analyzer name defined twice (by two modules, plug-ins or rubric files)."""
-
 
 @dataclass
 class Finding:
@@ -132,9 +122,14 @@ def graded(fraction: float, *, pass_at: float = 1.0 - 1e-9) -> str:
 
 def register(name: str, defaults: Mapping[str, Any] | None = None, *,
              evidence: Mapping[str, Any] | None = None,
-             expect: str | None = None) -> Callable[[AnalyzerFn], AnalyzerFn]:
+             expect: str | None = None, timing: str | None = None,
+             judges: tuple[str, ...] = ()) -> Callable[[AnalyzerFn], AnalyzerFn]:
     """Register an analyzer under ``name`` with the parameters it accepts and their defaults,
-    the labels and units of its evidence and what it expects, in words (both for the report)."""
+    the labels and units of its evidence and what it expects, in words (both for the report).
+    ``timing``: what wall or simulated timing its verdict depends on, in words ("the publish
+    rate"), for an analyzer whose verdict a CPU-starved recording can change. ``judges``: the
+    aspects of the code it is about ("node names", "ros names", "logging"); the collateral-loss
+    audit expects a mistake in an aspect to cost only the items of analyzers that judge it."""
     dflt = dict(defaults or {})
 
     def deco(fn: AnalyzerFn) -> AnalyzerFn:
@@ -174,6 +169,9 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
         _LABELS[name] = dict(evidence or {})
         if expect:
             _EXPECT[name] = expect
+        if timing:
+            _TIMING[name] = timing
+        _JUDGES[name] = tuple(judges) + (("timing",) if timing else ())
         return wrapper
 
     return deco
@@ -181,8 +179,6 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
 
 def _load_all() -> None:
     """Import the built-in analyzer modules and the installed plug-ins (once per process)."""
-    from grader.analyze.plugins import load_builtin_and_installed
-
     load_builtin_and_installed()
 
 
@@ -190,13 +186,6 @@ def origin(name: str) -> str:
     """Where analyzer ``name`` was defined: its module, ``entry point ...`` or a rubric's file."""
     get(name)
     return _ORIGIN[name]
-
-
-def forget(names_: Collection[str]) -> None:
-    """Unregister analyzers (a plug-in file reloaded after it changed, or unloaded by a test)."""
-    for name in names_:
-        for table in (_REGISTRY, _DEFAULTS, _LABELS, _EXPECT, _ORIGIN):
-            table.pop(name, None)
 
 
 def get(name: str) -> AnalyzerFn:
@@ -241,6 +230,25 @@ def expected_text(name: str | None) -> str | None:
     if name:
         _load_all()
     return _EXPECT.get(name or "")
+
+
+def timing(name: str | None, declared: bool | None = None) -> str | None:
+    """What timing analyzer ``name``'s verdict depends on, in words (None: none). ``declared``:
+    a rubric item's own ``timing`` (True/False), which overrides the analyzer's declaration."""
+    if name:
+        _load_all()
+    words = _TIMING.get(name or "")
+    if declared is None:
+        return words
+    return (words or "its timing") if declared else None
+
+
+def judges(name: str | None) -> tuple[str, ...]:
+    """The aspects of the code analyzer ``name`` judges (``register(judges=...)``, and
+    ``timing`` when it declares its timing)."""
+    if name:
+        _load_all()
+    return _JUDGES.get(name or "", ())
 
 
 def required(name: str) -> list[str]:

@@ -34,7 +34,7 @@ EVIDENCE = {
 }
 
 
-@register("action_loop_paced", evidence={**EVIDENCE, "value": ("commands per second while goals ran", "Hz")},
+@register("action_loop_paced", timing="the control loop's pacing", evidence={**EVIDENCE, "value": ("commands per second while goals ran", "Hz")},
           expect="between {min_hz:g} and {max_hz:g} velocity commands a second while a goal runs",
           defaults={
     "cmd_topic": "/turtle1/cmd_vel",

@@ -220,7 +220,7 @@ def _no_action_events(frames: Frames) -> Finding:
     return Finding.error("The scenario sent no action goals of this kind, so this item could not be tested.")
 
 
-@register("action_advertised", evidence={**EVIDENCE, "value": ("action server", "")},
+@register("action_advertised", judges=("ros names",), evidence={**EVIDENCE, "value": ("action server", "")},
           expect="an action server named {action_name}",
           defaults={"action_name": "/turtle_goal"})
 def action_advertised(frames: Frames, p: dict) -> Finding:
@@ -261,7 +261,7 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
                         f"\"{name.lstrip('/')}\", ...) and keep the node spinning.{hint}", ev)
 
 
-@register("action_goals_succeed", evidence={**EVIDENCE, "value": ("reachable goals", "")},
+@register("action_goals_succeed", timing="reaching each goal within its time_out", evidence={**EVIDENCE, "value": ("reachable goals", "")},
           expect="every goal inside [0, {inner_bound:g}] m accepted and ending with success=True",
           defaults={
     "inner_bound": INNER,
@@ -358,7 +358,7 @@ def action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
                    "in goal_callback return GoalResponse.REJECT when x or y is outside the world.", ev)
 
 
-@register("action_timeout", evidence={**EVIDENCE, "value": ("short-timeout goal", "")},
+@register("action_timeout", timing="the goal's time_out", evidence={**EVIDENCE, "value": ("short-timeout goal", "")},
           expect="success=False within {grace_s:g} s after the goal's time_out",
           defaults={
     "outer_bound": OUTER,

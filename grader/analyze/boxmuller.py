@@ -172,7 +172,7 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
                    + detail, ev)
 
 
-@register("boxmuller_logging", evidence={**EVIDENCE, "value": ("values written by", "")},
+@register("boxmuller_logging", judges=("logging",), evidence={**EVIDENCE, "value": ("values written by", "")},
           expect="values logged with self.get_logger().info (at least {min_outputs} lines on /rosout)",
           defaults={
     **COMMON_DEFAULTS,

@@ -57,32 +57,8 @@ def control_law(frames: Frames, p: dict) -> Finding:
     gl = _goals_with_end(frames, p, pose)
     if not gl:
         return _no_goals(frames, p)
-    ct = times(cmd)
-    if p["use_pub_time"] and "pub_t" in cmd.columns:
-        pt = cmd["pub_t"].to_numpy(float)
-        ct = np.where(np.isfinite(pt), pt, ct)
-    c = pd.DataFrame({"t": ct, "v": cmd["linear.x"].to_numpy(float), "w": cmd["angular.z"].to_numpy(float)})
-    c = c.sort_values("t", kind="stable")
-    ps = pd.DataFrame({"t": times(pose), "x": pose["x"].to_numpy(float), "y": pose["y"].to_numpy(float),
-                       "th": pose["theta"].to_numpy(float)}).sort_values("t", kind="stable")
-    for col in ("x", "y", "th"):          # the tick before: the other pose a command may come from
-        ps[f"{col}0"] = ps[col].shift(1)
     moved = provenance.moves(frames, p["pose_topic"])
-    gd = pd.DataFrame({"t": [g.t for g in gl], "gx": [g.x for g in gl], "gy": [g.y for g in gl],
-                       "g_end": [g.t_end for g in gl],
-                       "moved": [bool(provenance.within(moved, g.t, g.t_end)) for g in gl]})
-    j = pd.merge_asof(c, ps, on="t", direction="backward")
-    j = pd.merge_asof(j, gd, on="t", direction="backward")
-    j = j.dropna(subset=["x", "gx"])
-    j = j[(j["t"] <= j["g_end"]) & ~j["moved"].astype(bool)]
-    goal_t = gd["t"].to_numpy()
-    k = np.searchsorted(goal_t, j["t"].to_numpy(), side="right") - 1
-    since = j["t"].to_numpy() - goal_t[k]
-    # a goal handed over while the turtle was held: from its release (until then a command may
-    # still be for the old goal); else skip_after_goal_s after it
-    released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
-    start = np.array([released.get(g.extra.get("step"), g.t + p["skip_after_goal_s"]) for g in gl])
-    j = j[(since >= p["skip_after_goal_s"]) & (j["t"].to_numpy() >= start[k])]
+    j, gd = _paired_commands(frames, p, cmd, pose, gl, moved)
     ev: dict = {"rows": int(len(j))}
     if moved and gd["moved"].all():
         return provenance.moved_finding(frames, moved, "the control law")
@@ -117,6 +93,53 @@ def control_law(frames: Frames, p: dict) -> Finding:
                       "d_e": np.round(d_e[keep], 4).tolist(), "theta_e": np.round(th_e[keep], 4).tolist(),
                       "theta_e_unwrapped": np.round(th_naive[keep], 4).tolist(),
                       "linear_x": np.round(v[keep], 4).tolist(), "angular_z": np.round(w[keep], 4).tolist()}
+    lin, ang, notes = _credit(p, k1, r2v, k2, r2w, k2n, r2n, missing_wrap)
+    frac = lin + ang
+    value = f"K1={fmt(k1, 3)} (R² {fmt(r2v)}), K2={fmt(k2, 3)} (R² {fmt(r2w)})"
+    if not notes:
+        return Finding(value, 1.0, "pass",
+                       f"Your controller follows v = {k1:.3g}·d_e and ω = {k2:.3g}·theta_e "
+                       f"(R² {r2v:.3f} / {r2w:.3f}).", ev)
+    return Finding(value, frac, graded(frac), sentence("; ".join(notes)), ev)
+
+
+def _paired_commands(frames: Frames, p: dict, cmd: pd.DataFrame, pose: pd.DataFrame, gl: list,
+                     moved: list) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Each command of an active goal beside the pose it was computed from (and the tick
+    before), the goal and whether the turtle was moved without driving; from the release of a
+    held hand-over, else ``skip_after_goal_s`` after the goal. Returns it and the goals."""
+    ct = times(cmd)
+    if p["use_pub_time"] and "pub_t" in cmd.columns:
+        pt = cmd["pub_t"].to_numpy(float)
+        ct = np.where(np.isfinite(pt), pt, ct)
+    c = pd.DataFrame({"t": ct, "v": cmd["linear.x"].to_numpy(float), "w": cmd["angular.z"].to_numpy(float)})
+    c = c.sort_values("t", kind="stable")
+    ps = pd.DataFrame({"t": times(pose), "x": pose["x"].to_numpy(float), "y": pose["y"].to_numpy(float),
+                       "th": pose["theta"].to_numpy(float)}).sort_values("t", kind="stable")
+    for col in ("x", "y", "th"):          # the tick before: the other pose a command may come from
+        ps[f"{col}0"] = ps[col].shift(1)
+    gd = pd.DataFrame({"t": [g.t for g in gl], "gx": [g.x for g in gl], "gy": [g.y for g in gl],
+                       "g_end": [g.t_end for g in gl],
+                       "moved": [bool(provenance.within(moved, g.t, g.t_end)) for g in gl]})
+    j = pd.merge_asof(c, ps, on="t", direction="backward")
+    j = pd.merge_asof(j, gd, on="t", direction="backward")
+    j = j.dropna(subset=["x", "gx"])
+    j = j[(j["t"] <= j["g_end"]) & ~j["moved"].astype(bool)]
+    goal_t = gd["t"].to_numpy()
+    k = np.searchsorted(goal_t, j["t"].to_numpy(), side="right") - 1
+    since = j["t"].to_numpy() - goal_t[k]
+    # a goal handed over while the turtle was held: from its release (until then a command may
+    # still be for the old goal); else skip_after_goal_s after it
+    released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
+    start = np.array([released.get(g.extra.get("step"), g.t + p["skip_after_goal_s"]) for g in gl])
+    j = j[(since >= p["skip_after_goal_s"]) & (j["t"].to_numpy() >= start[k])]
+    return j, gd
+
+
+def _credit(p: dict, k1: float, r2v: float, k2: float, r2w: float, k2n: float, r2n: float,
+            missing_wrap: bool) -> tuple[float, float, list[str]]:
+    """Half the credit for each law (a quarter for the right sign with a poor fit) and what the
+    student reads about each shortfall."""
     notes = []
     lin = 0.0
     if not np.isfinite(k1) or k1 <= 0:
@@ -140,10 +163,4 @@ def control_law(frames: Frames, p: dict) -> Finding:
     else:
         ang = 0.25
         notes.append(f"angular.z is only loosely proportional to theta_e (R² = {r2w:.2f}): use angular.z = K2·theta_e")
-    frac = lin + ang
-    value = f"K1={fmt(k1, 3)} (R² {fmt(r2v)}), K2={fmt(k2, 3)} (R² {fmt(r2w)})"
-    if not notes:
-        return Finding(value, 1.0, "pass",
-                       f"Your controller follows v = {k1:.3g}·d_e and ω = {k2:.3g}·theta_e "
-                       f"(R² {r2v:.3f} / {r2w:.3f}).", ev)
-    return Finding(value, frac, graded(frac), sentence("; ".join(notes)), ev)
+    return lin, ang, notes

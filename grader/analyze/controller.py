@@ -7,9 +7,7 @@ its send time until the next goal (or the end of the recording).
 * ``goals_reached``: the lab's controller has no stopping tolerance; the turtle approaches the goal
   asymptotically, so "reached" means the distance fell below ``tol_reached`` within the time
   limit. It should then hold there and stop (commanded speed ~0, position steady).
-* ``turn_direction``: with the wrapped theta_e of eq. (3) the turtle always turns the short way;
-  a missing wrap (atan2(dy, dx) - theta) makes it turn the long way when the difference crosses
-  +-pi, and a wrong sign makes it turn away.
+* ``turn_direction`` (:mod:`grader.analyze.turns`): did it turn the short way.
 
 Both judge the simulator's own poses only (``sim_pose``), and a goal during which student code
 moved the turtle without driving it (a teleport, a reset, a kill and spawn: the call's client id
@@ -26,9 +24,9 @@ import numpy as np
 import pandas as pd
 
 from grader.analyze import Finding, graded, provenance, register
-from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, thin, times, topic)
+from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, times, topic)
 from grader.spec.world import WORLD_SIZE_M
-from grader.analyze.goals import SentGoal, goals, heading_error
+from grader.analyze.goals import SentGoal, goals
 from grader.analyze.evidence import SHARE, TIME
 from grader.scenario.events import Event
 
@@ -157,7 +155,19 @@ def _no_pose(frames: Frames, p: dict) -> Finding:
                          + " Without poses the controller cannot be evaluated (scenario problem).")
 
 
-@register("goals_reached", evidence={**EVIDENCE, "value": ("goals reached", "")},
+def pose_and_goals(frames: Frames, p: dict) -> tuple[pd.DataFrame, list[SentGoal]] | Finding:
+    """The simulator's poses and the goals sent (each with its end), or the finding that says
+    which is missing."""
+    pose = _pose(frames, p)
+    if pose is None:
+        return _no_pose(frames, p)
+    gl = _goals_with_end(frames, p, pose)
+    if not gl:
+        return _no_goals(frames, p)
+    return pose, gl
+
+
+@register("goals_reached", timing="reaching each goal within its time", evidence={**EVIDENCE, "value": ("goals reached", "")},
           expect="every goal within {tol_reached:g} m, then held within {tol_final:g} m and stopped",
           defaults={
     **_GOAL_DEFAULTS,
@@ -171,12 +181,10 @@ def _no_pose(frames: Frames, p: dict) -> Finding:
 })
 def goals_reached(frames: Frames, p: dict) -> Finding:
     """Per goal: reached within tolerance and time, time to reach, final error, stopped afterwards."""
-    pose = _pose(frames, p)
-    if pose is None:
-        return _no_pose(frames, p)
-    gl = _goals_with_end(frames, p, pose)
-    if not gl:
-        return _no_goals(frames, p)
+    found = pose_and_goals(frames, p)
+    if isinstance(found, Finding):
+        return found
+    pose, gl = found
     t = times(pose)
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
     v = pose["linear_velocity"].to_numpy(float) if "linear_velocity" in pose.columns else None
@@ -200,20 +208,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
             row.update(reached=False, note="no poses recorded while this goal was active")
             rows.append(row)
             continue
-        tt, d = t[m], np.hypot(x[m] - g.x, y[m] - g.y)
-        limit = g.t + p["time_limit_s"] if p["time_limit_s"] else g.t_end
-        hit = np.nonzero((d < p["tol_reached"]) & (tt <= limit))[0]
-        reached = len(hit) > 0
-        row.update(start_distance=float(d[0]), min_distance=float(d.min()), final_error=float(d[-1]),
-                   reached=reached, time_to_reach=float(tt[hit[0]] - g.t) if reached else None)
-        if reached:
-            row["reached_at"] = [round(float(x[m][hit[0]]), 3), round(float(y[m][hit[0]]), 3)]
-        settle = tt >= tt[-1] - p["settle_s"]
-        disp = float(np.max(np.hypot(x[m][settle] - x[m][-1], y[m][settle] - y[m][-1])))
-        vmax = float(np.max(np.abs(v[m][settle]))) if v is not None else None
-        stopped = disp <= p["steady_tol"] and (vmax is None or vmax <= p["v_stop"])
-        held = d[-1] <= p["tol_final"]
-        row.update(settle_displacement=disp, settle_max_speed=vmax, stopped=bool(stopped), held=bool(held))
+        reached, held, stopped = _arrival(p, g, t[m], x[m], y[m], v[m] if v is not None else None, row)
         score += (1 - p["stop_weight"]) * reached + p["stop_weight"] * (reached and held and stopped)
         rows.append(row)
     frac = score / len(gl)
@@ -224,6 +219,41 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
     ev.update(_wall_contacts(frames, t, x, y))
     value = f"{n_reached}/{len(gl)} reached"
+    problems = _goal_problems(frames, p, rows, counted)
+    if not problems:
+        times_txt = ", ".join(f"{r['time_to_reach']:.1f} s" for r in rows)
+        return Finding(value, 1.0, "pass", f"All {len(gl)} goals reached and held (time to reach: {times_txt}).", ev)
+    hint = ""
+    if n_reached == 0 and not any(r.get("teleported") for r in rows):
+        hint = (" Check the signs of the distance and heading errors and of the gains, and that the "
+                "velocity commands reach the turtle's cmd_vel topic.")
+    hint += provenance.ignored_poses_note(frames, p["pose_topic"])
+    return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
+
+
+def _arrival(p: dict, g: Any, tt: np.ndarray, xs: np.ndarray, ys: np.ndarray, vs: np.ndarray | None,
+             row: dict) -> tuple[bool, bool, bool]:
+    """One goal's poses while it was active: reached within ``tol_reached`` (and the time limit),
+    held within ``tol_final`` and stopped over the last ``settle_s``; the numbers go in ``row``."""
+    d = np.hypot(xs - g.x, ys - g.y)
+    limit = g.t + p["time_limit_s"] if p["time_limit_s"] else g.t_end
+    hit = np.nonzero((d < p["tol_reached"]) & (tt <= limit))[0]
+    reached = len(hit) > 0
+    row.update(start_distance=float(d[0]), min_distance=float(d.min()), final_error=float(d[-1]),
+               reached=reached, time_to_reach=float(tt[hit[0]] - g.t) if reached else None)
+    if reached:
+        row["reached_at"] = [round(float(xs[hit[0]]), 3), round(float(ys[hit[0]]), 3)]
+    settle = tt >= tt[-1] - p["settle_s"]
+    disp = float(np.max(np.hypot(xs[settle] - xs[-1], ys[settle] - ys[-1])))
+    vmax = float(np.max(np.abs(vs[settle]))) if vs is not None else None
+    stopped = disp <= p["steady_tol"] and (vmax is None or vmax <= p["v_stop"])
+    held = d[-1] <= p["tol_final"]
+    row.update(settle_displacement=disp, settle_max_speed=vmax, stopped=bool(stopped), held=bool(held))
+    return reached, bool(held), bool(stopped)
+
+
+def _goal_problems(frames: Frames, p: dict, rows: list[dict], counted: list) -> list[str]:
+    """A sentence per goal not reached and held (one for all the goals a teleport cost)."""
     problems = []
     moved_goals = [r for r in rows if r.get("teleported")]
     if moved_goals:     # one sentence for all of them
@@ -245,15 +275,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
         elif not (r["held"] and r["stopped"]):
             problems.append(f"{label}: reached after {r['time_to_reach']:.1f} s but did not stay stopped "
                             f"(final error {r['final_error']:.2f} m, speed {fmt(r['settle_max_speed'])} m/s)")
-    if not problems:
-        times_txt = ", ".join(f"{r['time_to_reach']:.1f} s" for r in rows)
-        return Finding(value, 1.0, "pass", f"All {len(gl)} goals reached and held (time to reach: {times_txt}).", ev)
-    hint = ""
-    if n_reached == 0 and not any(r.get("teleported") for r in rows):
-        hint = (" Check the signs of the distance and heading errors and of the gains, and that the "
-                "velocity commands reach the turtle's cmd_vel topic.")
-    hint += provenance.ignored_poses_note(frames, p["pose_topic"])
-    return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
+    return problems
 
 
 def _trajectory(t: np.ndarray, x: np.ndarray, y: np.ndarray, gl: list, theta: np.ndarray | None = None,
@@ -282,168 +304,3 @@ def _wall_contacts(frames: Frames, t: np.ndarray, x: np.ndarray, y: np.ndarray, 
     pts = [[float(s), round(float(x[i]), 3), round(float(y[i]), 3)]
            for s, i in zip(since_start(frames, t[starts[:20]]), starts[:20])]
     return {"wall_contacts": int(len(starts)), "wall_points": pts}
-
-
-@register("turn_direction", evidence={**EVIDENCE, "value": ("goals turned the short way", "")},
-          expect="the short way (at most 180°) for every goal that needs a turn of {min_turn_deg:g}° or more",
-          defaults={
-    **_GOAL_DEFAULTS,
-    "min_turn_deg": 90.0,     # goals whose required turn is at least this are evaluated
-    "wrap_turn_deg": 10.0,    # ... and goals where wrapping changes the turn, if at least this
-    "ambiguous_deg": 10.0,    # within this of 180 deg both directions are accepted
-    "detect_deg": 5.0,        # heading change that marks the turtle's first turn (evidence, and the
-                              # verdict for a controller that turns without cmd_vel)
-    "react_s": 0.1,           # a goal handed over without a hold: commands and turns count from
-                              # this long after it (the controller may still be steering for the
-                              # previous goal until its new one arrives)
-    "cmd_topic": "/turtle1/cmd_vel",
-})
-def turn_direction(frames: Frames, p: dict) -> Finding:
-    """For goals needing a large turn (or where the naive angle difference crosses +-pi), did the
-    controller turn the short way? Judged from the sign of angular.z of the command the controller
-    computed for the goal from the pose it was handed over at, against the turn needed from there.
-
-    Why a command and not the path: when the step places the turtle, the simulator holds it still
-    until the goal has been handed over (``turtles_released``), so the last command sent before
-    the release was computed from the placement and the new goal, the same in every run. The
-    path that follows is chaotic for exactly the controllers this item is about: one whose
-    heading error is in degrees turns up to 3 rad per 16 ms tick, overshoots at once and turns
-    back, so which way its heading seems to go, and the sign of its later commands, depend on
-    its timer's phase. Without a hold, the first turning command from ``react_s`` after the goal
-    decides. A held hand-over of which the bag has no command (a recorder that matched the
-    controller late) is judged from the turtle's first tick after the release, which the last
-    command sent while held drives. The heading the turtle took is kept as evidence, and decides
-    only for a controller that sends no turning command (e.g. one that uses rotate_absolute).
-    """
-    pose = _pose(frames, p)
-    if pose is None:
-        return _no_pose(frames, p)
-    gl = _goals_with_end(frames, p, pose)
-    if not gl:
-        return _no_goals(frames, p)
-    t = times(pose)
-    x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
-    cmd = topic(frames, p["cmd_topic"])
-    released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
-    moved = provenance.moves(frames, p["pose_topic"])
-    counted: list[provenance.Call] = []
-    rows, judged, good = [], 0, 0
-    series: list[dict] = []
-    for k, g in enumerate(gl, 1):
-        i0 = int(np.searchsorted(t, g.t, side="right")) - 1
-        if i0 < 0:
-            i0 = 0
-        m = (t >= t[i0]) & (t <= g.t_end)
-        if m.sum() < 3:
-            continue
-        req = float(heading_error(x[i0], y[i0], th[i0], g.x, g.y))
-        naive = float(math.atan2(g.y - y[i0], g.x - x[i0]) - th[i0])
-        wrap_matters = abs(naive - req) > 1.0
-        row = {"goal": k, "x": g.x, "y": g.y, "start": [float(x[i0]), float(y[i0]), float(th[i0])],
-               "required_turn_deg": math.degrees(req), "naive_turn_deg": math.degrees(naive),
-               "wrap_matters": bool(wrap_matters)}
-        series.append(_heading_series(frames, k, t[m], x[m], y[m], th[m], g))
-        if not (abs(req) >= math.radians(p["min_turn_deg"]) or
-                (wrap_matters and abs(req) >= math.radians(p["wrap_turn_deg"]))):
-            row["evaluated"] = False
-            rows.append(row)
-            continue
-        row["evaluated"] = True
-        during = provenance.within(moved, g.t, g.t_end)
-        if during:      # a turn made by a teleport is no turn: this goal earns nothing
-            counted += during
-            row.update(short_way=False, teleported=len(during), note=provenance.moved_text(frames, during))
-            judged += 1
-            rows.append(row)
-            continue
-        # a held hand-over: the last command before the release (computed from the placement);
-        # else the first turning command from react_s after the goal
-        t_release = released.get(g.extra.get("step"))
-        t_from = t_release if t_release is not None else g.t + p["react_s"]
-        row["judged_from_s"] = float(t_from - g.t)
-        pose_turn = _first_turn(t, th, t_from, g.t_end, p["detect_deg"])
-        row["initial_turn"] = _TURN_WORDS[pose_turn]
-        w_judged, first_move = None, 0
-        if cmd is not None and "angular.z" in cmd.columns:
-            ct = cmd["pub_t"].to_numpy(float) if "pub_t" in cmd.columns else times(cmd)
-            ct = np.where(np.isfinite(ct), ct, times(cmd))
-            w = cmd["angular.z"].to_numpy(float)
-            turning = np.abs(w) > 1e-3
-            during_hold: Any = np.nonzero(turning & (ct > g.t) & (ct <= t_from))[0] if t_release is not None else []
-            after = np.nonzero(turning & (ct > t_from) & (ct <= g.t_end))[0]
-            unrecorded = t_release is not None and not ((ct > g.t) & (ct <= t_from)).any()
-            # the first tick that moved the heading at all (a held pose is exactly constant)
-            first_move = _first_turn(t, th, t_from, g.t_end, FIRST_TICK_DEG) if unrecorded else 0
-            if len(during_hold):
-                w_judged, row["command_sent_s"] = float(w[during_hold[-1]]), float(ct[during_hold[-1]] - g.t)
-            elif first_move:
-                # held, but the bag has no command from the hold (a recorder that matched the
-                # controller late): the turtle's first tick after the release is driven by the
-                # last command the simulator got while it was held, so its sign is that command's
-                row["basis_note"] = "no command of the hand-over is in the bag: judged from the first tick after the release"
-            elif len(after):
-                w_judged, row["command_sent_s"] = float(w[after[0]]), float(ct[after[0]] - g.t)
-            row["first_cmd_angular_z"] = w_judged
-        cmd_turn = int(np.sign(w_judged)) if w_judged is not None else first_move
-        row["commanded_turn"] = _TURN_WORDS[cmd_turn]
-        turn = cmd_turn if w_judged is not None or cmd_turn else pose_turn
-        row["basis"] = "command" if w_judged is not None else ("first tick" if cmd_turn else "pose")
-        ambiguous = abs(req) >= math.pi - math.radians(p["ambiguous_deg"])
-        ok = turn != 0 and (ambiguous or turn == int(np.sign(req)))
-        row.update(ambiguous=bool(ambiguous), short_way=bool(ok), turn=_TURN_WORDS[turn])
-        judged += 1
-        good += ok
-        rows.append(row)
-    ev = {"goals": rows, "heading_error": series}
-    if counted:
-        ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
-    if judged == 0:
-        return Finding.error("No goal in this scenario required a large turn from where the turtle was, "
-                             "so the turn direction could not be judged.", ev)
-    frac = good / judged
-    value = f"{good}/{judged} short way"
-    if good == judged:
-        return Finding(value, 1.0, "pass", f"The turtle turned the short way for all {judged} large-turn goal(s).", ev)
-    bad = [r for r in rows if r.get("evaluated") and not r.get("short_way")]
-    r = bad[0]
-    if r.get("teleported"):
-        msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle was moved without driving ({r['note']}): "
-               "a turn made that way earns nothing.")
-    elif r["turn"] == "none":
-        msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle did not turn at all (needed "
-               f"{r['required_turn_deg']:+.0f}°): the angular command should be proportional to "
-               "the heading error.")
-    else:
-        how = ("the controller's first command for it turned" if r["basis"] in ("command", "first tick")
-               else "the turtle started turning")
-        msg = (f"For goal ({r['x']:g}, {r['y']:g}) the turtle needed to turn {r['required_turn_deg']:+.0f}° "
-               f"but {how} {r['turn']}, the long way.")
-        if r["wrap_matters"]:
-            msg += (" The heading error must be wrapped to (-π, π]: atan2(dy, dx) - theta is not "
-                    "(atan2(sin e, cos e) wraps it).")
-        else:
-            msg += " Check the sign of the heading error and of the angular gain."
-    return Finding(value, frac, graded(frac), msg, ev)
-
-
-_TURN_WORDS = {1: "left (CCW)", -1: "right (CW)", 0: "none"}
-#: a heading change this large (1e-4 rad) is a tick's motion, not float32 noise of a held pose
-FIRST_TICK_DEG = math.degrees(1e-4)
-
-
-def _first_turn(t: np.ndarray, th: np.ndarray, t_from: float, t_end: float, detect_deg: float) -> int:
-    """Which way the heading first moved by ``detect_deg`` after ``t_from`` (+1 left, -1 right, 0)."""
-    i1 = min(int(np.searchsorted(t, t_from, side="left")), len(t) - 1)
-    m1 = (t >= t[i1]) & (t <= t_end)
-    dth = np.unwrap(th[m1]) - th[i1]
-    over = np.nonzero(np.abs(dth) >= math.radians(detect_deg))[0]
-    return int(np.sign(dth[over[0]])) if len(over) else 0
-
-
-def _heading_series(frames: Frames, k: int, t: np.ndarray, x: np.ndarray, y: np.ndarray, th: np.ndarray,
-                    g: SentGoal, max_points: int = 120) -> dict:
-    """theta_e over time while goal ``k`` was active (the report's heading-error figure)."""
-    keep = thin(len(t), max_points)
-    err = np.degrees(heading_error(x[keep], y[keep], th[keep], g.x, g.y))
-    return {"goal": k, "label": f"goal {k} ({g.x:g}, {g.y:g})", "t": since_start(frames, t[keep]).tolist(),
-            "theta_e_deg": np.round(err, 2).tolist()}

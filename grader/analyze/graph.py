@@ -28,7 +28,7 @@ def _full(name: str) -> str:
     return "/" + str(name).strip("/")
 
 
-@register("nodes_running", evidence={**EVIDENCE, "value": ('nodes running', '')},
+@register("nodes_running", judges=("node names",), evidence={**EVIDENCE, "value": ('nodes running', '')},
           expect='{nodes}', defaults={
     "nodes": REQUIRED,         # required: node names, e.g. [/turtlesim, /goal_setter]
     "launch_process": None,    # rubric process of a launch file: nodes must also be declared there

@@ -2,8 +2,8 @@
 
 * ``logged``: a node logged a line matching a pattern through the ROS logger. A line that only
   reached stdout (``print()``) does not count, and the feedback says so; a line logged under
-  another node's name is logged (rclpy also prints it, in the ROS console format), and the
-  feedback says whose it was.
+  another student node's name is logged and counts (the name is the contract's to judge), and
+  the feedback says whose it was.
 * ``text_messages``: string messages on a topic match a pattern, and optionally count up.
 * ``heard_messages``: a subscriber logs what it received: each logged text is a published one,
   and (almost) every message published while it listened was logged. The subscriber is the node
@@ -34,7 +34,8 @@ EVIDENCE = {
     "foreign": ("logged but never published", ""), "published_while_listening": ("published while it listened", ""),
     "min_share": ("share needed", SHARE), "logged_by": ("matching lines logged by other nodes", ""),
     "after_step": ("judged from the start of step", ""), "max_messages": ("messages judged, at most", ""),
-    "judged": ("messages judged", ""),
+    "judged": ("messages judged", ""), "other_names": ("a node of another name may log it", ""),
+    "logged_as": ("logged under the node name", ""),
 }
 
 
@@ -92,6 +93,17 @@ def _console_only(frames: Frames, pattern: re.Pattern, loggers: set[str]) -> lis
             if _short(lg) in mine and pattern.search(str(t)) and str(t) not in on_rosout]
 
 
+def _on_rosout(frames: Frames, others: dict[str, list[str]]) -> tuple[str, str] | None:
+    """The first (logger, line) of ``others`` that reached /rosout: logged through a node's own
+    ROS logger (``get_logger().info``), not only printed in its format."""
+    logs = rosout_lines(frames)
+    for logger, text in zip(logs["logger"], logs["text"]):
+        name = str(logger).strip("/")
+        if str(text) in others.get(name, ()):
+            return name, str(text)
+    return None
+
+
 def _subscribers(frames: Frames, name: str) -> set[str]:
     """Student nodes seen subscribing to ``name`` in the driver's graph snapshots."""
     sim = sim_node(frames)
@@ -104,16 +116,20 @@ def _subscribers(frames: Frames, name: str) -> set[str]:
     return out
 
 
-@register("logged", evidence={**EVIDENCE, "value": ('logged line', '')},
+@register("logged", judges=("logging",), evidence={**EVIDENCE, "value": ('logged line', '')},
           expect='a line matching {pattern!r} logged by {logger}', defaults={
     "logger": REQUIRED,            # required: the node's logger name, e.g. my_first_node
     "pattern": REQUIRED,           # required: regular expression the line must match
     "min_count": 1,
+    "other_names": True,           # a student node of another name that logged it earns it too
 })
 def logged(frames: Frames, p: dict) -> Finding:
-    """A node logged a line matching ``pattern`` through the ROS logger under its name: on
-    /rosout, where ``get_logger().info`` goes. The feedback tells a printed line from one logged
-    under another node's name."""
+    """A node logged a line matching ``pattern`` through the ROS logger: on /rosout, where
+    ``get_logger().info`` goes. A student node of another name that logged it earns it as well
+    (``other_names``): its name is judged by the contract and the item about the name, so a
+    greeting under ``first_node`` costs the name's point once, not the greeting's too (issue 37:
+    five of seven real first packages used another name). The feedback tells a printed line
+    from a logged one and names the node that logged it."""
     pattern = re.compile(p["pattern"])
     logger = str(p["logger"]).strip("/")
     lines = _logger_lines(frames, logger)
@@ -126,6 +142,13 @@ def logged(frames: Frames, p: dict) -> Finding:
     if others:
         name, texts = next(iter(others.items()))
         ev["logged_by"] = {k: v[:3] for k, v in others.items()}
+        on_rosout = _on_rosout(frames, others) if p["other_names"] else None
+        if on_rosout:
+            # the student's node logged it through the ROS logger under a name of its own: the
+            # name is the contract's (and its own item's) to charge, not this item's
+            other, text = on_rosout
+            return Finding(text, 1.0, "pass", f"{other} logged {text!r} through the ROS logger (this lab asks "
+                                              f"for the node name {logger}).", {**ev, "logged_as": other})
         return Finding.fail(f"{texts[0]!r} was logged by the node {name}, not by {logger}: the node that logs it "
                             f"must be called {logger}.", ev, value=texts[0])
     console = _console_only(frames, pattern, {logger})
@@ -248,7 +271,7 @@ def _listening_since(published: list[str], pub_t: np.ndarray, first: tuple[float
     return float(sent[-1]) if sent else t - HEARD_LAG_S
 
 
-@register("heard_messages", evidence={**EVIDENCE, "value": ('messages heard', '')},
+@register("heard_messages", judges=("logging",), evidence={**EVIDENCE, "value": ('messages heard', '')},
           expect='{min_share:.0%} of the published messages logged', defaults={
     "topic": REQUIRED,             # required: the topic the subscriber listens to
     "logger": None,                # the subscriber's logger name; None: the nodes subscribing to topic

@@ -43,12 +43,13 @@ from importlib.metadata import EntryPoint, entry_points
 from pathlib import Path
 from typing import Any, Iterable
 
+from grader.analyze import registry
 from grader.errors import GraderError
 
 ENTRY_POINT_GROUP = "grader.analyzers"
 
 #: modules of grader.analyze that register nothing (helpers, pure checks used by the pipeline)
-_HELPERS = frozenset({"plugins", "evidence"})
+_HELPERS = frozenset({"plugins", "evidence", "registry"})
 
 _state = {"loaded": ""}            # "" (not yet), "loading" (in this or another thread), "done"
 #: a batch analyzes in threads: one imports, the others wait for it (reentrant: the modules being
@@ -75,9 +76,7 @@ _FILES: dict[Path, LoadedFile] = {}
 
 def builtin_modules() -> list[str]:
     """The public modules of ``grader.analyze`` (imported in name order)."""
-    import grader.analyze as package
-
-    return sorted(f"{package.__name__}.{m.name}" for m in pkgutil.iter_modules(package.__path__)
+    return sorted(f"grader.analyze.{m.name}" for m in pkgutil.iter_modules([str(Path(__file__).parent)])
                   if not m.name.startswith("_") and m.name not in _HELPERS)
 
 
@@ -106,11 +105,9 @@ def load_builtin_and_installed() -> None:
 
 
 def _load_entry_point(ep: EntryPoint) -> None:
-    from grader import analyze
-
     dist = getattr(ep, "dist", None)
     where = f"entry point {ep.name} = {ep.value}" + (f" of {dist.name}" if dist is not None else "")
-    analyze._defining.append(where)
+    registry._defining.append(where)
     try:
         ep.load()
     except GraderError:
@@ -119,7 +116,7 @@ def _load_entry_point(ep: EntryPoint) -> None:
         raise PluginError(f"analyzer plug-in ({where}, group {ENTRY_POINT_GROUP}) cannot be imported: "
                           f"{type(exc).__name__}: {exc}; fix or uninstall that distribution") from None
     finally:
-        analyze._defining.pop()
+        registry._defining.pop()
 
 
 def _stamp(path: Path) -> tuple[int, int]:
@@ -142,8 +139,6 @@ def load_file(path: str | Path) -> tuple[str, ...]:
 
 def _load_file(path: str | Path) -> tuple[str, ...]:
     """:func:`load_file`, under the lock."""
-    from grader import analyze
-
     path = Path(path).resolve()
     if not path.is_file():
         raise PluginError(f"analyzer file not found (looked for {path})")
@@ -168,21 +163,21 @@ def _load_file(path: str | Path) -> tuple[str, ...]:
     if spec is None or spec.loader is None:
         raise PluginError(f"{path.name} is not a Python module (name it *.py)")
     module = importlib.util.module_from_spec(spec)
-    before = set(analyze._REGISTRY)
+    before = set(registry._REGISTRY)
     sys.modules[module_name] = module          # dataclasses and pickling look modules up here
-    analyze._defining.append(str(path))
+    registry._defining.append(str(path))
     try:
         spec.loader.exec_module(module)
     except Exception as exc:  # noqa: BLE001 - an instructor's file: any error becomes a rubric problem
-        analyze.forget(set(analyze._REGISTRY) - before)
+        registry.forget(set(registry._REGISTRY) - before)
         _forget_figures(module_name)
         sys.modules.pop(module_name, None)
-        if isinstance(exc, analyze.DuplicateAnalyzer):
+        if isinstance(exc, registry.DuplicateAnalyzer):
             raise PluginError(f"{path.name}{_line_in(exc, path)}: {exc}") from None
         raise PluginError(f"cannot import {path.name}{_line_in(exc, path)}: {type(exc).__name__}: {exc}") from None
     finally:
-        analyze._defining.pop()
-    defined = tuple(sorted(set(analyze._REGISTRY) - before))
+        registry._defining.pop()
+    defined = tuple(sorted(set(registry._REGISTRY) - before))
     if not defined and not _defines_figures(module_name):
         sys.modules.pop(module_name, None)
         raise PluginError(f"{path.name} defines no analyzer and no figure (decorate a function with "
@@ -215,17 +210,15 @@ def load_recorded_files(paths: Iterable[str]) -> None:
 
 def unload_file(path: str | Path) -> None:
     """Forget a file's analyzers and figures (it changed, or a test is done with it)."""
-    from grader import analyze
-
     with _LOCK:
-        _unload(analyze, path)
+        _unload(path)
 
 
-def _unload(analyze: Any, path: str | Path) -> None:
+def _unload(path: str | Path) -> None:
     known = _FILES.pop(Path(path).resolve(), None)
     if known is None or any(f.module == known.module for f in _FILES.values()):
         return                  # unknown, or an identical copy elsewhere still uses the module
-    analyze.forget(known.analyzers)
+    registry.forget(known.analyzers)
     _forget_figures(known.module)
     sys.modules.pop(known.module, None)
 

@@ -44,7 +44,7 @@ EVIDENCE = {
 }
 
 
-@register("topic_type", evidence={**EVIDENCE, "value": ("message type", "")},
+@register("topic_type", judges=("ros names",), evidence={**EVIDENCE, "value": ("message type", "")},
           expect="{type} messages on {topic}", defaults={
     "topic": "/random_numbers",
     "type": "std_msgs/msg/Float32MultiArray",

@@ -74,7 +74,7 @@ def rate_stats(t: np.ndarray, gap_factor: float | None = 5.0) -> dict:
     }
 
 
-@register("publish_rate", evidence=EVIDENCE, expect="{expected_hz:g} Hz ± {rel_tol:.0%}", defaults={
+@register("publish_rate", timing="the publish rate", evidence=EVIDENCE, expect="{expected_hz:g} Hz ± {rel_tol:.0%}", defaults={
     "topic": REQUIRED,          # required: topic to measure, e.g. "/random_numbers"
     "expected_hz": REQUIRED,    # required: nominal rate, e.g. 1.0, 33.33 (0.03 s timer), 62.5
     "rel_tol": 0.10,        # |rate/expected - 1| <= rel_tol -> full credit

@@ -27,17 +27,21 @@ EVIDENCE = {
     "expected": ("expected value", ""), "fields": ("message field: request field", ""),
     "window_s": ("time allowed for the message", "s"), "tol": ("allowed difference", ""),
     "success": ("success", ""), "t": ("called at", SINCE_START), "message_t": None,
+    "called_as": ("called under the name", ""),
 }
 
 
 def _calls(frames: Frames, service: str) -> list[dict[str, Any]]:
-    """Calls to ``service`` in order, each with its response (None: no response in time)."""
+    """Calls to ``service`` in order, each with its response (None: no response in time); a
+    call the driver made to the name the student's node serves it under instead
+    (``ServiceCall.served_by``) is one too, with that name in ``under``."""
     out: list[dict[str, Any]] = []
     for e in events(frames, (Event.SERVICE_CALL, Event.SERVICE_RESPONSE)):
-        if e.get("service") != service:
+        if service not in (e.get("service"), e.get("asked_for")):
             continue
         if e["event"] == Event.SERVICE_CALL:
-            out.append({"t": e["t"], "step": e.get("step"), "type": e.get("type"),
+            under = e.get("service") if e.get("asked_for") == service else None
+            out.append({"t": e["t"], "step": e.get("step"), "type": e.get("type"), "under": under,
                         "request": e.get("request") or {}, "response": None, "answered": False})
         elif out and not out[-1]["answered"]:
             out[-1].update(response=e.get("response"), answered=e.get("response") is not None)
@@ -53,7 +57,7 @@ def _no_calls(frames: Frames, service: str) -> Finding:
     return Finding.error(f"The scenario made no calls to {service}, so this item could not be tested.")
 
 
-@register("service_answers", evidence={**EVIDENCE, "value": ('calls answered as expected', '')},
+@register("service_answers", judges=("ros names",), evidence={**EVIDENCE, "value": ('calls answered as expected', '')},
           expect='{field} = {expected} in every response', defaults={
     "service": REQUIRED,           # required: e.g. /set_goal
     "field": "success",        # response field to check
@@ -73,6 +77,13 @@ def service_answers(frames: Frames, p: dict) -> Finding:
     frac = ok / len(calls)
     ev = {"calls": rows, "service_type": calls[0]["type"]}
     value = f"{ok}/{len(calls)} answered {p['field']}={p['expected']}"
+    under = calls[0]["under"]
+    if under is not None:       # the item about the service's name: the one charge for it
+        ev["called_as"] = under
+        return Finding(f"served as {under}", 0.0, "fail",
+                       f"There is no {p['service']}: your node serves it as {under} (called there, {ok} of "
+                       f"{len(calls)} calls answered {p['field']} = {p['expected']}). Give create_service the "
+                       f"name '{p['service'].lstrip('/')}': the lab's callers ask for {p['service']}.", ev)
     if ok == len(calls):
         return Finding(value, 1.0, "pass", f"All {len(calls)} calls to {p['service']} answered "
                                            f"{p['field']} = {p['expected']}.", ev)
@@ -84,7 +95,7 @@ def service_answers(frames: Frames, p: dict) -> Finding:
                    "returning the response.", ev)
 
 
-@register("request_echoed", evidence={**EVIDENCE, "value": ('requests republished', '')},
+@register("request_echoed", timing="a message within window_s of the call", evidence={**EVIDENCE, "value": ('requests republished', '')},
           expect='one message on {topic} per request, with its values', defaults={
     "service": REQUIRED,           # required: e.g. /set_goal
     "topic": REQUIRED,             # required: where each request must be published, e.g. /goal
@@ -119,9 +130,14 @@ def request_echoed(frames: Frames, p: dict) -> Finding:
     ev = {"calls": rows, "topic": p["topic"]}
     n_ok = sum(1 for r in rows if r.get("match") and r["messages"] == 1)
     value = f"{n_ok}/{len(calls)} echoed"
+    under = calls[0]["under"]
+    called = (f" (called as {under}, the name your node serves it under; the lab's name is {p['service']})"
+              if under is not None else "")
+    if under is not None:
+        ev["called_as"] = under
     if n_ok == len(calls):
         return Finding(value, 1.0, "pass", f"Each of the {len(calls)} requests was published once on "
-                                           f"{p['topic']} with the requested values.", ev)
+                                           f"{p['topic']} with the requested values{called}.", ev)
     if df is None:
         return Finding(value, 0.0, "fail", missing_topic_feedback(frames, p["topic"], "one message per request")
                        + f" Publish each {p['service']} request there.", ev)
@@ -132,7 +148,7 @@ def request_echoed(frames: Frames, p: dict) -> Finding:
         why = f"the message had {bad['got']} instead of {bad['wanted']}"
     else:
         why = f"{bad['messages']} messages instead of one"
-    return Finding(value, frac, graded(frac), f"Request {bad['call']} ({bad['request']}): {why}.", ev)
+    return Finding(value, frac, graded(frac), f"Request {bad['call']} ({bad['request']}){called}: {why}.", ev)
 
 
 def _value(v: Any) -> Any:

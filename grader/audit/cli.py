@@ -20,12 +20,7 @@ def register_audit(rsub: argparse._SubParsersAction) -> None:
                     "topic, drop a publish/log/call, remove an angle wrap, change a timer period), grade every "
                     "mutant and report which keep full marks: a blind spot of the rubric, or an equivalent mutant "
                     "recorded in the rubric's equivalent_mutants. Exit 0 when no mutant survives unrecorded.")
-    a.add_argument("rubric", type=Path)
-    a.add_argument("-o", "--out", type=Path, default=None,
-                   help="output folder (default: audit-<lab> in the current folder)")
-    a.add_argument("--reference", type=Path, default=None,
-                   help="the reference solution (default: reference/ beside the rubric's handout, or "
-                        "fixtures/submissions/<rubric name>/reference)")
+    _graded_mutants_options(a, "audit")
     a.add_argument("--sample", type=_positive, default=None, metavar="N", help="grade N mutants chosen at random")
     a.add_argument("--seed", type=int, default=0, help="seed of --sample (default 0)")
     a.add_argument("--operators", type=_operators, default=None, metavar="OP,OP",
@@ -34,16 +29,38 @@ def register_audit(rsub: argparse._SubParsersAction) -> None:
     a.add_argument("--list", action="store_true", help="list the mutants (id, file:line, change) and grade nothing")
     a.add_argument("--all-files", action="store_true",
                    help="also mutate files the handout gives out unchanged (the lab's own code)")
-    a.add_argument("--jobs", type=_positive, default=2, help="scenarios (and builds) run at once (default 2)")
-    a.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
     a.add_argument("--no-reuse", action="store_true", help="run every scenario of every mutant")
-    a.add_argument("--resume", action="store_true", help="keep mutants already graded in OUT")
-    a.add_argument("--regrade", action="store_true",
-                   help="grade the recordings already in OUT again with the rubric as it is now (no ROS: after "
-                        "changing items, parameters or analyzers); mutants not yet graded are graded")
     a.add_argument("--quiet-diffs", action="store_true", help="print survivors without their diffs")
     _time_scale_option(a)
     a.set_defaults(func=run_audit_cli)
+
+    c = rsub.add_parser(
+        "collateral", help="one mistake costs once: which items does a one-aspect mutant cost beyond those about it",
+        description="Change the rubric's reference solution in one aspect at a time the way students do (a node's "
+                    "name, a topic's name, a log line printed instead, a timer's period), grade every such mutant and "
+                    "list the items each lost beyond those that judge that aspect (collateral losses), and those the "
+                    "rubric's accepted_collateral accepts with a reason. Exit 0 when every collateral loss is accepted.")
+    _graded_mutants_options(c, "collateral")
+    c.set_defaults(func=run_collateral_cli)
+
+
+def _graded_mutants_options(parser: argparse.ArgumentParser, name: str) -> None:
+    """What `audit` and `collateral` both take: the rubric, where to write, the reference, and
+    how the mutants are graded."""
+    from grader.grading.cli import _positive
+
+    parser.add_argument("rubric", type=Path)
+    parser.add_argument("-o", "--out", type=Path, default=None,
+                        help=f"output folder (default: {name}-<lab> in the current folder)")
+    parser.add_argument("--reference", type=Path, default=None,
+                        help="the reference solution (default: reference/ beside the rubric's handout, or "
+                             "fixtures/submissions/<rubric name>/reference)")
+    parser.add_argument("--jobs", type=_positive, default=2, help="scenarios (and builds) run at once (default 2)")
+    parser.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
+    parser.add_argument("--resume", action="store_true", help="keep mutants already graded in OUT")
+    parser.add_argument("--regrade", action="store_true",
+                        help="grade the recordings already in OUT again with the rubric as it is now (no ROS: after "
+                             "changing items, parameters or analyzers); mutants not yet graded are graded")
 
 
 def _operators(text: str) -> list[str]:
@@ -94,3 +111,20 @@ def run_audit_cli(args: argparse.Namespace) -> int:
     print(text_summary(report, diffs=not args.quiet_diffs))
     print(f"report: {Path(out) / 'audit.md'} (and audit.json; the mutants' reports: {Path(out) / 'graded' / 'index.html'})")
     return 1 if report.count("surviving") or report.count("error") else 0
+
+
+def run_collateral_cli(args: argparse.Namespace) -> int:
+    from grader.audit.collateral import run_collateral, text_summary
+    from grader.rubric.load import load_rubric
+
+    out = args.out or Path(f"collateral-{load_rubric(args.rubric).lab}")
+
+    def say(text: str) -> None:
+        print(text, file=sys.stderr, flush=True)
+
+    report = run_collateral(args.rubric, out, reference=args.reference, jobs=args.jobs, cache_dir=args.cache_dir,
+                            resume=args.resume, regrade=args.regrade, say=say)
+    print(text_summary(report))
+    print(f"report: {Path(out) / 'collateral.md'} (and collateral.json; the mutants' reports: "
+          f"{Path(out) / 'graded' / 'index.html'})")
+    return 1 if report.collateral else 0

@@ -72,10 +72,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
 
+from grader.audit import aspects
 from grader.audit.operators import MAKERS, Edit, Source, parents_of, scope_of, unmutable
 
 OPERATORS: tuple[str, ...] = ("flip_sign", "scale_constant", "swap_args", "rename_topic", "drop_call",
                               "remove_angle_wrap", "change_timer_period")
+
+#: every operator ``mutants`` takes: the audit's (``OPERATORS``, its default) and the one-aspect
+#: operators of the collateral-loss audit (``grader.audit.aspects``)
+KNOWN: tuple[str, ...] = OPERATORS + tuple(o for o in aspects.ASPECT_OPERATORS if o not in OPERATORS)
+ALL_MAKERS = {**MAKERS, **aspects.MAKERS}
 
 #: files and folders a mutant copy leaves out (grading artefacts, expectations of the original)
 COPY_IGNORE = ("__pycache__", ".grader-check", "expected.yaml", "*.pyc")
@@ -149,9 +155,9 @@ def mutants(root: Path, operators: Iterable[str] | None = None) -> list[Mutant]:
     (unknown names raise ValueError)."""
     root = Path(root).resolve()
     chosen = OPERATORS if operators is None else tuple(operators)
-    unknown = [o for o in chosen if o not in OPERATORS]
+    unknown = [o for o in chosen if o not in KNOWN]
     if unknown:
-        raise ValueError(f"unknown mutation operator(s) {', '.join(unknown)}; known: {', '.join(OPERATORS)}")
+        raise ValueError(f"unknown mutation operator(s) {', '.join(unknown)}; known: {', '.join(KNOWN)}")
     out: list[Mutant] = []
     for path in source_files(root):
         source = path.read_text(encoding="utf-8", errors="replace")
@@ -160,7 +166,7 @@ def mutants(root: Path, operators: Iterable[str] | None = None) -> list[Mutant]:
         except SyntaxError:
             continue          # a file that does not parse has nothing to mutate
         rel = path.relative_to(root).as_posix()
-        out += _file_mutants(root, rel, source, tree, [o for o in OPERATORS if o in chosen])
+        out += _file_mutants(root, rel, source, tree, [o for o in KNOWN if o in chosen])
     return out
 
 
@@ -180,7 +186,7 @@ def _file_mutants(root: Path, rel: str, source: str, tree: ast.Module, operators
     skip = unmutable(tree, parents)
     edits: list[tuple[tuple[int, int, int, int], Edit]] = []
     for op_index, op in enumerate(operators):
-        for order, edit in enumerate(MAKERS[op](tree, parents, skip, src)):
+        for order, edit in enumerate(ALL_MAKERS[op](tree, parents, skip, src)):
             node = edit.node
             edits.append(((node.lineno, node.col_offset, op_index, order), edit))
     edits.sort(key=lambda e: e[0])

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from grader.audit.mutate import OPERATORS
-from grader.audit.run import AuditReport, Outcome
+from grader.audit.outcome import AuditReport, Outcome
 
 MUTANT_STATUSES = ("killed", "equivalent", "surviving", "error")
 

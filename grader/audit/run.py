@@ -29,72 +29,20 @@ import filecmp
 import json
 import shutil
 import time
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 from grader.audit.mutate import COPY_IGNORE, Mutant, mutants, sample, source_files
+from grader.audit.outcome import AuditReport, Outcome
+from grader.audit.report import write_report
 from grader.errors import GraderError
+from grader.grading.timescale import machine_time_scale
 
 if TYPE_CHECKING:
-    from grader.grading.pipeline import GradedSubmission
+    from grader.grading.graded import GradedSubmission
 
 REFERENCE_ID = "reference"
 _EPS = 1e-6
-
-
-@dataclass
-class Outcome:
-    """What grading one mutant gave."""
-
-    mutant: dict[str, Any]               # Mutant.summary()
-    diff: str
-    status: str                          # killed | equivalent | surviving | error
-    auto_score: float | None = None
-    auto_max: float | None = None
-    lost: dict[str, float] = field(default_factory=dict)   # item id -> points lost
-    reason: str | None = None            # the rubric's reason, for an equivalent mutant
-    error: str | None = None
-    wall_s: float | None = None          # build + scenarios of this mutant
-
-
-@dataclass
-class AuditReport:
-    rubric: str
-    lab: str
-    reference: str
-    operators: list[str]
-    made: int                            # mutants of the reference (after leaving out given files)
-    given_files: list[str]               # files left out: handed out unchanged
-    sample: int | None
-    seed: int
-    time_scale: float
-    jobs: int
-    outcomes: list[Outcome]
-    wall_s: float = 0.0
-    reference_wall_s: float = 0.0
-    stale_equivalents: list[str] = field(default_factory=list)   # recorded ids no mutant has
-    regraded: bool = False               # --regrade: recordings of an earlier run, analyzed again
-
-    def count(self, status: str) -> int:
-        return sum(1 for o in self.outcomes if o.status == status)
-
-    @property
-    def graded(self) -> int:
-        return len(self.outcomes)
-
-    @property
-    def score(self) -> float | None:
-        """Mutation score: killed / (graded - equivalent - errors)."""
-        judged = self.graded - self.count("equivalent") - self.count("error")
-        return self.count("killed") / judged if judged else None
-
-    def to_json(self) -> dict[str, Any]:
-        doc = asdict(self)
-        doc["counts"] = {s: self.count(s) for s in ("killed", "equivalent", "surviving", "error")}
-        doc["graded"] = self.graded
-        doc["score"] = self.score
-        return doc
 
 
 def find_reference(rubric: Any, explicit: Path | None) -> Path:
@@ -139,7 +87,7 @@ def choose(rubric: Any, reference: Path, operators: list[str] | None, n: int | N
 
 
 def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jobs: int = 2,
-              time_scale: float = 1.0, reuse: bool = True, cache_dir: Path | None = None,
+              time_scale: float | None = None, reuse: bool = True, cache_dir: Path | None = None,
               sample_n: int | None = None, operators: list[str] | None = None, seed: int = 0,
               only: list[str] | None = None, all_files: bool = False, resume: bool = False,
               regrade: bool = False, say: Callable[[str], None] = print) -> AuditReport:
@@ -151,6 +99,8 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     from grader.grading.pipeline import grade_submission
     from grader.grading.schedule import Slots
     from grader.rubric.load import display_path, load_rubric
+
+    time_scale = machine_time_scale(time_scale)
 
     rubric = load_rubric(rubric_path)
     ref = find_reference(rubric, reference)
@@ -223,7 +173,6 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     if sample_n is None and not operators and not only:
         every = {m.id for m in mutants(ref)}
         report.stale_equivalents = sorted(set(equivalents) - every)
-    from grader.audit.report import write_report
 
     write_report(report, out)
     return report

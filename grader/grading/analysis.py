@@ -12,11 +12,13 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence, cast
+from typing import TYPE_CHECKING, Any, Callable, Sequence, cast
 
+from grader.analyze import timing
 from grader.analyze._common import events, own_exits, stdout_lines
 from grader.errors import GraderError
-from grader.grading.repeat import exact_lockstep, repeated_finding, run_folders
+from grader.grading.repeat import exact_lockstep, outcome, repeated_finding, run_folders, settled
+from grader.grading.starvation import starvation
 from grader.scenario.events import Event
 
 if TYPE_CHECKING:
@@ -101,6 +103,8 @@ def analyze_item(item: Item, frames: dict) -> Finding:
     died before the last goal must read that it died (and in which step), not only "goal 4 not
     reached". Integrity checks are the exception: code that never ran
     did nothing suspicious, so for them "could not check" stays an error (see `combine_findings`).
+    Otherwise an item about timing that lost points on a recording the grading machine starved
+    is an error saying so (``starved_timing``).
     """
     from grader import analyze
 
@@ -109,14 +113,37 @@ def analyze_item(item: Item, frames: dict) -> Finding:
         return finding      # only a lost point needs the events and output parsed for a reason
     missing = _unavailable_nodes(frames)
     crashed = _crashed_nodes(frames)
-    if missing or crashed:
-        why = (["Could not run " + "; ".join(missing).rstrip(".") + "."] if missing else []) + \
-              (["Node stopped: " + "; ".join(crashed).rstrip(".") + "."] if crashed else [])
-        finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
-        finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
-        if finding.status == "error" and item.kind != "integrity":
-            finding.status, finding.fraction = "fail", 0.0
+    if not missing and not crashed:          # a node that died explains its own lost points
+        return starved_timing(item, finding, frames) or finding
+    why = (["Could not run " + "; ".join(missing).rstrip(".") + "."] if missing else []) + \
+          (["Node stopped: " + "; ".join(crashed).rstrip(".") + "."] if crashed else [])
+    finding.feedback = (finding.feedback + " " + " ".join(why)).strip()
+    finding.evidence = {**finding.evidence, "unavailable_nodes": missing, "crashed_nodes": crashed}
+    if finding.status == "error" and item.kind != "integrity":
+        finding.status, finding.fraction = "fail", 0.0
     return finding
+
+
+def starved_timing(item: Item, finding: Finding, frames: dict) -> Finding | None:
+    """``finding`` as an ``error`` when it lost points on timing that the grading machine's
+    starvation of this recording explains (``grader.grading.starvation``): the measurement is
+    of the machine, not of the code. None when the item does not depend on timing, the
+    recording was not starved, or the student's own processes starved it."""
+    words = timing(item.analyzer, item.timing)
+    meta = frames.get("__meta__")
+    record = meta.attrs.get("scenario") if meta is not None else None
+    if finding.status not in ("fail", "partial") or not words or not record:
+        return None
+    found = starvation(record)
+    if found is None or found.own:
+        return None
+    measured = finding.feedback.strip()
+    return replace(finding, status="error", fraction=0.0,
+                   feedback=(f"Not measured: the grading machine was too busy to measure {words} on this "
+                             f"recording ({found.reason}), so it says nothing about your code; it needs a new "
+                             f"recording on a quieter machine."
+                             + (f" What this recording showed: {measured}" if measured else "")),
+                   evidence={**finding.evidence, "starved": found.reason, "starved_status": finding.status})
 
 
 def combine_findings(item: Item, per_scenario: list, scenarios: Sequence[str] = ()) -> Finding | None:
@@ -220,3 +247,22 @@ def _fingerprint(sub_out: Path, frames_cache: dict[str, Any], problems: list[str
             write_fingerprint(sub_out / SCENARIOS_DIR / sc, frames)
         except Exception as exc:  # noqa: BLE001 - similarity never costs a grade
             problems.append(f"scenario {sc}: behaviour fingerprint not written ({type(exc).__name__}: {exc})")
+
+
+def settles_check(items: list, planned: int, by: str = "median") -> Callable[[list[Path]], bool] | None:
+    """For a scenario run ``planned`` > 1 times: whether the runs recorded so far (their folders)
+    settle every one of its ``items`` (``by``: the median or the worst); None for a scenario that
+    runs once."""
+    if planned <= 1:
+        return None
+
+    def check(folders: list[Path]) -> bool:
+        if by == "median" and 2 * len(folders) <= planned:
+            return False            # no majority yet: not worth reading the bags
+        try:
+            frames = [scenario_frames(f) for f in folders]
+        except GraderError:
+            return False
+        return settled([[outcome(analyze_item(item, fr)) for fr in frames] for item in items], planned, by)
+
+    return check

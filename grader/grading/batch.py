@@ -6,6 +6,12 @@ lab's fixtures side by side this way). Ctrl-C cancels what has not started and s
 scenarios cleanly (their bags are finalised); finished submissions and ``grades.csv`` are kept.
 When it ends, the cache is brought under its size cap and the batch's hit counts are kept
 (``grader.cache.store.end_batch``).
+
+A submission whose timing items could not be measured because the grading machine starved
+their recordings (``Result.starved``, ``grader.grading.starvation``) is graded again once the
+batch is done, one submission and one scenario at a time (``rerun_starved``): the machine is
+then as quiet as this batch can make it. With reuse on, only its starved recordings are made
+again (a starved recording is never kept for reuse); the new result replaces the old.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from grader.grading.schedule import Slots
 def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
                 cache_dir: Path | None = None, reuse: bool = True,
                 on_done: Callable[[str, Any, str | None], None] | None = None,
-                progress: Callable[[str], None] | None = None, time_scale: float = 1.0,
+                progress: Callable[[str], None] | None = None, time_scale: float | None = None,
                 due_override: dict | None = None, cache_max_size: str | None = None) -> dict[str, str]:
     """Grade ``submissions`` (paths, or grader.intake Arrivals with their ids and records) into
     ``out``; returns ``{submission id: why it has no result}``.
@@ -42,6 +48,7 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
     out.mkdir(parents=True, exist_ok=True)
     failures: dict[str, str] = {}
     uses: list[dict[str, int]] = []
+    graded_now: dict[str, Any] = {}
     # (id, what to grade, arrival record or None)
     todo = [(s.id, s.path, s.record()) if hasattr(s, "record") else (submission_id(s), s, None)
             for s in submissions]
@@ -64,6 +71,7 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
                     failures[sid] = error or "no result"
                 else:
                     uses.append(graded.cache)
+                    graded_now[sid] = graded
                 if on_done:
                     on_done(sid, graded, error)
                 try:
@@ -76,7 +84,42 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
                 f.cancel()
             cancel_all()          # running scenarios finalize their bags and stop
             raise
+    failures.update(rerun_starved(graded_now, todo, rubric, out, cache_dir=cache_dir, reuse=reuse,
+                                  time_scale=time_scale, due_override=due_override, on_done=on_done))
     ended = end_batch(Path(cache_dir or default_cache_dir()), uses, cache_max_size)
     if ended.get("message"):
         print(f"grader: {ended['message']}", file=sys.stderr)
+    return failures
+
+
+def rerun_starved(graded: dict[str, Any], todo: list[tuple[str, Any, Any]], rubric: Any, out: Path, *,
+                  cache_dir: Path | None, reuse: bool, time_scale: float | None, due_override: dict | None,
+                  on_done: Callable[[str, Any, str | None], None] | None) -> dict[str, str]:
+    """Grade again, one at a time, each submission of ``graded`` whose result has starved timing
+    items; returns ``{id: why it has no result}`` for those that could not be graded again (their
+    earlier result went with the new attempt). The class view is rewritten after each."""
+    from grader.grading.outputs import write_batch_outputs
+    from grader.grading.pipeline import grade_submission
+
+    again = [(sid, path, record) for sid, path, record in todo if sid in graded and graded[sid].result.starved]
+    if again:
+        print(f"grader: {len(again)} submission(s) had timing items the grading machine was too busy to measure; "
+              "recording their scenarios again, one at a time", file=sys.stderr)
+    failures: dict[str, str] = {}
+    for sid, path, record in again:
+        try:
+            regraded = grade_submission(path, rubric, out, cache_dir=cache_dir, sid=sid, slots=Slots(1),
+                                        reuse=reuse, time_scale=time_scale, intake=record,
+                                        due_override=due_override)
+        except GraderError as exc:
+            failures[sid] = f"graded again (timing not measured the first time), but: {exc}"
+            if on_done:
+                on_done(sid, None, failures[sid])
+            continue
+        if regraded.result.starved:
+            print(f"grader: {sid}: still not measured on a starved machine: {', '.join(regraded.result.starved)} "
+                  "(the class view lists it; `grader grade --only " + sid + "` later)", file=sys.stderr)
+        if on_done:
+            on_done(sid, regraded, None)
+        write_batch_outputs(out, rubric)
     return failures

@@ -9,9 +9,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from grader.errors import GraderError
+from grader.spec.speed import DEFAULT_TIME_SCALE, MIN_CPUS_FOR_DEFAULT
 
 if TYPE_CHECKING:
-    from grader.grading.pipeline import GradedSubmission
+    from grader.grading.graded import GradedSubmission
+
+
+#: `grader check`'s exit status when an item could not be measured because the machine was
+#: starved of CPU (0: every item passed; 1: some item did not)
+STARVED_EXIT = 3
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,12 +33,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("-o", "--out", type=Path, required=True, help="output folder")
     _intake_options(g)
     g.add_argument("--jobs", type=_positive, default=None,
-                   help="scenarios (and builds) run at once across the batch (default: twice the cores)")
+                   help="scenarios (and builds) run at once across the batch (default: twice the CPUs the grader is given, its cgroup's quota in a container)")
     g.add_argument("--only", nargs="+", metavar="ID", help="grade only these submission ids")
     g.add_argument("--shard", type=_shard, default=None, metavar="K/N",
                    help="grade only shard K of N (a stable 1/N of the submissions, by id; "
                         "combine the outputs with `grader merge`)")
-    g.add_argument("--resume", action="store_true", help="skip submissions that already have a result.json in OUT")
+    g.add_argument("--resume", action="store_true", help="skip submissions that already have a result.json in OUT (except those with items the "
+                        "grading machine was too busy to measure: they are graded again)")
     g.add_argument("--cache-dir", type=Path, default=None, help="build cache folder")
     g.add_argument("--no-reuse", action="store_true",
                    help="run every scenario, even when an identical one was recorded before")
@@ -45,13 +52,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     c = sub.add_parser("check", help="self-check your own workspace (public items only)",
                        description="Runs the lab's public auto-graded items on your workspace, prints a table "
-                                   "with a hint per item and writes a report. Exit 0 only when all pass.")
+                                   "with a hint per item and writes a report. Exit 0 only when all pass; 3 when the "
+                                   "machine was too busy to measure an item's timing (run it again when quiet).")
     c.add_argument("workspace", type=Path, nargs="?", default=Path("."), help="your workspace (default: .)")
     c.add_argument("--lab", default=None, help="lab id, e.g. enee467-lab3 (see `grader labs`)")
     c.add_argument("--rubric", type=Path, default=None, help="rubric YAML instead of --lab")
     c.add_argument("-o", "--out", type=Path, default=None, help="report folder (default: WORKSPACE/.grader-check)")
     c.add_argument("--cache-dir", type=Path, default=None)
-    c.add_argument("--jobs", type=_positive, default=None, help="scenarios run at once (default: twice the cores)")
+    c.add_argument("--jobs", type=_positive, default=None, help="scenarios run at once (default: one per CPU the grader is given on simulated time, twice that at --time-scale 1; its cgroup's quota in a container)")
     c.add_argument("--no-reuse", action="store_true",
                    help="run every scenario, even those whose packages did not change since the last check")
     _cache_cap_option(c)
@@ -99,10 +107,11 @@ def _intake_options(g: argparse.ArgumentParser) -> None:
 
 
 def _time_scale_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--time-scale", type=_time_scale, default=1.0, metavar="K",
-                        help="run scenarios K times faster than real time on simulated time (e.g. 4), "
-                             "each one that may: a node paced by the wall clock runs at 1x, and the "
-                             "result says so (default 1: real time)")
+    parser.add_argument("--time-scale", type=_time_scale, default=None, metavar="K",
+                        help="run scenarios K times faster than real time on simulated time, each one "
+                             "that may: a node paced by the wall clock runs at 1x, and the result says "
+                             f"so (default {DEFAULT_TIME_SCALE:g} on a grader given {MIN_CPUS_FOR_DEFAULT:g} "
+                             "CPUs or more, else 1; 1: real time)")
 
 
 def _time_scale(text: str) -> float:
@@ -163,7 +172,7 @@ class Progress:
         self._draw()
 
     def advance(self, text: str) -> None:
-        self.done += 1
+        self.done = min(self.total, self.done + 1)      # a submission graded again counts once
         self.current = text
         self._draw()
 
@@ -236,6 +245,10 @@ def run_check(args: argparse.Namespace) -> int:
     progress.close()
     ok = print_check_table(graded, rubric)
     print(f"report: {graded.out / 'report.html'}")
+    if graded.result.starved:
+        print(f"not measured: {len(graded.result.starved)} item(s) ({', '.join(graded.result.starved)}) need a "
+              "quieter machine: it was too busy to measure their timing; run `grader check` again when it is quiet")
+        return STARVED_EXIT
     return 0 if ok else 1
 
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 from grader import __version__
 
 if TYPE_CHECKING:
-    from grader.grading.pipeline import GradedSubmission
+    from grader.grading.graded import GradedSubmission
     from grader.rubric.schema import Rubric
 
 
@@ -84,11 +84,15 @@ def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public
     time_scales = dict(getattr(graded, "time_scales", {}) or {})
     if time_scales:                 # --time-scale or lockstep: how each scenario ran, and why not
         extra["time_scale"] = time_scales
+    ended_early = dict(getattr(graded, "ended_early", {}) or {})
+    if ended_early:                 # steps ended once their outcome was decided
+        extra["ended_early"] = ended_early
     out_dir, sid = graded.out.parent, graded.out.name
     write_result(out_dir, sid, graded.result, versions=ver, extra=extra, inputs=inputs)
     write_html(out_dir, sid, graded.result, versions=ver, canvas_png=_canvases(graded.out) or None,
                problems=problems, params=effective_params(rubric),
-               notes=time_scale_notes(time_scales) + ([] if public_only else notes(other, recordings)),
+               notes=time_scale_notes(time_scales) + early_end_notes(ended_early)
+               + ([] if public_only else notes(other, recordings)),
                intake=getattr(graded, "intake", None))
 
 
@@ -136,7 +140,8 @@ def print_check_table(graded: GradedSubmission, rubric: Rubric) -> bool:
     for sc_id, src in (getattr(graded, "reused", {}) or {}).items():
         print(f"\n  note: scenario {sc_id} was not run again: nothing it runs changed since "
               f"{src.get('recorded', 'an earlier run')} (its recording was reused; --no-reuse runs it)")
-    for line in time_scale_notes(getattr(graded, "time_scales", {}) or {}):
+    for line in (time_scale_notes(getattr(graded, "time_scales", {}) or {})
+                 + early_end_notes(getattr(graded, "ended_early", {}) or {})):
         print(f"\n  note: {line}")
     for err in graded.errors:
         print(f"\n  problem: {err.splitlines()[0]}")
@@ -155,6 +160,12 @@ def print_contract(rubric: Rubric) -> None:
     for what, name, use, _why in lines:
         print(f"  {what:<{width}}  {name:<{names}}  {use}".rstrip())
     print()
+
+
+def early_end_notes(ended_early: dict[str, list[dict]]) -> list[str]:
+    """One line per step that ended before its limit because its outcome was decided."""
+    return [f"scenario {sc}, step {e['step']} ended after {e.get('at_s') or 0:g} s of its {e.get('limit_s') or 0:g} s: "
+            f"{e['reason']}" for sc, ends in sorted(ended_early.items()) for e in ends]
 
 
 def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import re
+import resource
 import shutil
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -16,13 +17,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from grader.errors import GraderError
-from grader.grading.analysis import SCENARIOS_DIR, analyze_bags
-from grader.grading.repeat import run_until_settled, settles_check
+from grader.grading.analysis import SCENARIOS_DIR, analyze_bags, settles_check
+from grader.grading.graded import GradedSubmission
+from grader.grading.repeat import run_until_settled
+from grader.grading.timescale import expected_rates, machine_time_scale
+from grader.scenario import children_cpu_s
 
 if TYPE_CHECKING:
     from grader.grading.schedule import Slots
     from grader.rubric.schema import Item, Rubric
-    from grader.rubric.result import Result
     from grader.scenario.model import Scenario
 
 
@@ -52,21 +55,13 @@ def discover_submissions(root: Path) -> list[Path]:
     return subs
 
 
-@dataclass
-class GradedSubmission:
-    id: str
-    out: Path
-    result: Result
-    build_ok: bool
-    build_failed: list[str] = field(default_factory=list)
-    errors: list[str] = field(default_factory=list)
-    timings: dict[str, float] = field(default_factory=dict)
-    reused: dict[str, dict] = field(default_factory=dict)     # scenario -> where its recording came from
-    recordings: dict[str, dict] = field(default_factory=dict)  # scenario -> key, made_by, reused_from
-    cache: dict[str, int] = field(default_factory=dict)        # cache hits and misses (grader.cache.store)
-    time_scales: dict[str, dict] = field(default_factory=dict)  # scenario -> requested/used/fallback (--time-scale)
-    previous: dict | None = None      # a regrade's summary of the result it replaced (class view diff)
-    intake: dict | None = None        # how it arrived: LMS ids, student, time (grader.intake)
+def early_ends(record: dict, scenario: Any) -> list[dict]:
+    """The steps of a scenario record that ended once their outcome was decided (``ended_by:
+    decided``), with the step's limit, for the result and its notes."""
+    limits = {step.id: step.limit_s for step in scenario.steps}
+    return [{"step": st["id"], "at_s": st.get("duration_s"), "limit_s": limits.get(st["id"]),
+             "reason": (st.get("detail") or {}).get("ended_early")}
+            for st in record.get("steps", []) if st.get("ended_by") == "decided"]
 
 
 def selected_items(rubric: Rubric, public_only: bool) -> list[Item]:
@@ -82,51 +77,101 @@ def needed_scenarios(items: Iterable) -> list[str]:
     return seen
 
 
+def thread_cpu_s() -> float:
+    """CPU seconds of the calling thread (a batch grades submissions side by side in threads)."""
+    usage = resource.getrusage(resource.RUSAGE_THREAD)
+    return usage.ru_utime + usage.ru_stime
+
+
 def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: Path | None = None,
                      public_only: bool = False, sid: str | None = None,
                      progress: Callable[[str], None] | None = None, slots: Slots | None = None,
-                     reuse: bool = True, time_scale: float = 1.0, intake: dict | None = None,
+                     reuse: bool = True, time_scale: float | None = None, intake: dict | None = None,
                      due_override: dict | None = None) -> GradedSubmission:
     """Build, run the needed scenarios (side by side, within ``slots``), analyze and score one
     submission; writes its folder. ``reuse``: copy a scenario's recording when everything it
     runs is identical to an earlier run (see grader.grading.reuse). ``time_scale`` > 1: run
-    scenarios that may on simulated time, that much faster (see grader.grading.timescale).
+    scenarios that may on simulated time, that much faster (see grader.grading.timescale); None:
+    the machine's default (``grader.grading.timescale.machine_time_scale``).
     ``intake``: how it arrived (grader.intake: ids, student, time), kept in ``intake.json``; with
     the rubric's late policy (its due date replaced by ``due_override``) it sets the penalty."""
     from grader.cache.locks import Holds
     from grader.cache.store import submission_cache_use
     from grader.grading.provenance import scenario_recordings
-    from grader.grading.timescale import expected_rates
-    from grader.intake.apply import apply_intake
-    from grader.intake.model import public_record, write_record
-
     from grader.grading.schedule import Slots
+    from grader.intake.apply import apply_intake
+    from grader.intake.model import public_record
     from grader.rubric.score import score
-    from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
-    from grader.similarity.files import snapshot
-    from grader.workspace import build_workspace
+    from grader.scores.store import apply_saved_manual_scores
     from grader.workspace.build import default_cache_dir
 
+    time_scale = machine_time_scale(time_scale)
     slots = slots or Slots(1)
     sid = sid or submission_id(Path(path))
-    out = Path(out_root) / sid
+    out = _fresh_folder(Path(out_root) / sid, intake, due_override)
+    timings: dict[str, float] = {}
+    say = progress or (lambda _msg: None)
+
+    say(f"{sid}: building")
+    holds = Holds()          # the build areas this submission runs stay out of a prune's reach
+    build, errors = _build(Path(path), rubric, out, cache_dir, slots, holds, timings)
+
+    items = selected_items(rubric, public_only)
+    recordings = (Path(cache_dir or default_cache_dir()) / "recordings") if reuse else None
+    with holds:
+        ran = _run_scenarios(sid, rubric, items, build, out, slots, recordings, time_scale, timings, say)
+    errors += ran.errors
+    recordings_made = scenario_recordings(out)
+
+    say(f"{sid}: analyzing")
+    t2, cpu2 = time.monotonic(), thread_cpu_s()
+    findings, problems = analyze_bags(rubric, items, out)
+    errors += problems
+    result, kept = apply_saved_manual_scores(out, score(rubric, findings))
+    timings.update(analysis_s=round(time.monotonic() - t2, 2), analysis_cpu_s=round(thread_cpu_s() - cpu2, 2))
+    errors += kept
+    result, late_notes = apply_intake(out, rubric, result)
+    errors += late_notes
+    if public_only:
+        result = result.for_student()
+    graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
+                              build_failed=list(build.failed) if build else ["(no build)"],
+                              errors=errors, timings=timings, reused=ran.reused, time_scales=ran.time_scales,
+                              ended_early=ran.ended_early, recordings=recordings_made,
+                              cache=submission_cache_use(build, recordings_made, reuse),
+                              intake=public_record(out))
+    write_outputs(graded, rubric, public_only=public_only)
+    return graded
+
+
+def _fresh_folder(out: Path, intake: dict | None, due_override: dict | None) -> Path:
+    """The submission's output folder, emptied (the TA's merged manual scores kept), with its
+    intake record."""
+    from grader.intake.model import write_record
+    from grader.scores.store import manual_scores_kept
+
     with manual_scores_kept(out):          # a re-grade keeps the TA's merged manual scores
         if out.exists():
             shutil.rmtree(out)
         out.mkdir(parents=True)
     if intake is not None:
         write_record(out, intake, due_override)
-    timings: dict[str, float] = {}
-    errors: list[str] = []
-    say = progress or (lambda _msg: None)
+    return out
 
-    say(f"{sid}: building")
+
+def _build(path: Path, rubric: Rubric, out: Path, cache_dir: Path | None, slots: Slots, holds: Any,
+           timings: dict[str, float]) -> tuple[Any, list[str]]:
+    """Build the workspace in a slot (None when it could not be built at all), its log and the
+    source snapshot in ``out``; the problems to report."""
+    from grader.similarity.files import snapshot
+    from grader.workspace import build_workspace
+
     t0 = time.monotonic()
     build = None
-    holds = Holds()          # the build areas this submission runs stay out of a prune's reach
+    errors: list[str] = []
     try:
         with slots.taken():
-            build = build_workspace(Path(path), cache_dir=cache_dir, support=dict(rubric.support), holds=holds)
+            build = build_workspace(path, cache_dir=cache_dir, support=dict(rubric.support), holds=holds)
         shutil.copy(build.build_log, out / "build.log") if build.build_log.exists() else None
         snapshot(build.root / "src", out)          # the source files grader similarity compares
         errors += [f"submission: {w}" for w in build.warnings]
@@ -137,18 +182,38 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
         errors.append(f"build: {exc}")
         (out / "build.log").write_text(str(exc) + "\n")
     timings["build_s"] = round(time.monotonic() - t0, 2)
+    return build, errors
 
-    items = selected_items(rubric, public_only)
-    recordings = (Path(cache_dir or default_cache_dir()) / "recordings") if reuse else None
-    reused: dict[str, dict] = {}
-    time_scales: dict[str, dict] = {}
+
+@dataclass
+class ScenariosRun:
+    """What a submission's scenarios left for its result besides their bags."""
+
+    errors: list[str] = field(default_factory=list)
+    reused: dict[str, dict] = field(default_factory=dict)          # recordings copied, and from where
+    time_scales: dict[str, dict] = field(default_factory=dict)     # how each clock ran, and why not
+    ended_early: dict[str, list[dict]] = field(default_factory=dict)
+
+
+def _run_scenarios(sid: str, rubric: Rubric, items: list, build: Any, out: Path, slots: Slots,
+                   recordings: Path | None, time_scale: float, timings: dict[str, float],
+                   say: Callable[[str], None]) -> ScenariosRun:
+    """Every scenario the items need, side by side within ``slots``, longest first (by its step
+    limits, on the clock it will run on): when slots run short, a short scenario waits, not the
+    one that sets the submission's wall time (at 4x Lab 3's ex2_controller has the larger budget,
+    its lockstep ex3_action the longer run)."""
+    ran = ScenariosRun()
     t1 = time.monotonic()
     scenario_ids = needed_scenarios(items)
     say(f"{sid}: scenarios {', '.join(scenario_ids)}")
-    # longest first (by its step limits): when slots run short, a short scenario waits, not the
-    # one that sets the submission's wall time
-    longest_first = sorted(scenario_ids, key=lambda sc: -rubric.scenarios[sc].budget_s)
-    with holds, ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
+
+    def expected_wall_s(sc: str) -> float:
+        scenario = rubric.scenarios[sc]
+        sped_up = not (scenario.lockstep or scenario.real_time)
+        return scenario.budget_s / (max(1.0, time_scale) if sped_up else 1.0)
+
+    longest_first = sorted(scenario_ids, key=lambda sc: -expected_wall_s(sc))
+    with ThreadPoolExecutor(max_workers=max(1, len(scenario_ids))) as pool:
         runs = {sc_id: pool.submit(_run_one, sid, sc_id, rubric.scenarios[sc_id], build, out, slots, recordings,
                                    time_scale, expected_rates(rubric, sc_id) if time_scale > 1 else (),
                                    settles_check([i for i in items if sc_id in i.scenario], rubric.scenarios[sc_id].repeat,
@@ -158,33 +223,18 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
             record = runs[sc_id].result()
             timings[f"scenario:{sc_id}:wall_s"] = record.get("parent_wall_s", 0.0)
             timings[f"scenario:{sc_id}:active_s"] = record.get("active_s", 0.0)
-            errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]
+            timings[f"scenario:{sc_id}:cpu_s"] = record["cpu_s"]
+            ran.errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]
             if record.get("reused"):
-                reused[sc_id] = record["reused"]
+                ran.reused[sc_id] = record["reused"]
             if time_scale > 1 and record.get("time_scale"):
-                time_scales[sc_id] = record["time_scale"]
+                ran.time_scales[sc_id] = record["time_scale"]
             if record.get("lockstep"):        # how a lockstep scenario's clock ran (and why not)
-                time_scales[sc_id] = {"clock": "lockstep", **record["lockstep"]}
+                ran.time_scales[sc_id] = {"clock": "lockstep", **record["lockstep"]}
+            if early := early_ends(record, rubric.scenarios[sc_id]):
+                ran.ended_early[sc_id] = early
     timings["scenarios_wall_s"] = round(time.monotonic() - t1, 2)
-    recordings_made = scenario_recordings(out)
-
-    say(f"{sid}: analyzing")
-    findings, problems = analyze_bags(rubric, items, out)
-    errors += problems
-    result, kept = apply_saved_manual_scores(out, score(rubric, findings))
-    errors += kept
-    result, late_notes = apply_intake(out, rubric, result)
-    errors += late_notes
-    if public_only:
-        result = result.for_student()
-    graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
-                              build_failed=list(build.failed) if build else ["(no build)"],
-                              errors=errors, timings=timings, reused=reused, time_scales=time_scales,
-                              recordings=recordings_made,
-                              cache=submission_cache_use(build, recordings_made, reuse),
-                              intake=public_record(out))
-    write_outputs(graded, rubric, public_only=public_only)
-    return graded
+    return ran
 
 
 def _run_one(sid: str, sc_id: str, scenario: Scenario, build: Any, out: Path, slots: Slots, recordings: Path | None,
@@ -193,10 +243,13 @@ def _run_one(sid: str, sc_id: str, scenario: Scenario, build: Any, out: Path, sl
     run recorded or reused by ``grader.grading.reuse.record_or_reuse``."""
     from grader.grading.reuse import record_or_reuse
 
-    return run_until_settled(
+    cpu0 = children_cpu_s()
+    record = run_until_settled(
         lambda k, folder: record_or_reuse(sid, sc_id, scenario, build, folder, slots, recordings, time_scale, rates,
                                           run=k),
         out / SCENARIOS_DIR, sc_id, scenario.repeat, settles)
+    # every run and retry of it (this thread's), reused ones costing nothing
+    return {**record, "cpu_s": round(children_cpu_s() - cpu0, 2)}
 
 
 def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = False) -> GradedSubmission:
@@ -233,7 +286,8 @@ def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = Fal
                               build_failed=old.get("build", {}).get("failed", []),
                               errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
                               timings=old.get("timings", {}), previous=previous_summary(old),
-                              time_scales=old.get("time_scale", {}), recordings=scenario_recordings(sub_out),
+                              time_scales=old.get("time_scale", {}), ended_early=old.get("ended_early", {}),
+                              recordings=scenario_recordings(sub_out),
                               reused=old.get("scenarios_reused") or {}, intake=public_record(sub_out))
     write_outputs(graded, rubric, public_only=public_only, inputs=inputs)
     return graded

@@ -77,28 +77,6 @@ def settled(outcomes_per_item: Iterable[Sequence[tuple[str, float]]], planned: i
     return all(lst and Counter(lst).most_common(1)[0][1] * 2 > planned for lst in outcomes_per_item)
 
 
-def settles_check(items: list, planned: int, by: str = "median") -> Callable[[list[Path]], bool] | None:
-    """For a scenario run ``planned`` > 1 times: whether the runs recorded so far (their folders)
-    settle every one of its ``items`` (``by``: the median or the worst); None for a scenario that
-    runs once."""
-    if planned <= 1:
-        return None
-
-    def check(folders: list[Path]) -> bool:
-        if by == "median" and 2 * len(folders) <= planned:
-            return False            # no majority yet: not worth reading the bags
-        from grader.errors import GraderError
-        from grader.grading.analysis import analyze_item, scenario_frames
-
-        try:
-            frames = [scenario_frames(f) for f in folders]
-        except GraderError:
-            return False
-        return settled([[outcome(analyze_item(item, fr)) for fr in frames] for item in items], planned, by)
-
-    return check
-
-
 def lockstep_record_exact(record: dict) -> bool:
     """A record of a lockstep run with every tick quiet and no wait cut short by its wall-time
     limit: running it again repeats it exactly."""

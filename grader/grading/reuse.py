@@ -31,7 +31,6 @@ import hashlib
 import json
 import os
 import threading
-import re
 import shutil
 import time
 from pathlib import Path
@@ -41,12 +40,13 @@ from grader import __version__
 from grader.cache import locks
 from grader.cache.code import recording_code
 from grader.cache.environment import runtime
+from grader.grading.scenario_packages import packages_run, workspace_packages
+from grader.grading.starvation import record_unstarved
+from grader.grading.timescale import ScaledRecording
 from grader.scenario.model import Scenario
 
 #: files of a scenario folder that make up its recording
 RECORDING = ("bag", "logs", "canvas.png", "scenario.json", "run.json", "scenario.log")
-_DEPEND = re.compile(r"<(?:depend|exec_depend|build_depend|buildtool_depend)[^>]*>\s*([A-Za-z0-9_]+)\s*<")
-_NAME = re.compile(r"<name>\s*([A-Za-z0-9_]+)\s*</name>")
 
 
 def _tree_digest(path: Path) -> str:
@@ -56,36 +56,6 @@ def _tree_digest(path: Path) -> str:
         h.update(str(f.relative_to(path) if path.is_dir() else f.name).encode() + b"\0")
         h.update(f.read_bytes())
     return h.hexdigest()
-
-
-def workspace_packages(src: Path) -> dict[str, tuple[Path, set[str]]]:
-    """``{package: (folder, names it depends on)}`` of the staged sources of a build."""
-    out: dict[str, tuple[Path, set[str]]] = {}
-    for manifest in sorted(src.rglob("package.xml")):
-        text = manifest.read_text(errors="replace")
-        name = _NAME.search(text)
-        if name:
-            out[name.group(1)] = (manifest.parent, set(_DEPEND.findall(text)))
-    return out
-
-
-def packages_run(scenario: Scenario, packages: dict[str, tuple[Path, set[str]]]) -> set[str]:
-    """Workspace packages a scenario runs: those its processes name (all of them for a launch
-    file, which may start nodes of any package) and their workspace dependencies."""
-    wanted: set[str] = set()
-    for proc in scenario.processes:
-        if proc.launch:                   # a launch file may start nodes of any package
-            wanted |= set(packages)
-        elif proc.package:
-            wanted.add(proc.package)
-    closure, todo = set(), list(wanted)
-    while todo:
-        name = todo.pop()
-        if name in closure or name not in packages:
-            continue
-        closure.add(name)
-        todo += packages[name][1]
-    return closure
 
 
 def made_by() -> dict[str, str]:
@@ -202,14 +172,12 @@ def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder
     under ``recordings`` (None: ``--no-reuse``), or run within one of ``slots`` (and made again
     while the machine starves it, ``grader.grading.starvation``); returns its record. Run ``run``
     > 1 of a repeated scenario is a recording of its own (its own key)."""
-    from grader.grading.starvation import record_unstarved
-    from grader.grading.timescale import run_at_scale
     from grader.scenario import resolve
 
     def make() -> dict[str, Any]:
         with slots.taken():
-            return record_unstarved(lambda: run_at_scale(resolve(sc_id, scenario, build), folder, time_scale,
-                                                         build, rates), folder)
+            return record_unstarved(ScaledRecording(resolve(sc_id, scenario, build), folder, time_scale,
+                                                    build, rates), folder)
 
     key = scenario_key(sc_id, scenario, build, settings=recording_settings(time_scale, rates, run))
     if key is None or recordings is None:

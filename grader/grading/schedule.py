@@ -26,22 +26,51 @@ import threading
 import time
 from typing import Callable, Iterator
 
+from grader.sandbox import allotment
+from grader.sandbox.allotment import Allotment
+
 #: above the cores, a new slot needs the CPU pressure (some avg10, %) below this
 PRESSURE_MAX = 40.0
 #: seconds between two slots given above the cores
 RAMP_S = 10.0
+#: memory one scenario takes at its peak (simulator, recorder, scenario process, a student's
+#: nodes), to bound the default jobs by a memory limit: the Lab 3 self-check peaked near 600 MB
+#: with its scenarios side by side
+SCENARIO_MEMORY_MB = 300
 PRESSURE_FILE = "/proc/pressure/cpu"
 
 
-def default_jobs() -> int:
-    """Concurrent scenarios when the user does not say: scenarios mostly wait on real time,
-    so twice the cores, at least 2."""
-    return max(2, 2 * (os.cpu_count() or 1))
+def default_jobs(given: Allotment | None = None, *, time_scale: float = 1.0) -> int:
+    """Concurrent scenarios when the user does not say: twice the CPUs the grader is given (its
+    cgroup's quota, not the host's cores: ``grader.sandbox.allotment``), at least 1, and no more
+    than its memory limit holds at ``SCENARIO_MEMORY_MB`` each.
+
+    ``time_scale``: given by a self-check (one submission), whose scenarios on simulated time
+    (above 1; lockstep runs as fast as its ticks) wait on their processes, not on the clock, and
+    take about a CPU each: one per CPU. Measured on 2 cores, the Lab 3 reference's self-check at
+    4x: with four scenarios side by side one of the five was starved and recorded again at 1x in
+    5 of 8 runs (wall 36-83 s, mean 58 s; CPU 53-80 s), two at a time in 1 of 7 (wall 39-43 s but
+    that one 73 s; CPU 50-57 s). A batch keeps twice the CPUs: its builds and scenarios share the
+    slots, and a class of 31 Lab 3 submissions graded about 1.5 per minute at 4 jobs, 1.1 at 2
+    (benchmarks/README.md, issue 35)."""
+    given = given or allotment.current()
+    jobs = max(1, round((1 if time_scale > 1 else 2) * given.cpus))
+    if given.memory_bytes:
+        jobs = min(jobs, max(1, given.memory_bytes // (SCENARIO_MEMORY_MB * 2**20)))
+    return jobs
+
+
+_QUOTA_PRESSURE = allotment.QuotaPressure()
 
 
 def cpu_pressure() -> float:
-    """Percent of the last 10 s in which some task waited for a CPU (Linux PSI); without PSI,
-    the 1-minute load average over the cores, as a percentage (100 = every core busy)."""
+    """Percent of the last 10 s in which some task waited for a CPU (Linux PSI); under a CPU
+    quota, the share of the quota's periods in which the grader's group was throttled (the
+    host's PSI says nothing of the quota); without either, the 1-minute load average over the
+    cores, as a percentage (100 = every core busy)."""
+    quota = _QUOTA_PRESSURE(allotment.current(), time.monotonic())
+    if quota is not None:
+        return quota
     try:
         with open(PRESSURE_FILE) as f:
             for line in f:
@@ -65,7 +94,7 @@ class Slots:
         self._sem = threading.BoundedSemaphore(n)
         self._lock = threading.Lock()
         self._pressure, self._clock, self._poll = pressure, clock, poll_s
-        self.cores = cores or os.cpu_count() or 1
+        self.cores = cores or allotment.current().slots
         self.active = 0
         self.peak = 0                        # most slots in use at once
         self.deferred_s = 0.0                # time slots waited for the CPUs to have room

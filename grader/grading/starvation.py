@@ -18,6 +18,18 @@ Lab 3 server without ``self.rate.sleep()`` starved the simulator (1.0-1.8 s per 
 recordings of three gradings of it, and "the machine was too busy" alone was not true there; its
 processes' own CPU time does not tell the two apart (0.56 s per s for it, up to 0.63 for servers
 that starved nothing: bench_flake's Lab 3 class).
+
+A CPU quota (a container's, ``grader.sandbox.allotment``) starves a recording without a long
+run queue: the whole grader group is throttled. Its own counter says so (``cpu_quota`` in the
+record: the seconds the quota held the group back while the scenario was recorded); above
+``QUOTA_THROTTLED_MAX`` s per s the recording is starved too.
+
+Who starved it decides what a starved recording costs (``Starvation.own``): where the student's
+processes took most of the CPUs the grader has (``OWN_CPU_SHARE``, CPU s per s, of at most one
+CPU, their sandbox's quota) or hit that quota, the student's code did it (a loop that never
+sleeps) and its grade stands, as measured. Otherwise the grading machine did, and an item whose
+verdict depends on timing cannot lose its points on that recording (``grader.grading.analysis``):
+it is an ``error`` saying so, and ``grader grade`` records it again at the end of the batch.
 """
 
 from __future__ import annotations
@@ -26,7 +38,10 @@ import json
 import shutil
 import time
 from pathlib import Path
+from dataclasses import dataclass
 from typing import Any, Callable
+
+from grader.sandbox import allotment
 
 RETRIES = 2
 PAUSE_S = 5.0
@@ -39,8 +54,25 @@ PAUSE_S = 5.0
 PROBES = {"turtlesim": ("the simulator", 0.5), "scenario": ("the grader's scenario process", 1.5)}
 
 
-def starved(record: dict[str, Any]) -> str | None:
-    """Why the recording is not a measurement of the code (None: it is)."""
+#: s per s of a recording that the grader's CPU quota may hold its group back (the kernel's
+#: throttled time, summed over the CPUs the group ran on): Lab 3's controller scenario, two side
+#: by side under 0.5 CPU, was held back 0.28-0.39 s per s and alone 0.08
+QUOTA_THROTTLED_MAX = 0.25
+#: the student's processes' CPU s per s (of the least of 1 CPU and the CPUs the grader has) at
+#: or above which a starved recording is their own doing: a loop that never sleeps takes its
+#: whole quota (1.0); the Lab 3 reference's nodes take 0.03-0.08 (benchmarks/bench_executor.py)
+OWN_CPU_SHARE = 0.8
+
+
+@dataclass(frozen=True)
+class Starvation:
+    """Why a recording is not a measurement of the code, and whether the code itself did it."""
+
+    reason: str
+    own: bool = False
+
+
+def _probe_waited(record: dict[str, Any]) -> str | None:
     waits = record.get("cpu_wait") or {}
     name = next((n for n in PROBES if n in waits), None)
     if name is None:
@@ -52,33 +84,115 @@ def starved(record: dict[str, Any]) -> str | None:
     return None
 
 
+def _quota_throttled(record: dict[str, Any]) -> str | None:
+    quota = record.get("cpu_quota") or {}
+    held, wall = quota.get("throttled_s"), quota.get("wall_s")
+    if not isinstance(held, (int, float)) or not wall:
+        return None
+    share = held / wall
+    if share > QUOTA_THROTTLED_MAX:
+        return (f"the grading machine's CPU quota ({quota.get('cpus', 0):g} CPU) held the grader back "
+                f"{share:.2f} s per second (at most {QUOTA_THROTTLED_MAX:g})")
+    return None
+
+
+def _students_busy(record: dict[str, Any]) -> str | None:
+    """The student's processes took the CPUs themselves (None: they did not)."""
+    waits = record.get("cpu_wait") or {}
+    cpu = sum(float((w or {}).get("cpu_s") or 0.0) for n, w in waits.items() if n not in PROBES)
+    alive = max((float((w or {}).get("alive_s") or 0.0) for n, w in waits.items() if n not in PROBES), default=0.0)
+    capacity = min(1.0, float((record.get("cpu_quota") or {}).get("cpus") or 1.0))
+    if alive > 0 and cpu / alive >= OWN_CPU_SHARE * capacity:
+        return f"the submission's own processes used {cpu / alive:.2f} CPU s per second"
+    throttled = (((record.get("sandbox") or {}).get("counters")) or {}).get("cpu_throttled_s", 0.0)
+    if throttled and throttled >= 1.0:
+        return f"the submission's own processes were held at their CPU limit for {throttled:.1f} s"
+    return None
+
+
+def exact_lockstep(record: dict[str, Any]) -> bool:
+    """A lockstep run whose every tick waited for every process to be quiet: each node saw the
+    same messages at the same simulated times however slow the machine was, so a starved CPU
+    made it slower, not different (the Lab 3 reference's ex3_action under a 0.5-CPU quota:
+    recorded three times, 121 s each, for nothing)."""
+    ls = record.get("lockstep") or {}
+    return bool(ls.get("used")) and not ls.get("fallback") and ls.get("quiet_timeouts") == 0
+
+
+def starvation(record: dict[str, Any]) -> Starvation | None:
+    """Why the recording is not a measurement of the code (None: it is), and who caused it."""
+    if exact_lockstep(record):
+        return None
+    reason = _probe_waited(record) or _quota_throttled(record)
+    if reason is None:
+        return None
+    busy = _students_busy(record)
+    return Starvation(f"{reason}; {busy}" if busy else reason, own=busy is not None)
+
+
+def starved(record: dict[str, Any]) -> str | None:
+    """Why the recording is not a measurement of the code (None: it is)."""
+    found = starvation(record)
+    return found.reason if found else None
+
+
+def measure_quota(record_once: Callable[[], dict[str, Any]]) -> Callable[[], dict[str, Any]]:
+    """``record_once`` that also keeps, in its record, how long the grader's CPU quota held the
+    grader back while it ran (``cpu_quota``; nothing without a quota)."""
+    def once() -> dict[str, Any]:
+        given = allotment.current()
+        before, t0 = allotment.throttled_s(given), time.monotonic()
+        record = record_once()
+        after = allotment.throttled_s(given)
+        if before is not None and after is not None:
+            record["cpu_quota"] = {"cpus": given.quota_cpus, "throttled_s": round(after - before, 3),
+                                   "wall_s": round(time.monotonic() - t0, 3)}
+        return record
+    return once
+
+
 def record_unstarved(record_once: Callable[[], dict[str, Any]], folder: Path,
                      pause: Callable[[float], None] = time.sleep) -> dict[str, Any]:
     """``record_once()`` (which records into ``folder``) until a recording is not starved, at most
     1 + ``RETRIES`` times; the record says how many were starved (``starved``)."""
     reasons: list[str] = []
+    once = measure_quota(record_once)
     for attempt in range(1 + RETRIES):
-        record = record_once()
-        why = starved(record)
-        if why is None:
+        record = once()
+        found = starvation(record)
+        if found is None:
             break
-        reasons.append(why)
+        reasons.append(found.reason)
+        if found.own:           # the code's own loop: another recording starves alike
+            break
         if attempt < RETRIES:
             shutil.rmtree(folder, ignore_errors=True)
             pause(PAUSE_S)
     if not reasons:
+        _save(folder, record, "cpu_quota")
         return record
-    kept_starved = why is not None
+    kept_starved = found is not None
     record["starved"] = {"recordings": len(reasons) + (0 if kept_starved else 1), "starved": len(reasons),
-                         "reasons": reasons, "kept": "starved" if kept_starved else "not starved"}
-    if kept_starved:
+                         "reasons": reasons, "kept": "starved" if kept_starved else "not starved",
+                         "own": bool(found is not None and found.own)}
+    if record["starved"]["own"]:
         record.setdefault("errors", []).append(
-            f"{reasons[-1]} in each of {len(reasons)} recordings: the machine was too busy, or this "
-            "submission's own processes kept the CPUs busy (a loop that never sleeps); if not the "
-            "latter, grade this submission again when the machine is quiet (its grade may differ)")
-    path = Path(folder) / "scenario.json"
-    if path.is_file():
-        saved = json.loads(path.read_text())
-        saved["starved"] = record["starved"]
-        path.write_text(json.dumps(saved, indent=1, default=str))
+            f"{reasons[-1]}: this submission's own processes kept the CPUs busy (a loop that never "
+            "sleeps), so its timing was measured as it ran")
+    elif kept_starved:
+        record.setdefault("errors", []).append(
+            f"{reasons[-1]} in each of {len(reasons)} recordings: the grading machine was too busy; an item "
+            "that depends on timing and lost points on this recording is not charged for them (it is an error "
+            "until it is measured on a quieter machine)")
+    _save(folder, record, "starved", "cpu_quota")
     return record
+
+
+def _save(folder: Path, record: dict[str, Any], *keys: str) -> None:
+    """Copy ``keys`` of the record (those it has) into the folder's ``scenario.json``."""
+    path = Path(folder) / "scenario.json"
+    present = [k for k in keys if k in record]
+    if present and path.is_file():
+        saved = json.loads(path.read_text())
+        saved.update({k: record[k] for k in present})
+        path.write_text(json.dumps(saved, indent=1, default=str))

@@ -60,7 +60,7 @@ class IntakeBatch:
         return out
 
     def table(self) -> str:
-        """The printed table (see README "Intake")."""
+        """The printed table (see docs/lms.md, "Submissions from an LMS")."""
         n = len(self.arrivals)
         roster = (f"roster {self.roster.name}: {len(self.roster.students)} student(s)" if self.roster
                   else "no roster (--roster): ids from the LMS names")

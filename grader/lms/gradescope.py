@@ -15,6 +15,9 @@ keeps grader's own result.json and report.html next to it, and converts the Resu
 
 A submission that cannot be graded at all (empty, no ROS package) still gets a valid results.json
 with score 0 and the reason, instead of Gradescope's "The autograder failed to execute correctly".
+A submission with timing items the grading machine was too busy to measure (``Result.starved``)
+is graded once more before ``results.json`` is written; what is still not measured scores 0 and
+its ``output`` says so.
 
 Student code runs in the same sandbox as in ``grader grade`` (``grader.sandbox``): ``setup.sh``
 installs bubblewrap, and :func:`prepare_image` (``grader gradescope-setup``, run by ``setup.sh``
@@ -103,6 +106,9 @@ def results_document(result, rubric, *, problems: list[str], build_ok: bool,
     if not build_ok:
         lines.append("Some of your packages did not build; the items that need them score 0.")
     lines += [f"Problem: {p}" for p in problems]
+    if result.starved:
+        lines.append(f"Not measured: {', '.join(result.starved)}: the grading machine was too busy to measure "
+                     "their timing twice in a row (they score 0 for now); ask your instructor to regrade.")
     if any(t["visibility"] == "after_published" for t in tests):
         lines.append("Some checks stay hidden until the grades are published.")
     if note := _manual_note(rubric):
@@ -190,9 +196,14 @@ def run(root: Path, rubric_path: Path, *, cache_dir: Path | None = None) -> dict
     cache_dir = cache_dir or root / CACHE_DIR
     rubric = load_rubric(rubric_path)      # a broken bundle is the instructor's error: no results
     try:
-        graded = grade_submission(find_submission(root / "submission"), rubric, root / WORK_DIR,
-                                  cache_dir=cache_dir, sid=SUBMISSION_ID,
+        submission = find_submission(root / "submission")
+        graded = grade_submission(submission, rubric, root / WORK_DIR, cache_dir=cache_dir, sid=SUBMISSION_ID,
                                   progress=lambda msg: print(msg, flush=True))
+        if graded.result.starved:       # recorded again before the student sees a grade
+            print(f"timing of {', '.join(graded.result.starved)} not measured (the machine was starved): "
+                  "recording again", flush=True)
+            graded = grade_submission(submission, rubric, root / WORK_DIR, cache_dir=cache_dir, sid=SUBMISSION_ID,
+                                      progress=lambda msg: print(msg, flush=True))
         doc = results_document(graded.result, rubric, problems=graded.errors, build_ok=graded.build_ok,
                                execution_time=time.monotonic() - t0)
     except GraderError as exc:

@@ -35,7 +35,7 @@ def load_results(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) 
 
 def write_batch(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> tuple[Path, Path]:
     """(Re)write ``out_dir/grades.csv`` and ``out_dir/index.html`` (the class view); returns both."""
-    from grader.similarity.run import read_summary
+    from grader.similarity.summary import read_summary
 
     results = load_results(out_dir, rubric)
     docs = read_docs(out_dir, list(results))

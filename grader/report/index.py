@@ -199,6 +199,23 @@ def _unstable(subs: Sequence[Submission]) -> str:
             f'<th scope="col">Runs</th></tr></thead><tbody>{rows}</tbody></table></div></section>')
 
 
+def _starved(subs: Sequence[Submission]) -> str:
+    """Submissions whose result still holds timing items the grading machine was too busy to
+    measure (``Result.starved``: 0 points for now, status error): to be graded again."""
+    starved = [(s, item_id, why) for s in subs for item_id, why in s.result.starved.items()]
+    if not starved:
+        return ""
+    ids = sorted({s.id for s, _i, _w in starved})
+    rows = "".join(f'<tr data-submission="{escape(s.id)}" data-item="{escape(i)}"><th scope="row">{_link(s.id)}</th>'
+                   f'<td>{_link(s.id, i, i)}</td><td>{escape(why)}</td></tr>' for s, i, why in starved)
+    return (f'<section aria-labelledby="starved-h"><h2 id="starved-h">Not measured: the machine was too busy</h2>'
+            f'<p class="sub" id="starved-lead">{len(ids)} submission(s) have timing items that were recorded while the '
+            f'grading machine starved them of CPU even when graded again; they score 0 until they are graded on a '
+            f'quieter machine: <code>grader grade ... --resume</code> (or <code>--only {escape(" ".join(ids))}</code>).</p>'
+            f'<div class="scroll"><table class="starved"><thead><tr><th scope="col">Submission</th>'
+            f'<th scope="col">Item</th><th scope="col">Why</th></tr></thead><tbody>{rows}</tbody></table></div></section>')
+
+
 def _regrade(subs: Sequence[Submission]) -> str:
     regraded = [s for s in subs if s.previous is not None]
     if not regraded:
@@ -307,7 +324,8 @@ def render_index(results: Mapping[str, Result], *, title: str | None = None,
         lead = (f"{len(subs)} submission(s). Automatic score out of {first.auto_max:g}: median "
                 f"{statistics.median(scores):g}, mean {statistics.mean(scores):.1f}, lowest {min(scores):g}, "
                 f"highest {max(scores):g}. Totals stay empty (—) until manual items are graded.")
-        body = (_distribution(subs) + _item_table(subs) + _unstable(subs) + _regrade(subs) + _sub_table(subs)
+        body = (_distribution(subs) + _item_table(subs) + _starved(subs) + _unstable(subs) + _regrade(subs)
+                + _sub_table(subs)
                 + _similar(similarity))
         script = f"<script>{INDEX_JS}</script>"
     else:

@@ -7,14 +7,11 @@ loader (``grader.rubric.load``) turns the path into ``file:line: field``.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Collection, Mapping
+from typing import Any, Collection, Mapping
 
 from grader.rubric.intake_fields import intake_problems
-from grader.rubric.schema import POINTS_EPS
+from grader.rubric.schema import POINTS_EPS, Rubric
 from grader.spec.text import suggest
-
-if TYPE_CHECKING:
-    from grader.rubric.schema import Rubric
 
 
 def rubric_problems(rubric: Rubric, analyzers: Mapping[str, Any] | Collection[str] | None,

@@ -9,7 +9,7 @@
 * :func:`analyzer_reference`, :func:`scenario_reference`: the Markdown tables of
   ``rubrics/README.md`` between its ``<!-- generated:... -->`` markers.
 
-``grader rubric schema`` prints the schema; ``grader rubric guide --write`` refreshes the README's
+``grader rubric schema`` prints the schema; ``grader rubric guide`` refreshes the README's
 generated parts (a test fails when they are stale).
 """
 
@@ -113,6 +113,10 @@ def analyzer_reference() -> str:
         expect = analyze.expected_text(name)
         if expect:
             out.append(f"Expected, in the report: *{expect}*\n")
+        timing = analyze.timing(name)
+        if timing:
+            out.append(f"Depends on timing ({timing}): on a recording the grading machine starved, a lost "
+                       "point is an `error`, not a `fail` ([docs/busy-machines.md](../docs/busy-machines.md)).\n")
         out.append("| parameter | default | meaning |\n|---|---|---|")
         for key, default in analyze.defaults(name).items():
             label = labels.get(key)

@@ -11,6 +11,7 @@ from pydantic import ValidationError
 
 from grader.errors import GraderError
 from grader.rubric.contract import resolve_references
+from grader.rubric.crossrefs import rubric_problems
 from grader.rubric.located import Problem, dotted, load_located, problems_from
 from grader.rubric.schema import Rubric
 
@@ -116,7 +117,7 @@ def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
     if isinstance(analyzers, _Registry):
         plugin_problems = load_analyzer_files(rubric)
         analyzers = registered_analyzers()
-    cross = rubric.problems(analyzers, check_files)
+    cross = rubric_problems(rubric, analyzers, check_files)   # cross-references (grader.rubric.crossrefs)
     cross += [p for p in plugin_problems if p not in cross]
     if cross:
         raise RubricError(shown, sorted({Problem(shown, located.line(_split(p)), p, m) for p, m in cross}))

@@ -90,6 +90,13 @@ class Result:
         raise KeyError(item_id)
 
     @property
+    def starved(self) -> dict[str, str]:
+        """Item id -> why it was not measured: timing items that lost points on a recording the
+        grading machine starved (``grader.grading.analysis.starved_timing``), to be recorded again."""
+        return {i.id: str(i.evidence["starved"]) for i in self.items
+                if i.status == "error" and isinstance(i.evidence, Mapping) and i.evidence.get("starved")}
+
+    @property
     def auto_score(self) -> float:
         return _sum(i.points for i in self.items if i.kind == "auto")
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import string
 from pathlib import Path
-from typing import Annotated, Any, Collection, Literal, Mapping, Union
+from typing import Annotated, Any, Literal, Union
 
 from pydantic import BeforeValidator, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
@@ -243,6 +243,9 @@ class Item(Model):
     requires: Annotated[tuple[ItemId, ...], BeforeValidator(_scenario_ids), Field(strict=False)] = ()
     hidden_params: Annotated[tuple[str, ...], Field(strict=False)] = ()
     handout_credit: Text | None = None
+    #: whether the verdict depends on wall or simulated timing (a rate, a period, a timeout), so
+    #: that a recording the grading machine starved cannot fail it; unset: as its analyzer declares
+    timing: bool | None = None
 
     @model_validator(mode="wrap")
     @classmethod
@@ -294,6 +297,15 @@ class EquivalentMutant(Model):
     reason: Text = Field(description="why the mutated code is still correct (what it changes and why that is fine)")
 
 
+class AcceptedCollateral(Model):
+    """Items a one-aspect mutant of the reference (``grader rubric collateral``) may cost beyond
+    those that judge its aspect, and why that second loss is right."""
+
+    mutant: MutantId
+    items: Annotated[tuple[ItemId, ...], BeforeValidator(_scenario_ids), Field(strict=False, min_length=1)]
+    reason: Text = Field(description="why these items cannot be judged without the aspect the mutant changed")
+
+
 class Rubric(Model):
     """A lab's whole grading scheme. ``source`` is the file it was loaded from."""
 
@@ -320,6 +332,8 @@ class Rubric(Model):
     loose_files: LooseFiles | None = Field(None, description="how bare .py files become a package")
     equivalent_mutants: Annotated[tuple[EquivalentMutant, ...], Field(strict=False)] = Field(
         (), description="mutants of the reference that keep full marks and are correct (grader rubric audit)")
+    accepted_collateral: Annotated[tuple[AcceptedCollateral, ...], Field(strict=False)] = Field(
+        (), description="one-aspect mutants whose loss of other items is right, with why (grader rubric collateral)")
 
     model_config = {**Model.model_config, "populate_by_name": True}
     _source: Path = PrivateAttr(default=Path("rubric.yaml"))
@@ -394,9 +408,3 @@ class Rubric(Model):
                 seen.setdefault(sid, None)
         return list(seen)
 
-    def problems(self, analyzers: Mapping[str, Any] | Collection[str] | None, check_files: bool) -> list[tuple[str, str]]:
-        """Cross-references as ``(field path, message)`` (see ``grader.rubric.crossrefs``).
-        ``analyzers``: name -> accepted parameter names (None: unchecked)."""
-        from grader.rubric.crossrefs import rubric_problems
-
-        return rubric_problems(self, analyzers, check_files)

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from grader.errors import GraderError
-from grader.sandbox import cgroups
+from grader.sandbox import allotment, cgroups
 from grader.sandbox.capture import DEFAULT_CAP_BYTES
 from grader.sandbox.jail import Jail, ros_roots
 from grader.sandbox.probe import Capabilities, probe, protections, sandbox_uid
@@ -40,7 +40,7 @@ _SEQ = itertools.count(1)
 class SandboxPolicy:
     """Limits of one scenario's student processes together (environment overrides in brackets)."""
 
-    memory_mb: int = 2048           # GRADER_SANDBOX_MEMORY_MB; a rubric scenario's limits.memory_mb wins
+    memory_mb: int = 2048           # GRADER_SANDBOX_MEMORY_MB (default_memory_mb under a memory limit); a rubric scenario's limits.memory_mb wins
     pids: int = 512                 # GRADER_SANDBOX_PIDS: processes + threads (an rclpy node has ~15)
     cpus: float = 1.0               # GRADER_SANDBOX_CPUS: CPU quota (0: none)
     output_cap_bytes: int = DEFAULT_CAP_BYTES   # GRADER_SANDBOX_OUTPUT_MB, per stream and process
@@ -50,13 +50,23 @@ class SandboxPolicy:
     def from_env(cls, memory_mb: int | None = None) -> "SandboxPolicy":
         env = os.environ
         try:
-            return cls(memory_mb=memory_mb or int(env.get("GRADER_SANDBOX_MEMORY_MB") or cls.memory_mb),
+            return cls(memory_mb=memory_mb or int(env.get("GRADER_SANDBOX_MEMORY_MB") or default_memory_mb()),
                        pids=int(env.get("GRADER_SANDBOX_PIDS") or cls.pids),
                        cpus=float(env.get("GRADER_SANDBOX_CPUS") or cls.cpus),
                        output_cap_bytes=int(float(env.get("GRADER_SANDBOX_OUTPUT_MB") or 10) * 2**20),
                        scratch_mb=int(env.get("GRADER_SANDBOX_SCRATCH_MB") or cls.scratch_mb))
         except ValueError as exc:
             raise GraderError(f"bad GRADER_SANDBOX_* setting: {exc}") from None
+
+
+def default_memory_mb(given: allotment.Allotment | None = None) -> int:
+    """The student processes' memory of one scenario: ``SandboxPolicy.memory_mb``, or half the
+    grader's own memory limit where that is less (a 768 MB Gradescope container: 384 MiB), so
+    a student's leak is stopped by its scenario's limit before the container's kills the grader."""
+    given = given or allotment.current()
+    if given.memory_bytes is None:
+        return SandboxPolicy.memory_mb
+    return max(128, min(SandboxPolicy.memory_mb, given.memory_bytes // 2 // 2**20))
 
 
 def sandbox_mode() -> str:

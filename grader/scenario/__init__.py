@@ -22,7 +22,7 @@ from grader.errors import GraderError
 from grader.scenario.model import Scenario
 from grader.scenario.runspec import LaunchedProcess, PackageFacts, ScenarioRun
 
-__all__ = ["Scenario", "ScenarioRun", "resolve", "run_scenario", "cancel_all", "CANCELLED"]
+__all__ = ["Scenario", "ScenarioRun", "resolve", "run_scenario", "cancel_all", "CANCELLED", "children_cpu_s"]
 
 #: set by a batch on Ctrl-C: running scenarios are told to stop (their bags get finalized) and
 #: no new scenario starts
@@ -31,6 +31,37 @@ _RUNNING: set[subprocess.Popen] = set()
 _RUNNING_LOCK = threading.Lock()
 #: how long the child may outlive the scenario's own limit (bag finalisation, stops)
 GRACE_S = 60.0
+#: the CPU seconds of the scenario children this thread has reaped (:func:`children_cpu_s`)
+_REAPED = threading.local()
+
+
+def children_cpu_s() -> float:
+    """CPU seconds of every scenario child this thread ran, so far: each child's own and its
+    reaped descendants' (the simulator, the students' processes, their sandbox wrappers), as
+    ``wait4`` reports them. A submission's scenario runs in a thread of its own with its
+    retries, so the difference around it is that scenario's CPU. A process that left the tree
+    (a daemon the sandbox killed) is not counted."""
+    return float(getattr(_REAPED, "cpu_s", 0.0))
+
+
+def _wait(proc: subprocess.Popen, timeout: float | None) -> None:
+    """``proc.wait(timeout)``, reaping with ``wait4`` to count the child's CPU."""
+    end = None if timeout is None else time.monotonic() + timeout
+    delay = 0.005
+    while proc.returncode is None:
+        try:
+            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+        except ChildProcessError:         # reaped elsewhere: its CPU is unknown
+            proc.wait(timeout=0)
+            return
+        if pid:
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            _REAPED.cpu_s = children_cpu_s() + usage.ru_utime + usage.ru_stime
+            return
+        if end is not None and time.monotonic() >= end:
+            raise subprocess.TimeoutExpired(proc.args, timeout or 0.0)
+        time.sleep(delay)
+        delay = min(0.05, delay * 2)
 
 
 def cancel_all() -> None:
@@ -125,7 +156,7 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
         with _RUNNING_LOCK:
             _RUNNING.add(proc)
         try:
-            proc.wait(timeout=limit)
+            _wait(proc, limit)
         except subprocess.TimeoutExpired:
             _terminate(proc)
         except BaseException:
@@ -158,7 +189,7 @@ def _terminate(proc: subprocess.Popen) -> None:
     os.killpg(proc.pid, signal.SIGTERM)
     try:
         # its students stop one after the other (up to 3 s each), then the recorder finalizes
-        proc.wait(timeout=TERMINATE_WAIT_S)
+        _wait(proc, TERMINATE_WAIT_S)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
+        _wait(proc, None)

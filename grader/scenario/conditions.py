@@ -21,6 +21,11 @@ class GoalReached(Model):
     tolerance: PositiveFloat = Field(0.1, description="m")
     settle: NonNegativeFloat = Field(0.5, description="s it must stay within the tolerance")
     pose_topic: RosName = "/turtle1/pose"
+    give_up_still: PositiveFloat | None = Field(
+        None, description="s: end the step early once the turtle, away from the goal, has not moved and "
+        "its commands on `cmd_topic` have not changed for this long (a fixed point it cannot leave); "
+        "the result says so. None: wait for the whole timeout")
+    cmd_topic: RosName = Field("/turtle1/cmd_vel", description="the turtle's commands (`give_up_still`)")
 
 
 class ActionDone(Model):

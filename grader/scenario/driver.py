@@ -97,6 +97,9 @@ class Driver(GraphQueries):
         self.last_output = time.monotonic()
         self.counts: dict[str, int] = {}
         self._subs: dict[str, Any] = {}
+        #: what each watched topic's one subscription hands its messages to (poses, counts, commands)
+        self._handlers: dict[str, list[Callable[[Any], None]]] = {}
+        self._counted: set[str] = set()            # topics with a counting handler of their own
         self._pubs: dict[str, Any] = {}
         self._clients: dict[tuple[str, str], Any] = {}
         self._tail_pos: dict[Path, int] = {}
@@ -236,7 +239,7 @@ class Driver(GraphQueries):
         first one watched)."""
         from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-        if topic in self._subs:
+        if topic in self.pose_log:
             return
 
         log = self.pose_log.setdefault(topic, collections.deque(maxlen=256))
@@ -244,14 +247,13 @@ class Driver(GraphQueries):
         def on_pose(msg: Any) -> None:
             self.poses[topic] = msg
             log.append((log[-1][0] + 1 if log else 1, msg))
-            self.counts[topic] = self.counts.get(topic, 0) + 1   # `until: messages` on it counts too
+            if topic not in self._counted:                           # `until: messages` on it counts too
+                self.counts[topic] = self.counts.get(topic, 0) + 1
             if self.pose_topic == topic:
                 self.pose = msg
 
         self.pose_topic = self.pose_topic or topic
-        self._subs[topic] = self.node.create_subscription(
-            self._import("turtlesim/msg/Pose"), topic, on_pose,
-            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self._listen(topic, "turtlesim/msg/Pose", on_pose, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
 
     def count_messages(self, topic: str, type_name: str | None, wait_s: float = 3.0) -> None:
         """Count messages on ``topic`` (type from the step, else from the graph).
@@ -259,13 +261,14 @@ class Driver(GraphQueries):
         Without a type and before the topic exists, the topic is remembered and the subscription
         is made by the tail timer as soon as a publisher appears.
         """
-        if topic in self._subs:
+        if topic in self._counted or topic in self.pose_log:     # (its pose subscription counts it)
             return
         type_name = type_name or self.topic_type(topic, wait_s=wait_s)
         if not type_name:
             self._watch.add(topic)
             return
         self._watch.discard(topic)
+        self._counted.add(topic)
         self.counts.setdefault(topic, 0)
 
         def on_msg(_msg: Any) -> None:
@@ -273,7 +276,25 @@ class Driver(GraphQueries):
             if self.watchdog is not None:
                 self.watchdog.arrived(topic, self.clock.sim_s())
 
-        self._subs[topic] = self.node.create_subscription(self._import(type_name), topic, on_msg, 100)
+        self._listen(topic, type_name, on_msg, 100)
+
+    def _listen(self, topic: str, type_name: str, handler: Callable[[Any], None], qos: Any) -> None:
+        """Hand ``topic``'s messages to ``handler`` too, through one subscription per topic.
+        Each watcher used to make its own and skip the topic when another had one: at
+        ``--time-scale 4`` the rate watchdog's count of ``/turtle1/cmd_vel`` came first, the
+        hand-over never saw a command, and every placed goal of Lab 3's ex2_controller was held
+        its full 2 s of wall time (8 s of simulated time) before the turtle was let go."""
+        handlers = self._handlers.get(topic)
+        if handlers is not None:
+            handlers.append(handler)
+            return
+        handlers = self._handlers[topic] = [handler]
+
+        def on_msg(msg: Any) -> None:
+            for h in handlers:
+                h(msg)
+
+        self._subs[topic] = self.node.create_subscription(self._import(type_name), topic, on_msg, qos)
 
     def commands_heard(self, topic: str) -> bool:
         """Every publisher the graph shows on the watched command ``topic`` is matched by the
@@ -300,7 +321,7 @@ class Driver(GraphQueries):
         """Keep the velocity commands on ``topic`` (a Twist topic) in ``commands[topic]``: how
         many so far and the last one (linear.x, linear.y, angular.z), so a hand-over can tell
         when a controller's commands change with its new goal."""
-        if topic in self._subs:
+        if topic in self.commands:
             return
         self.commands[topic] = [0, None]
 
@@ -309,7 +330,7 @@ class Driver(GraphQueries):
             entry[0] += 1
             entry[1] = (msg.linear.x, msg.linear.y, msg.angular.z)
 
-        self._subs[topic] = self.node.create_subscription(self._import("geometry_msgs/msg/Twist"), topic, on_cmd, 100)
+        self._listen(topic, "geometry_msgs/msg/Twist", on_cmd, 100)
 
     def service_client(self, cls: Any, name: str) -> Any:
         """The driver's client of service ``name`` (one per service and type, made on first use):

@@ -29,8 +29,9 @@ class Event(StrEnum):
     SERVICE_CALL = "service_call"            # step, service, type, request, client_gid (the rmw GID
     #   of the calling client, 16 ints: a service event whose info.client_gid has its first 12
     #   bytes, the DDS participant, is the driver's call; None + client_gid_error when the rmw
-    #   could not say; absent in recordings made before it was recorded)
-    SERVICE_RESPONSE = "service_response"    # step, service, response (None: no response in time)
+    #   could not say; absent in recordings made before it was recorded); asked_for: the
+    #   rubric's name when the call went to the name the ``served_by`` node uses instead
+    SERVICE_RESPONSE = "service_response"    # step, service, response (None: no response in time), asked_for
     SERVICE_MISSING = "service_missing"      # step, service
     ACTION_SERVER_FOUND = "action_server_found"      # step, action
     ACTION_SERVER_MISSING = "action_server_missing"  # step, action

@@ -122,5 +122,18 @@ class GraphQueries:
                 return types[0]
         return None
 
+    def own_service(self, node: str) -> str | None:
+        """The one service node ``node`` (its full name) advertises besides those every node has
+        (parameters, type description): the name a student gave the service the lab names, or
+        None when the node is not there or serves none or several."""
+        ns, _, name = node.rpartition("/")
+        try:
+            offered = self.node.get_service_names_and_types_by_node(name, ns or "/")
+        except Exception:  # noqa: BLE001 - the node is not (or no longer) there
+            return None
+        own = [service for service, types in offered
+               if not any(t.startswith(("rcl_interfaces/", "type_description_interfaces/")) for t in types)]
+        return own[0] if len(own) == 1 else None
+
     def action_available(self, name: str) -> bool:
         return self.service_type(name.rstrip("/") + "/_action/send_goal") is not None

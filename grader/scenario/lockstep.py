@@ -45,6 +45,8 @@ from grader.sim.clock import HOLD_SERVICE, STEP_CLOCK_SERVICE, STEP_WORLD_SERVIC
 QUIET_WAIT_S = 2.0
 #: wall seconds for the simulator's answer to a step
 STEP_WAIT_S = 10.0
+#: wall seconds for one answer to a probe before it is asked again (:meth:`Stepper.ready`)
+PROBE_WAIT_S = 1.0
 #: ticks that went on without quiet before the lockstep run is given up
 MAX_QUIET_TIMEOUTS = 5
 #: a lockstep run is given up, and runs on the wall clock, once its ticks take more than
@@ -129,9 +131,10 @@ class Stepper:
         self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(node)
         self._hold = node.create_client(SetBool, f"/{sim_node}/{HOLD_SERVICE}")
-        self._clock = node.create_client(Trigger, f"/{sim_node}/{STEP_CLOCK_SERVICE}")
+        self._clock = node.create_client(SetBool, f"/{sim_node}/{STEP_CLOCK_SERVICE}")
         self._world = node.create_client(Trigger, f"/{sim_node}/{STEP_WORLD_SERVICE}")
         self._request = Trigger.Request()
+        self._step = SetBool.Request(data=True)
         self._pids = pids
         self._exclude = exclude
         self.now_ns = 0
@@ -142,6 +145,7 @@ class Stepper:
         self._ticking = threading.Lock()
         self._ticked = threading.Condition()
         self.tick_wall_s = 0.0          # wall time spent in ticks
+        self.call_wall_s = 0.0          # ... of which waiting for the simulator's two answers
         #: waits that ended by their wall-time limit before their simulated time (ScenarioClock)
         self.wall_cuts = 0
         #: (time, order, action): what :meth:`schedule` asked to run at a tick boundary
@@ -153,20 +157,40 @@ class Stepper:
         self.cpu = CpuBudget(pids)
 
     def close(self) -> None:
+        for quiet in self.quiet.values():
+            quiet.close()
         self._executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
 
     def ready(self, timeout_s: float) -> bool:
-        return bool(self._clock.wait_for_service(timeout_sec=timeout_s)
-                    and self._world.wait_for_service(timeout_sec=timeout_s))
+        """Both step services answer: each is probed until an answer arrives. Found is not
+        enough: while discovery has not matched both ends of a service's two topics, a request
+        or its reply can be lost, and a lost step cannot be asked again (it may have ticked).
+        In CI, three CPU burners beside a batch, the first tick of a chaotic controller's run
+        went unanswered for 10 s and the run fell back to the wall clock."""
+        from std_srvs.srv import SetBool
 
-    def _call(self, client: Any, request: Any = None) -> str:
+        end = time.monotonic() + timeout_s
+        for client, probe in ((self._clock, SetBool.Request(data=False)), (self._world, None)):
+            if not client.wait_for_service(timeout_sec=max(0.0, end - time.monotonic())):
+                return False
+            while True:
+                try:
+                    self._call(client, probe, wait_s=PROBE_WAIT_S)
+                    break
+                except LockstepError:
+                    if time.monotonic() >= end:
+                        return False
+        return True
+
+    def _call(self, client: Any, request: Any = None, wait_s: float = STEP_WAIT_S) -> str:
         future = client.call_async(self._request if request is None else request)
-        end = time.monotonic() + STEP_WAIT_S
+        end = time.monotonic() + wait_s
         while not future.done() and time.monotonic() < end:
             self._executor.spin_once(timeout_sec=0.05)
         if not future.done() or future.result() is None:
-            raise LockstepError(f"the simulator did not answer {client.srv_name} within {STEP_WAIT_S:g} s")
+            client.remove_pending_request(future)
+            raise LockstepError(f"the simulator did not answer {client.srv_name} within {wait_s:g} s")
         return str(future.result().message)
 
     def _settle(self, own: bool) -> None:
@@ -196,9 +220,12 @@ class Stepper:
     def tick(self) -> int:
         """One tick: time on ``/clock``, quiet, the world's step, quiet. Returns the new time."""
         t0 = time.monotonic()
-        self.now_ns = int(self._call(self._clock).split()[0])
+        self.now_ns = int(self._call(self._clock, self._step).split()[0])
+        t1 = time.monotonic()
         self._settle(own=False)
+        t2 = time.monotonic()
         self._call(self._world)
+        self.call_wall_s += (t1 - t0) + (time.monotonic() - t2)
         self._settle(own=True)
         if self._run_due():
             self._settle(own=True)
@@ -283,7 +310,7 @@ class Stepper:
         both = self.quiet.values()
         blockers = sum((q.blockers for q in both), Counter())
         return {"ticks": self.ticks, "sim_s": round(self.now_ns / 1e9, 3),
-                "tick_wall_s": round(self.tick_wall_s, 3),
+                "tick_wall_s": round(self.tick_wall_s, 3), "call_wall_s": round(self.call_wall_s, 3),
                 "cpu_per_sim_s": None if (rate := self.cpu.rate(self.now_ns)) is None else round(rate, 3),
                 "quiet_waits": sum(q.waits for q in both), "quiet_scans": sum(q.scans for q in both),
                 "quiet_timeouts": self.quiet_timeouts, "wall_cuts": self.wall_cuts,

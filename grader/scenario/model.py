@@ -180,6 +180,11 @@ class ServiceCall(Model):
     request: dict[str, Any] = Field({}, description="request field values")
     server_timeout: PositiveFloat = Field(5.0, description="s to wait for the service to appear")
     response_timeout: PositiveFloat = Field(10.0, description="s to wait for the response")
+    served_by: RosName | None = Field(
+        None, description="the node expected to serve it (a call without `type`): with no server of "
+                          "`name`, the one service of its own this node advertises is called instead (a student's other name for it; "
+                          "the call's event says `asked_for: name`), so items about what the service does "
+                          "are judged and only the item about its name is charged")
 
 
 class ActionGoal(Model):

@@ -17,15 +17,13 @@ from __future__ import annotations
 import contextlib
 import math
 import time
-from typing import TYPE_CHECKING, Any, Callable, cast
+from typing import Any, Callable, cast
 
 from grader.scenario import model as m
-
-if TYPE_CHECKING:
-    from grader.scenario.steps import Runtime, StepState
+from grader.scenario.runtime import Runtime, StepState
 
 #: how a placement calls the simulator's teleport service (the step handler of ``ServiceCall``)
-ServiceCall = Callable[["Runtime", m.Step, m.ServiceCall, "StepState"], dict[str, Any]]
+ServiceCall = Callable[[Runtime, m.Step, m.ServiceCall, StepState], dict[str, Any]]
 
 
 #: a simulator pose this close to the placement shows the teleport done (the turtle is held still,

@@ -69,8 +69,8 @@ def _discover_like(graph: RosGraph) -> None:
 
 def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     """Execute ``run``; returns (and writes) the scenario record."""
-    from grader.scenario.driver import Driver
-    from grader.scenario.steps import Runtime, action_name, prepare, run_step
+    from grader.scenario.runtime import Runtime
+    from grader.scenario.steps import prepare
 
     spec = run.scenario
     scale = run.time_scale if run.time_scale > 1 and not run.lockstep else None
@@ -95,16 +95,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
         record["domain_id"] = graph.domain_id
         _discover_like(graph)
         try:
-            topics = None if spec.record == "all" else list(spec.record) + ["/grader/events", "/grader/stdout"]
-            if topics is not None and sim_time:
-                topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
             with _interrupt_after():
-                # the driver's events and output lines go into the bag in process (local topics):
-                # a student node publishing "/grader/events" adds nothing to the recording
-                recorder = RecorderThread(out / "bag", topics, domain_id=graph.domain_id,
-                                          extra=["--time-scale", repr(scale)] if scale else
-                                          ["--lockstep"] if run.lockstep else (),
-                                          local=(EVENTS_TOPIC, STDOUT_TOPIC))
+                recorder = _recorder(run, out, graph, scale, sim_time)
             # on simulated time the clock owner starts alongside the recorder: the clock is held
             # below until the recorder records it, so nothing is missed
             sim = _start_clock_owner(graph, run, out, record, scale) if scale else None
@@ -114,75 +106,17 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
                 record["errors"].append(str(exc))
             if not scale:
                 sim = _start_clock_owner(graph, run, out, record, scale)
-            driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
-                            clock_node=clock_node, sink=recorder.post,
-                            recording_matched=lambda t, n: not recorder.records(t) or recorder.matched(t, n),
-                            recorded_count=lambda t: recorder.recorded(t) if recorder.records(t) else None,
-                            lockstep=(lambda: [p.pid for p in [sim, *students.values()]
-                                               if p is not None and p.alive()]) if run.lockstep else None,
-                            lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None})
-            graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
-            if run.lockstep and recorder.records(CLOCK_TOPIC):
-                # every tick's /clock is recorded, the first included: a pose recorded before any
-                # /clock maps to no tick (CI saw the first pose 13 ms of wall time off its tick)
-                driver.wait_until(lambda: recorder.matched(CLOCK_TOPIC, 1), RECORDER_READY_S, wall=True)
-            if sim_time:
-                if not driver.clock.wait_for_clock(SIM_READY_S):
-                    raise RuntimeError(f"no {CLOCK_TOPIC} from the grader's clock within {SIM_READY_S:.0f}s")
-            if scale:
-                driver.watchdog = RateWatchdog(run.expected_rates, clock_owner=cast(str, clock_node))
-                for expect in run.expected_rates:
-                    driver.count_messages(expect.topic, None, wait_s=0.0)
-            if sim is not None:
-                driver.watch_pose()
-                driver.prepare_turtle_hold()     # placements' holds and the one at the end (below)
-                if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
-                    raise RuntimeError("the reference simulator published no pose within "
-                                       f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
-                _wait_recorded(driver, recorder, record)
-            start_hold = contextlib.ExitStack()
-            if sim_time:
-                # the clock is held from here until the autostarted processes are up: a recorder
-                # still discovering the clock owner's topics would miss K times more of the start
-                start_hold.enter_context(driver.clock.held())
-                driver.wait_until(lambda: driver.recorder_matched((cast(str, clock_node), "/")), RECORDER_READY_S,
-                                  wall=True)
-                time.sleep(FIRST_CLOCK_S)
+            driver = _driver(run, graph, students, recorder, sim, scale, clock_node)
+            start_hold = _bring_up(run, driver, recorder, sim, record, scale, clock_node)
             launcher = Launcher(run, graph, driver, students)
             rt = Runtime(driver, run, launcher.start, launcher.members)
             prepare(rt)
-            driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=graph.domain_id,
-                         sim_node=run.sim_node)
-            if run.packages:         # the names the build made: a contract's names are looked up in them
-                driver.event(Event.PACKAGES, packages={n: f.model_dump(mode="json") for n, f in run.packages.items()})
-            for proc in spec.processes:
-                if proc.launch:
-                    driver.event(Event.LAUNCH_RESOLVED, process=proc.name,
-                                 launch=run.launch_files.get(proc.name, proc.launch),
-                                 installed=run.launch_installed.get(proc.name, False),
-                                 notes=list(run.notes.get(proc.name, ())),
-                                 nodes=[lp.model_dump(include={"name", "node_name", "package", "executable",
-                                                               "stand_in", "error", "start_delay"})
-                                        for lp in run.launched.get(proc.name, ())])
+            _announce(run, driver, graph.domain_id)
             for proc in spec.processes:
                 if proc.autostart:
                     launcher.start(proc.name)
             start_hold.close()
-            for step in spec.steps:
-                if spec.processes and step.start is None and not any(p.alive() for p in students.values()):
-                    # nobody left to grade (build failed, crashed on start-up): waiting for this
-                    # step's limit would only cost time; the bag says why
-                    driver.event(Event.STEP_SKIPPED, step=step.id, reason="no student process is running",
-                                 exited={n: p.returncode for n, p in students.items()})
-                    record["steps"].append({"id": step.id, "action": action_name(step), "duration_s": 0.0,
-                                            "ended_by": "skipped", "detail": {}})
-                    continue
-                outcome = run_step(rt, step)
-                record["steps"].append(outcome)
-                _check_watchdog(driver)
-                if outcome["ended_by"] == "timeout" and step.on_timeout == "abort":
-                    driver.event(Event.SCENARIO_ABORTED, step=step.id)
-                    break
+            _run_steps(rt, students, record)
             driver.clock.sleep(0.5)    # let the last messages reach the recorder
             _check_watchdog(driver)
             driver.graph_snapshot()
@@ -201,43 +135,155 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             if driver is not None:
                 driver.event(Event.SCENARIO_ERROR, error=f"{type(exc).__name__}: {exc}")
         finally:
-            record["output_cut"] = graph.output_cuts()
-            # how starved the run was (before anything is stopped): see grader.scenario.cpuwait
-            record["cpu_wait"] = cpu_wait({"scenario": os.getpid(), "turtlesim": sim.pid if sim is not None else None,
-                                           **{n: p.pid for n, p in students.items() if p.alive()}})
-            # the scenario is over: the turtles are held still before the student's processes
-            # stop, or a turtle coasts on its last command (turtlesim's 1 s command timeout)
-            # after the scenario, drawing on the canvas the grade reads (bench_flake: a canvas
-            # item 2.5/5/2.5 over three runs of the same code, by how far the coast went)
-            if sim is not None and driver is not None and sim.alive() and not record.get("interrupted"):
-                driver.hold_turtles(True, "scenario_end", wait_s=END_HOLD_WAIT_S)
-            # on simulated time the shutdown's wall time must not run the simulation on
-            if scale and driver is not None and not driver.clock.stop():
-                record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "
-                                                            "or stopped the simulated clock")
-            for name, student in students.items():
-                crashed = student.returncode is not None and not student.stopped_by_grader
-                rc = student.stop()
-                record["processes"][name] = {"returncode": rc, "crashed": crashed and rc != 0,
-                                             "exited_early": crashed, "timed_out": student.timed_out,
-                                             "killed": student.killed}
-            if driver is not None:
-                if scale:
-                    record["time_scale"].update(sim_s=round(driver.clock.sim_s(), 3),
-                                                held_s=round(driver.clock.held_s, 3))
-                if driver.clock.stepper is not None:
-                    record["lockstep"].update(driver.clock.stepper.summary())
-                driver.shutdown()
-            graph.stop_all()
-            if recorder is not None:
-                # the simulator has stopped and closed its record: the recorder writes it into
-                # the bag (grader.sim.record: the only poses a grade rests on)
-                recorder.stop(records=[out / SIM_RECORD] if (out / SIM_RECORD).exists() else [])
-                (out / SIM_RECORD).unlink(missing_ok=True)
+            _wind_down(record, graph, out, driver, recorder, sim, students, scale)
     record["active_s"] = round(sum(s["duration_s"] for s in record["steps"]), 3)
     record["wall_s"] = round(time.monotonic() - t_start, 3)
     (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
     return record
+
+
+def _recorder(run: ScenarioRun, out: Path, graph: RosGraph, scale: float | None, sim_time: bool) -> RecorderThread:
+    """The scenario's recorder (not started): the rubric's topics, or all. The driver's events
+    and output lines go into the bag in process (local topics): a student node publishing
+    "/grader/events" adds nothing to the recording."""
+    spec = run.scenario
+    topics = None if spec.record == "all" else list(spec.record) + ["/grader/events", "/grader/stdout"]
+    if topics is not None and sim_time:
+        topics.append(CLOCK_TOPIC)      # maps the bag's wall-clock times to simulated time
+    return RecorderThread(out / "bag", topics, domain_id=graph.domain_id,
+                          extra=["--time-scale", repr(scale)] if scale else
+                          ["--lockstep"] if run.lockstep else (),
+                          local=(EVENTS_TOPIC, STDOUT_TOPIC))
+
+
+def _driver(run: ScenarioRun, graph: RosGraph, students: dict[str, ManagedProcess], recorder: RecorderThread,
+            sim: ManagedProcess | None, scale: float | None, clock_node: str | None) -> Any:
+    """The scenario's driver, told what the recorder has matched and recorded, and in lockstep
+    which processes to wait for (the simulator's and the students', not the recorder's thread)."""
+    from grader.scenario.driver import Driver
+
+    driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
+                    clock_node=clock_node, sink=recorder.post,
+                    recording_matched=lambda t, n: not recorder.records(t) or recorder.matched(t, n),
+                    recorded_count=lambda t: recorder.recorded(t) if recorder.records(t) else None,
+                    lockstep=(lambda: [p.pid for p in [sim, *students.values()]
+                                       if p is not None and p.alive()]) if run.lockstep else None,
+                    lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None})
+    graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
+    return driver
+
+
+def _bring_up(run: ScenarioRun, driver: Any, recorder: RecorderThread, sim: ManagedProcess | None,
+              record: dict[str, Any], scale: float | None, clock_node: str | None) -> contextlib.ExitStack:
+    """Wait until the clock runs, the simulator's poses are recorded and the recorder has the
+    clock owner's topics; returns the hold on the clock to release once the autostarted
+    processes are up (on simulated time)."""
+    sim_time = bool(scale) or run.lockstep
+    if run.lockstep and recorder.records(CLOCK_TOPIC):
+        # every tick's /clock is recorded, the first included: a pose recorded before any
+        # /clock maps to no tick (CI saw the first pose 13 ms of wall time off its tick)
+        driver.wait_until(lambda: recorder.matched(CLOCK_TOPIC, 1), RECORDER_READY_S, wall=True)
+    if sim_time:
+        if not driver.clock.wait_for_clock(SIM_READY_S):
+            raise RuntimeError(f"no {CLOCK_TOPIC} from the grader's clock within {SIM_READY_S:.0f}s")
+    if scale:
+        driver.watchdog = RateWatchdog(run.expected_rates, clock_owner=cast(str, clock_node))
+        for expect in run.expected_rates:
+            driver.count_messages(expect.topic, None, wait_s=0.0)
+    if sim is not None:
+        driver.watch_pose()
+        driver.prepare_turtle_hold()     # placements' holds and the one at the end (below)
+        if not driver.wait_until(lambda: driver.pose is not None, SIM_READY_S):
+            raise RuntimeError("the reference simulator published no pose within "
+                               f"{SIM_READY_S:.0f}s: " + sim.errors()[-500:])
+        _wait_recorded(driver, recorder, record)
+    start_hold = contextlib.ExitStack()
+    if sim_time:
+        # the clock is held from here until the autostarted processes are up: a recorder
+        # still discovering the clock owner's topics would miss K times more of the start
+        start_hold.enter_context(driver.clock.held())
+        driver.wait_until(lambda: driver.recorder_matched((cast(str, clock_node), "/")), RECORDER_READY_S,
+                          wall=True)
+        time.sleep(FIRST_CLOCK_S)
+    return start_hold
+
+
+def _announce(run: ScenarioRun, driver: Any, domain_id: int) -> None:
+    """The scenario's start in the bag: its id, the packages the build made (a contract's names
+    are looked up in them) and each launch file as resolved."""
+    driver.event(Event.SCENARIO_START, scenario=run.id, domain_id=domain_id, sim_node=run.sim_node)
+    if run.packages:
+        driver.event(Event.PACKAGES, packages={n: f.model_dump(mode="json") for n, f in run.packages.items()})
+    for proc in run.scenario.processes:
+        if proc.launch:
+            driver.event(Event.LAUNCH_RESOLVED, process=proc.name,
+                         launch=run.launch_files.get(proc.name, proc.launch),
+                         installed=run.launch_installed.get(proc.name, False),
+                         notes=list(run.notes.get(proc.name, ())),
+                         nodes=[lp.model_dump(include={"name", "node_name", "package", "executable",
+                                                       "stand_in", "error", "start_delay"})
+                                for lp in run.launched.get(proc.name, ())])
+
+
+def _run_steps(rt: Any, students: dict[str, ManagedProcess], record: dict[str, Any]) -> None:
+    """Every step in order, its outcome in the record; a step is skipped once no student process
+    is left (build failed, crashed on start-up: waiting for its limit would only cost time, the
+    bag says why), and an ``on_timeout: abort`` step that timed out ends the scenario."""
+    from grader.scenario.steps import action_name, run_step
+
+    spec, driver = rt.scenario, rt.driver
+    for step in spec.steps:
+        if spec.processes and step.start is None and not any(p.alive() for p in students.values()):
+            driver.event(Event.STEP_SKIPPED, step=step.id, reason="no student process is running",
+                         exited={n: p.returncode for n, p in students.items()})
+            record["steps"].append({"id": step.id, "action": action_name(step), "duration_s": 0.0,
+                                    "ended_by": "skipped", "detail": {}})
+            continue
+        outcome = run_step(rt, step)
+        record["steps"].append(outcome)
+        _check_watchdog(driver)
+        if outcome["ended_by"] == "timeout" and step.on_timeout == "abort":
+            driver.event(Event.SCENARIO_ABORTED, step=step.id)
+            break
+
+
+def _wind_down(record: dict[str, Any], graph: RosGraph, out: Path, driver: Any, recorder: RecorderThread | None,
+               sim: ManagedProcess | None, students: dict[str, ManagedProcess], scale: float | None) -> None:
+    """However the scenario ended: how starved it was, the turtles held, the clock stopped, every
+    process stopped (and how it ended), the simulator's record written into the bag."""
+    record["output_cut"] = graph.output_cuts()
+    # how starved the run was (before anything is stopped): see grader.scenario.cpuwait
+    record["cpu_wait"] = cpu_wait({"scenario": os.getpid(), "turtlesim": sim.pid if sim is not None else None,
+                                   **{n: p.pid for n, p in students.items() if p.alive()}})
+    # the scenario is over: the turtles are held still before the student's processes
+    # stop, or a turtle coasts on its last command (turtlesim's 1 s command timeout)
+    # after the scenario, drawing on the canvas the grade reads (bench_flake: a canvas
+    # item 2.5/5/2.5 over three runs of the same code, by how far the coast went)
+    if sim is not None and driver is not None and sim.alive() and not record.get("interrupted"):
+        driver.hold_turtles(True, "scenario_end", wait_s=END_HOLD_WAIT_S)
+    # on simulated time the shutdown's wall time must not run the simulation on
+    if scale and driver is not None and not driver.clock.stop():
+        record["time_scale"].setdefault("fallback", "a node other than the grader's driver held "
+                                                    "or stopped the simulated clock")
+    for name, student in students.items():
+        crashed = student.returncode is not None and not student.stopped_by_grader
+        rc = student.stop()
+        record["processes"][name] = {"returncode": rc, "crashed": crashed and rc != 0,
+                                     "exited_early": crashed, "timed_out": student.timed_out,
+                                     "killed": student.killed}
+    if driver is not None:
+        if scale:
+            record["time_scale"].update(sim_s=round(driver.clock.sim_s(), 3),
+                                        held_s=round(driver.clock.held_s, 3))
+        if driver.clock.stepper is not None:
+            record["lockstep"].update(driver.clock.stepper.summary())
+        driver.shutdown()
+    graph.stop_all()
+    if recorder is not None:
+        # the simulator has stopped and closed its record: the recorder writes it into
+        # the bag (grader.sim.record: the only poses a grade rests on)
+        recorder.stop(records=[out / SIM_RECORD] if (out / SIM_RECORD).exists() else [])
+        (out / SIM_RECORD).unlink(missing_ok=True)
 
 
 def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[str, Any]) -> None:

@@ -1,67 +1,28 @@
-"""Executing scenario steps: one handler per action class, one predicate per condition class.
+"""Executing scenario steps: one handler per action class, and the step itself.
 
-Dispatch is by type (``HANDLERS[type(step.do)]``, ``CONDITIONS[type(step.until)]``), so every
-class of ``grader.scenario.model`` has exactly one implementation here and a test can check
-that none is missing.
-
-A few lines over the project's ~400: one handler per step class and one predicate per
-condition, kept together so the dispatch tables and the test of their completeness stay in one
-place. Placed steps are in :mod:`grader.scenario.placement`, replay pacing in
-:mod:`grader.scenario.pacing`.
+Dispatch is by type (``HANDLERS[type(step.do)]``, and ``CONDITIONS[type(step.until)]`` of
+:mod:`grader.scenario.predicates`), so every class of ``grader.scenario.model`` has exactly one
+implementation and a test can check that none is missing. What handlers and predicates share
+is in :mod:`grader.scenario.runtime`; placed steps are in :mod:`grader.scenario.placement`,
+replay pacing in :mod:`grader.scenario.pacing`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import math
-import re
 import time
 import uuid
-from dataclasses import dataclass, field
-from typing import Any, Callable, cast
+from typing import Any, Callable
 
 from grader.scenario import model as m
-from grader.scenario.driver import Driver
 from grader.scenario.events import Event
 from grader.scenario.lockstep import LockstepFailed
 from grader.scenario.messages import fill, import_type, to_plain
 from grader.scenario.pacing import Pacer
 from grader.scenario.placement import (SPAWN_SERVICE, SPAWN_TYPE, TELEPORT_TYPE, handoff_topic, place_and_hold,
                                       placement_topic, teleport_service)
-from grader.scenario.runspec import ScenarioRun
-
-
-@dataclass
-class StepState:
-    """What a step's action leaves for its condition (and the step record)."""
-
-    step: m.Step
-    t0: float = field(default_factory=time.monotonic)   # scenario time the step began
-    action_done: bool = False
-    service_done: bool = False
-    replay_done: bool = False
-    goal_handle: Any = None
-    detail: dict[str, Any] = field(default_factory=dict)
-
-
-class Runtime:
-    """What handlers need besides the driver: the scenario, its processes, how to start them."""
-
-    def __init__(self, driver: Driver, run: ScenarioRun,
-                 start: Callable[[str], list[str]], members: dict[str, list[str]]) -> None:
-        self.driver = driver
-        self.run = run
-        self.scenario = run.scenario
-        self.start = start                # rubric process name -> names of OS processes started
-        self.members = members            # rubric process name -> its OS process names so far
-        self.action_clients: dict[tuple[str, str], Any] = {}
-
-    def processes_of(self, name: str) -> list[Any]:
-        return [self.driver.processes[n] for n in self.members.get(name, []) if n in self.driver.processes]
-
-    def students_gone(self) -> bool:
-        procs = list(self.driver.processes.values())
-        return bool(procs) and not any(p.alive() for p in procs)
+from grader.scenario.predicates import CONDITIONS, GRAPH_CONDITIONS, GRAPH_SETTLE_S
+from grader.scenario.runtime import Runtime, StepState
 
 
 # ----------------------------------------------------------------------------------- actions
@@ -96,30 +57,49 @@ def _service(rt: Runtime, step: m.Step, spec: m.ServiceCall, state: StepState) -
     driver = rt.driver
     out: dict[str, Any] = {"service": spec.name}
     try:
-        type_name = spec.type
-        if type_name is None:
-            driver.wait_until(lambda: driver.service_type(spec.name) is not None, spec.server_timeout,
-                              wall=True)      # discovery takes wall time at any speed
-            type_name = driver.service_type(spec.name)
-            if type_name is None:
-                driver.event(Event.SERVICE_MISSING, step=step.id, service=spec.name)
-                return out | {"available": False}
-        cls = import_type(type_name)
-        client = driver.service_client(cls, spec.name)
-        if not client.wait_for_service(timeout_sec=spec.server_timeout):
+        found = _server(rt, spec)
+        if found is None:
             driver.event(Event.SERVICE_MISSING, step=step.id, service=spec.name)
             return out | {"available": False}
-        request = fill(cls.Request(), spec.request)
-        driver.event(Event.SERVICE_CALL, step=step.id, service=spec.name, type=type_name,
-                     request=to_plain(request), **_client_id(client))
+        name, type_name, client = found
+        # under another name (``served_by``): the call's events carry the name used
+        asked = {"asked_for": spec.name} if name != spec.name else {}
+        request = fill(client.srv_type.Request(), spec.request)
+        driver.event(Event.SERVICE_CALL, step=step.id, service=name, type=type_name,
+                     request=to_plain(request), **asked, **_client_id(client))
         future = client.call_async(request)
         driver.wait_until(future.done, spec.response_timeout)
         response = to_plain(future.result()) if future.done() else None
-        driver.event(Event.SERVICE_RESPONSE, step=step.id, service=spec.name, response=response,
-                     timed_out=not future.done())
-        return out | {"available": True, "type": type_name, "response": response}
+        driver.event(Event.SERVICE_RESPONSE, step=step.id, service=name, response=response,
+                     timed_out=not future.done(), **asked)
+        return out | {"available": True, "type": type_name, "response": response, **asked}
     finally:
         state.service_done = True
+
+
+def _server(rt: Runtime, spec: m.ServiceCall) -> tuple[str, str, Any] | None:
+    """The service to call for ``spec`` (its name, type and the driver's client), or None when
+    there is no server: ``spec.name``, else the one service of its own ``spec.served_by``
+    advertises (remembered for the scenario's later calls)."""
+    driver = rt.driver
+    name = rt.service_names.get(spec.name, spec.name)
+    type_name = spec.type
+    if type_name is None:
+        driver.wait_until(lambda: driver.service_type(name) is not None, spec.server_timeout,
+                          wall=True)      # discovery takes wall time at any speed
+        type_name = driver.service_type(name)
+    if type_name is None and spec.served_by and name == spec.name:     # (a call without ``type``)
+        other = driver.own_service(spec.served_by)
+        other_type = driver.service_type(other) if other is not None else None
+        if other is not None and other_type is not None:
+            name, type_name = other, other_type
+            rt.service_names[spec.name] = other
+    if type_name is None:
+        return None
+    client = driver.service_client(import_type(type_name), name)
+    if not client.wait_for_service(timeout_sec=spec.server_timeout):
+        return None
+    return name, type_name, client
 
 
 def _client_id(client: Any) -> dict[str, Any]:
@@ -288,6 +268,8 @@ def prepare(rt: Runtime) -> None:
             rt.driver.count_messages(step.until.topic, None, wait_s=0.0)
         if isinstance(step.until, m.GoalReached):
             rt.driver.watch_pose(step.until.pose_topic)
+            if step.until.give_up_still is not None:
+                rt.driver.watch_commands(step.until.cmd_topic)
         if step.place is not None:
             rt.driver.watch_pose(placement_topic(step.place))
             rt.driver.watch_commands(handoff_topic(step.place))
@@ -296,97 +278,6 @@ def prepare(rt: Runtime) -> None:
                 rt.driver.service_client(import_type(SPAWN_TYPE), SPAWN_SERVICE)
         if step.service is not None and step.service.type is not None:
             rt.driver.service_client(import_type(step.service.type), step.service.name)
-
-
-# --------------------------------------------------------------------------------- conditions
-Predicate = Callable[[], bool]
-
-
-def _goal_reached(rt: Runtime, cond: m.GoalReached, state: StepState) -> Predicate:
-    """Turtle within ``tolerance`` of the goal and, for ``settle`` s, never farther."""
-    goal = state.step.target
-    assert goal is not None            # the model requires one
-    since: list[float | None] = [None]
-
-    def check() -> bool:
-        pose = rt.driver.poses.get(cond.pose_topic)
-        if pose is None or math.hypot(pose.x - goal.x, pose.y - goal.y) > cond.tolerance:
-            since[0] = None
-            return False
-        now = rt.driver.clock.now()
-        since[0] = since[0] or now
-        return now - cast(float, since[0]) >= cond.settle
-
-    return check
-
-
-def _process_exit(rt: Runtime, cond: m.ProcessExit, state: StepState) -> Predicate:
-    return lambda: all(p.returncode is not None for p in rt.processes_of(cond.process))
-
-
-def _output(rt: Runtime, cond: m.Output, state: StepState) -> Predicate:
-    pattern = re.compile(cond.pattern)
-    lines = rt.driver.lines
-    start = {n: len(lines.get(n, [])) for n in rt.members.get(cond.process, [])}
-
-    def check() -> bool:
-        for name in rt.members.get(cond.process, []):
-            if any(pattern.search(line) for line in lines.get(name, [])[start.get(name, 0):]):
-                return True
-        return False
-
-    return check
-
-
-def _messages(rt: Runtime, cond: m.Messages, state: StepState) -> Predicate:
-    """Counts the messages the recorder has written on the topic since the step began: the
-    messages that end the step are in the bag. (Counting what the driver heard ended a step on a
-    10 Hz talker's first 3 messages while the bag had none of them. Counting what it heard once
-    the recorder's subscription showed the talker matched still ended one with 2 of them in the
-    bag, in a fresh clone's make test: DDS matches each side of a pair on its own, and the
-    talker's writer had not yet matched the recorder's reader.) A topic this recording does not
-    take is counted as the driver hears it."""
-    driver, topic = rt.driver, cond.topic
-    driver.count_messages(topic, None, wait_s=0.0)
-    in_bag = driver.recorded_count
-    if in_bag is not None and (base := in_bag(topic)) is not None:
-        return lambda: (in_bag(topic) or 0) - base >= cond.count
-    heard = driver.counts.get(topic, 0)
-    return lambda: driver.counts.get(topic, 0) - heard >= cond.count
-
-
-def _advertised(rt: Runtime, cond: m.Advertised, state: StepState) -> Predicate:
-    driver = rt.driver
-    if cond.topic is not None:
-        topic = cond.topic
-        # advertised *and* recorded: the recorder's subscription in place and matched with
-        # every publisher of the topic (the graph shows it before DDS has matched them)
-        return lambda: driver.student_publishes(topic) and all(
-            driver.recorder_matched(n) for n in driver.student_nodes()) and driver.topic_recorded(topic)
-    if cond.service is not None:
-        service = cond.service
-        return lambda: driver.service_type(service) is not None
-    action = cond.action or ""
-    return lambda: driver.action_available(action)
-
-
-#: conditions on the ROS graph (discovery), not on what happens in simulated time
-GRAPH_CONDITIONS = (m.Advertised, m.Subscribed)
-#: lockstep: wall seconds after a graph condition holds before the next tick (DDS matches the
-#: endpoints the graph shows a little later; every participant hears of them at the same time)
-GRAPH_SETTLE_S = 0.3
-
-CONDITIONS: dict[type, Callable[[Runtime, Any, StepState], Predicate]] = {
-    m.GoalReached: _goal_reached,
-    m.ActionDone: lambda rt, cond, state: (lambda: state.action_done),
-    m.ServiceDone: lambda rt, cond, state: (lambda: state.service_done),
-    m.ReplayDone: lambda rt, cond, state: (lambda: state.replay_done),
-    m.ProcessExit: _process_exit,
-    m.Output: _output,
-    m.Messages: _messages,
-    m.Advertised: _advertised,
-    m.Subscribed: lambda rt, cond, state: (lambda: rt.driver.student_subscribes(cond.topic)),
-}
 
 
 # -------------------------------------------------------------------------------------- a step
@@ -434,10 +325,14 @@ def run_step(rt: Runtime, step: m.Step) -> dict[str, Any]:
             # must not decide at which tick the scenario goes on; then a moment for the
             # endpoints the graph shows to be matched, still without a tick
             graph = driver.clock.lockstep and isinstance(step.until, GRAPH_CONDITIONS)
-            driver.wait_until(lambda: predicate() or rt.students_gone(), remaining, wall=graph)
+            driver.wait_until(lambda: predicate() or rt.students_gone() or state.decided is not None,
+                              remaining, wall=graph)
             if graph:
                 time.sleep(GRAPH_SETTLE_S)
-            ended_by = "condition" if predicate() else ("students_exited" if rt.students_gone() else "timeout")
+            ended_by = ("condition" if predicate() else "students_exited" if rt.students_gone() else
+                        "decided" if state.decided is not None else "timeout")
+            if ended_by == "decided":
+                state.detail = {**state.detail, "ended_early": state.decided}
     if isinstance(action, m.ActionGoal) and ended_by == "timeout" and state.goal_handle is not None:
         state.goal_handle.cancel_goal_async()
         driver.event(Event.ACTION_CANCEL_SENT, step=step.id)

@@ -42,9 +42,12 @@ CLOCK_TOPIC = "/clock"
 HOLD_SERVICE = "hold_clock"
 #: ``std_srvs/srv/Trigger``: stop the clock at once, for good (the scenario has ended)
 STOP_SERVICE = "stop_clock"
-#: lockstep (``std_srvs/srv/Trigger``): simulated time advances one tick, published on ``/clock``
+#: lockstep (``std_srvs/srv/SetBool``): ``data`` true, simulated time advances one tick, published
+#: on ``/clock``; false, only the time is answered (a probe the driver repeats until answered: a
+#: request or its reply can be lost while discovery has not matched both ends yet)
 STEP_CLOCK_SERVICE = "step_clock"
-#: lockstep: the world's step at that time, its poses published
+#: lockstep (``std_srvs/srv/Trigger``): the world's step at that time, its poses published (once
+#: per time: called again, it answers the same)
 STEP_WORLD_SERVICE = "step_world"
 #: node name of the clock publisher of scenarios without a simulator (``sim: false``)
 CLOCK_NODE = "grader_clock"

@@ -143,7 +143,7 @@ class TurtlesimNode(Node):
             self.sim_clock.attach(self)
             # no timer: the driver steps the world (grader.sim.clock, "Lockstep")
             self._world_ns = 0
-            self.create_service(Trigger, f"~/{STEP_CLOCK_SERVICE}", self._on_step_clock)
+            self.create_service(SetBool, f"~/{STEP_CLOCK_SERVICE}", self._on_step_clock)
             self.create_service(Trigger, f"~/{STEP_WORLD_SERVICE}", self._on_step_world)
         elif self.sim_clock is not None:
             self.sim_clock.attach(self)
@@ -372,12 +372,15 @@ class TurtlesimNode(Node):
             self._bury()
         self.sim_clock.publish()
 
-    def _on_step_clock(self, _req: Trigger.Request, res: Trigger.Response) -> Any:
+    def _on_step_clock(self, req: SetBool.Request, res: SetBool.Response) -> Any:
         """Lockstep, first half of a tick: simulated time advances 16 ms (not while held) and
-        goes out on ``/clock``; ``message``: "<time, ns> <matched /clock readers>"."""
+        goes out on ``/clock``; ``message``: "<time, ns> <matched /clock readers>". ``data``
+        false: only the answer (the driver's probe that the reply reaches it)."""
         assert self.sim_clock is not None
-        res.success = self.sim_clock.tick() is not None
-        self.sim_clock.publish()
+        res.success = True
+        if req.data:
+            res.success = self.sim_clock.tick() is not None
+            self.sim_clock.publish()
         res.message = f"{self.sim_clock.now_ns} {self.sim_clock.readers()}"
         return res
 

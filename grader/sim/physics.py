@@ -211,21 +211,7 @@ class Turtle:
 
         # 1. teleport requests, in arrival order
         if self.teleports:
-            for req in self.teleports:
-                ox, oys = self.x, self.ys
-                if req.relative:
-                    self.orient += req.theta
-                    self.x += math.cos(self.orient) * req.linear
-                    self.ys += -math.sin(self.orient) * req.linear
-                else:
-                    self.x = req.x
-                    self.ys = max(0.0, H - req.y)
-                    self.orient = req.theta
-                if pen_on and canvas is not None:
-                    pen = self.pen
-                    canvas.draw_line(self.x * meter, self.ys * meter, ox * meter, oys * meter,
-                                     pen.r, pen.g, pen.b, pen.width)
-            self.teleports.clear()
+            self._teleport(canvas)
         if held:
             self.pose_x, self.pose_y, self.pose_theta = self.x, H - self.ys, self.orient
             self.pose_linear = self.pose_angular = 0.0
@@ -237,28 +223,8 @@ class Turtle:
         # 2. rotate_absolute goal
         self.feedback = None
         self.finished = None
-        goal = self.goal
-        if goal is not None:
-            if goal.cancel_requested:
-                self._log("info", "Rotation goal canceled")
-                self.finished = (goal, "canceled")
-                self.goal = None
-                self.vx = self.vy = self.w = 0.0
-            else:
-                theta = wrap(goal.theta)
-                o32 = f32(self.orient)
-                remaining = wrap(theta - o32)
-                goal.delta = wrap(f32(goal.start - self.orient))
-                self.feedback = remaining
-                if abs(wrap(o32 - theta)) < ROTATE_TOLERANCE:
-                    self._log("info", "Rotation goal completed successfully")
-                    self.finished = (goal, "succeeded")
-                    self.goal = None
-                    self.vx = self.vy = self.w = 0.0
-                else:
-                    self.vx = self.vy = 0.0
-                    self.w = -1.0 if remaining < 0.0 else 1.0
-                    self.last_cmd_ns = now_ns
+        if self.goal is not None:
+            self._rotate_to_goal(now_ns)
 
         # 3. command timeout (strictly more than 1 s)
         if now_ns - self.last_cmd_ns > CMD_TIMEOUT_NS:
@@ -299,6 +265,50 @@ class Turtle:
             pen = self.pen
             canvas.draw_line(x * meter, ys * meter, ox * meter, oys * meter,
                              pen.r, pen.g, pen.b, pen.width)
+
+    def _teleport(self, canvas: "Canvas | None") -> None:
+        """The queued teleports, in arrival order (the pen draws each jump, as turtlesim's does)."""
+        for req in self.teleports:
+            ox, oys = self.x, self.ys
+            if req.relative:
+                self.orient += req.theta
+                self.x += math.cos(self.orient) * req.linear
+                self.ys += -math.sin(self.orient) * req.linear
+            else:
+                self.x = req.x
+                self.ys = max(0.0, H - req.y)
+                self.orient = req.theta
+            if self.pen_on and canvas is not None:
+                pen = self.pen
+                canvas.draw_line(self.x * METER, self.ys * METER, ox * METER, oys * METER,
+                                 pen.r, pen.g, pen.b, pen.width)
+        self.teleports.clear()
+
+    def _rotate_to_goal(self, now_ns: int) -> None:
+        """Step the rotate_absolute goal: cancel, finish within ``ROTATE_TOLERANCE``, or turn
+        toward it at 1 rad/s (a command: it resets the timeout)."""
+        goal = self.goal
+        assert goal is not None
+        if goal.cancel_requested:
+            self._log("info", "Rotation goal canceled")
+            self.finished = (goal, "canceled")
+            self.goal = None
+            self.vx = self.vy = self.w = 0.0
+        else:
+            theta = wrap(goal.theta)
+            o32 = f32(self.orient)
+            remaining = wrap(theta - o32)
+            goal.delta = wrap(f32(goal.start - self.orient))
+            self.feedback = remaining
+            if abs(wrap(o32 - theta)) < ROTATE_TOLERANCE:
+                self._log("info", "Rotation goal completed successfully")
+                self.finished = (goal, "succeeded")
+                self.goal = None
+                self.vx = self.vy = self.w = 0.0
+            else:
+                self.vx = self.vy = 0.0
+                self.w = -1.0 if remaining < 0.0 else 1.0
+                self.last_cmd_ns = now_ns
 
     # -- views for tests / tools -----------------------------------------------------------
     def pose(self) -> tuple[float, float, float, float, float]:

@@ -9,7 +9,7 @@ cannot tell whose sample it took.
 So the simulator also writes every pose it publishes to a file (``grader sim --pose-record
 FILE``): the CDR bytes it handed to its publisher and the wall-clock time it did so. The file is
 in the scenario's own folder, which the simulator (grader code, outside the sandbox) can write
-and student code cannot reach at all (the sandbox shows it no output folder, see README "Student
+and student code cannot reach at all (the sandbox shows it no output folder, see docs/sandbox.md, "Student
 code runs in a sandbox"). When the scenario ends, the scenario process hands the record to its
 recorder, which writes it into the bag under ``record_topic(pose_topic)``
 (``/grader/sim_record/turtle1/pose``) and never records anything received over DDS under that

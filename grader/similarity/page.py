@@ -9,7 +9,7 @@ from html import escape
 from pathlib import Path
 from typing import Any, Mapping
 
-from grader.similarity.run import KNOWN_PREFIX, OUT_DIR, PAIRS_CSV
+from grader.similarity.summary import KNOWN_PREFIX, OUT_DIR, PAIRS_CSV
 
 NOTE = ("Similarity is not proof of misconduct: honest solutions of one lab share a lot. This page "
         "shows what the two have in common and how unusual that is in this class; read the code and the "

@@ -23,11 +23,8 @@ from grader.errors import GraderError
 from grader.similarity import behaviour, code
 from grader.similarity.compare import analyse
 from grader.similarity.files import SOURCE_DIR
+from grader.similarity.summary import KNOWN_PREFIX, OUT_DIR, PAIRS_CSV, SUMMARY, read_summary
 
-OUT_DIR = "similarity"
-SUMMARY = "similarity.json"
-PAIRS_CSV = "pairs.csv"
-KNOWN_PREFIX = "known:"
 MAX_FEATURES = 40            # shared features kept per listed pair (most telling first)
 
 
@@ -308,15 +305,6 @@ def write(out: Path, summary: dict[str, Any]) -> Path:
     atomic_write(folder / SUMMARY, json.dumps(public, indent=1) + "\n")
     atomic_write(folder / PAIRS_CSV, pairs_csv(public))
     return folder
-
-
-def read_summary(out: Path) -> dict[str, Any] | None:
-    """OUT/similarity/similarity.json, or None (never computed, or unreadable)."""
-    try:
-        doc = json.loads((Path(out) / OUT_DIR / SUMMARY).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return doc if isinstance(doc, dict) and doc.get("schema") == 1 else None
 
 
 def run_similarity(out: Path, rubric, settings: Settings | None = None, jobs: int = 2) -> dict[str, Any]:

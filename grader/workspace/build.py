@@ -29,6 +29,7 @@ from grader.cache import default_cache_dir
 from grader.cache.code import build_code
 from grader.cache.environment import build_tools
 from grader.cache.locks import Holds, build_lock, locked, use_lock
+from grader.sandbox import allotment
 from grader.errors import GraderError
 from grader.rosenv import PY_SITE, child_env
 from grader.sandbox.oneshot import run_jailed
@@ -195,7 +196,7 @@ def _run_colcon(root: Path, log_file: Path, skip: Sequence[str] = ()) -> int:
         cmake_args += ["-G", "Ninja"]
     cmd = [sys.executable, "-m", "colcon", "--log-base", "log", "build",
            "--base-paths", "src", "--build-base", "build", "--install-base", "install",
-           "--continue-on-error", "--parallel-workers", str(max(1, os.cpu_count() or 1)),
+           "--continue-on-error", "--parallel-workers", str(allotment.current().slots),
            "--event-handlers", "console_cohesion+", "console_direct-", "status-",
            "event_log+", "log+",        # events.log and per-package logs: the status is read from them
            *(["--packages-skip", *skip] if skip else []),     # reused: in install/ already
@@ -371,7 +372,7 @@ def _build(submission: Path, cache_dir: Path, support: dict[str, Path] | None, f
                 if trusted:
                     packages_cache.share(result, keys)      # e.g. after the index was cleared
                 elif not all(Path(p).is_dir() for p in result.interfaces.prefixes.values()):
-                    result.interfaces = build_trusted_interfaces(result, cache_dir)    # cleared meanwhile
+                    result.interfaces = build_trusted_interfaces(result, cache_dir, build_workspace)    # cleared meanwhile
                     result_file.write_text(json.dumps(_to_json(result), indent=1))
                 return _with_interface_problems(result)
             if root.exists():
@@ -391,7 +392,7 @@ def _build(submission: Path, cache_dir: Path, support: dict[str, Path] | None, f
             result = BuildResult(str(submission), digest, root, packages,
                                  duration_s=round(time.monotonic() - t0, 2), warnings=staging_result.warnings)
             if not trusted:      # grader processes import the students' types from their own build
-                result.interfaces = build_trusted_interfaces(result, cache_dir)
+                result.interfaces = build_trusted_interfaces(result, cache_dir, build_workspace)
             result_file.write_text(json.dumps(_to_json(result), indent=1))
             if trusted:
                 packages_cache.share(result, keys)

@@ -36,6 +36,7 @@ import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Callable
 
 from grader.errors import GraderError
 
@@ -171,10 +172,10 @@ def write_package(dest: Path, package: str, files: dict[str, list[Path]]) -> Non
         package=package, depends="".join(f"  <depend>{d}</depend>\n" for d in deps)))
 
 
-def build_trusted_interfaces(result, cache_dir: Path) -> TrustedInterfaces:
-    """Trusted builds of the interface packages ``result`` (a student's ``BuildResult``) built."""
-    from grader.workspace.build import build_workspace
-
+def build_trusted_interfaces(result, cache_dir: Path, build_workspace: Callable[..., Any]) -> TrustedInterfaces:
+    """Trusted builds of the interface packages ``result`` (a student's ``BuildResult``) built,
+    made by ``build_workspace`` (``grader.workspace.build``'s, which calls this: passed in, not
+    imported, so the two modules are no circle)."""
     out = TrustedInterfaces()
     staged: list[str] = []
     ws = Path(cache_dir) / f".trusted-interfaces-{os.getpid()}-{time.monotonic_ns()}"

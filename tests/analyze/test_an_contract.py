@@ -146,11 +146,25 @@ def _logs(stdout=(), rosout=(), subscribers=None, published=()) -> dict:
 HELLO = "Hello ROS2 developer"
 
 
-def test_logged_under_another_node_name_is_not_printed() -> None:
-    f = get("logged")(_logs(stdout=[(T0 + 1, "node", "stderr", f"[INFO] [{T0 + 1:.3f}] [hello_node]: {HELLO}")],
-                            rosout=[(T0 + 1, "hello_node", HELLO)]), {"logger": "/my_first_node", "pattern": "Hello"})
+def test_logged_under_another_node_name_is_logged_and_costs_only_the_name() -> None:
+    """Issue 37: real first packages call the node first_node or py_test; the greeting is still
+    logged, and its item says under which name (the name's own item charges the name)."""
+    frames = _logs(stdout=[(T0 + 1, "node", "stderr", f"[INFO] [{T0 + 1:.3f}] [hello_node]: {HELLO}")],
+                   rosout=[(T0 + 1, "hello_node", HELLO)])
+    f = get("logged")(frames, {"logger": "/my_first_node", "pattern": "Hello"})
+    assert f.status == "pass" and f.fraction == 1.0, f.feedback
+    assert f.feedback == f"hello_node logged {HELLO!r} through the ROS logger (this lab asks for the node name my_first_node)."
+    assert f.evidence["logged_as"] == "hello_node" and "printed" not in f.feedback
+    # a rubric that wants the name itself says so
+    f = get("logged")(frames, {"logger": "/my_first_node", "pattern": "Hello", "other_names": False})
     assert f.status == "fail" and "was logged by the node hello_node, not by my_first_node" in f.feedback
-    assert "printed" not in f.feedback
+    # look-alike: the line only printed in the ROS console format (never reached /rosout) earns nothing
+    console = _logs(stdout=[(T0 + 1, "node", "stdout", f"[INFO] [{T0 + 1:.3f}] [hello_node]: {HELLO}")])
+    f = get("logged")(console, {"logger": "/my_first_node", "pattern": "Hello"})
+    assert f.status == "fail" and "hello_node" in f.feedback
+    # the grader's and the simulator's own loggers are never a student's
+    grader = _logs(rosout=[(T0 + 1, "grader_driver", HELLO)])
+    assert get("logged")(grader, {"logger": "/my_first_node", "pattern": "Hello"}).status == "fail"
 
 
 def test_printed_is_printed() -> None:

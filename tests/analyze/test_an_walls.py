@@ -143,3 +143,29 @@ def test_a_crash_while_it_ran_is_a_stop_however_soon_the_run_ended() -> None:
     bystander["/grader/events"] = pd.concat([frames["/grader/events"], events_frame(
         [(T0 + 5.0, "process_exit", {"process": "listener", "returncode": 1})])]).sort_index()
     assert check(analyze.run("keeps_moving", bystander, params)).status == "pass"
+
+
+def test_a_simulator_that_matched_the_publisher_late_is_not_a_stall() -> None:
+    """The recorder may hear a controller's first commands before the simulator has matched its
+    publisher (CI: the lab's 20 Hz circle "stood still for 0.8 s" right after its first recorded
+    command and lost keeps_moving). The share is judged from the turtle's first move; a stall
+    after it still fails (the same still poses 3 s later)."""
+    params = dict(RUBRIC.item("motion.keeps_moving").params)
+
+    def still_from(start: float, duration: float) -> dict:
+        frames = run(lambda *_: (1.0, 1.0), duration=12.0)
+        pose = frames["/turtle1/pose"].copy()
+        t = pose.index.to_numpy()
+        still = (t >= t[0] + start) & (t <= t[0] + start + duration)
+        first = int(still.argmax())
+        for col in ("x", "y", "theta"):
+            pose.loc[pose.index[still], col] = pose[col].iloc[first]
+        pose.loc[pose.index[still], ["linear_velocity", "angular_velocity"]] = 0.0
+        frames["/turtle1/pose"] = pose
+        frames.pop("/grader/sim/turtle1/pose", None)
+        return frames
+
+    late = check(analyze.run("keeps_moving", still_from(0.0, 0.8), params))
+    assert late.status == "pass", late.feedback
+    stalled = check(analyze.run("keeps_moving", still_from(3.0, 0.8), params))
+    assert stalled.status == "fail" and "stood still for 0.8 s" in stalled.feedback, stalled.feedback

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from grader.audit.mutate import mutants
-from grader.audit.run import Outcome, _outcome, choose, find_reference, given_files
+from grader.audit.outcome import Outcome
+from grader.audit.run import _outcome, choose, find_reference, given_files
 from grader.errors import GraderError
 from grader.rubric.load import load_rubric
 

@@ -18,7 +18,8 @@ import pytest
 from grader import api
 from grader.cli import build_parser
 from grader.errors import GraderError
-from grader.grading.pipeline import GradedSubmission, regrade_submission
+from grader.grading.graded import GradedSubmission
+from grader.grading.pipeline import regrade_submission
 from grader.rubric.load import RubricError
 from grader.rubric.schema import Rubric
 from grader.testing.batch import LAB3_BAGS, layout

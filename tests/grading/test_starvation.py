@@ -46,6 +46,118 @@ def test_a_starved_recording_is_made_again_until_one_is_not(tmp_path: Path) -> N
 def test_starved_every_time_keeps_the_last_and_says_so(tmp_path: Path) -> None:
     record = record_unstarved(lambda: rec(2.0), tmp_path / "sc", pause=lambda s: None)
     assert record["starved"]["starved"] == 1 + starvation.RETRIES and record["starved"]["kept"] == "starved"
-    assert "grade this submission again when the machine is quiet" in record["errors"][0]
-    # a server whose loop never sleeps starves the simulator itself: the problem says so too
-    assert "or this submission's own processes kept the CPUs busy" in record["errors"][0]
+    assert "the grading machine was too busy" in record["errors"][0] and not record["starved"]["own"]
+    assert "is not charged for them" in record["errors"][0]
+
+
+def busy(share: float, student_cpu_s: float, alive_s: float = 10.0) -> dict:
+    return {"errors": [], "cpu_wait": {"turtlesim": {"wait_share": share},
+                                       "server": {"cpu_s": student_cpu_s, "alive_s": alive_s}}}
+
+
+def test_a_loop_that_never_sleeps_starves_its_own_recording() -> None:
+    # the student's server took 0.95 CPU s per s: the starved simulator is its own doing
+    own = starvation.starvation(busy(1.4, 9.5))
+    assert own is not None and own.own and "own processes used 0.95 CPU s per second" in own.reason
+    # the Lab 3 reference's nodes take a few hundredths of a CPU: the machine starved it
+    machine = starvation.starvation(busy(1.4, 0.5))
+    assert machine is not None and not machine.own
+    assert starvation.starvation(busy(0.2, 9.5)) is None       # a busy student on a quiet machine: not starved
+    # a student held at its sandbox's CPU quota is its own doing too
+    held = {**busy(1.4, 0.1), "sandbox": {"counters": {"cpu_throttled_s": 4.2}}}
+    assert starvation.starvation(held).own
+
+
+def test_own_starvation_is_not_recorded_again(tmp_path: Path) -> None:
+    made: list[int] = []
+
+    def once() -> dict:
+        made.append(1)
+        return busy(1.6, 9.8)
+
+    record = record_unstarved(once, tmp_path / "sc", pause=lambda s: None)
+    assert len(made) == 1 and record["starved"]["own"]
+    assert "own processes kept the CPUs busy" in record["errors"][0]
+
+
+def test_a_cpu_quota_that_held_the_grader_back_starves_the_recording() -> None:
+    quota = {"cpu_wait": {"turtlesim": {"wait_share": 0.1}},
+             "cpu_quota": {"cpus": 0.5, "throttled_s": 12.0, "wall_s": 30.0}}
+    found = starvation.starvation(quota)
+    assert found is not None and not found.own and "CPU quota (0.5 CPU)" in found.reason
+    assert starvation.starvation({**quota, "cpu_quota": {"cpus": 0.5, "throttled_s": 3.0, "wall_s": 30.0}}) is None
+    # under 0.5 CPU the student's share is of the half CPU: 0.45 CPU s per s is the whole quota
+    own = {**quota, "cpu_wait": {"turtlesim": {"wait_share": 1.0}, "server": {"cpu_s": 4.5, "alive_s": 10.0}}}
+    assert starvation.starvation(own).own
+
+
+def test_an_exact_lockstep_run_is_a_measurement_however_slow_the_machine() -> None:
+    starved_machine = {"cpu_wait": {"turtlesim": {"wait_share": 1.3}},
+                       "cpu_quota": {"cpus": 0.5, "throttled_s": 100.0, "wall_s": 120.0}}
+    exact = {**starved_machine, "lockstep": {"used": True, "quiet_timeouts": 0}}
+    assert starvation.starvation(exact) is None
+    # a tick that went on without quiet, or a run that fell back to the wall clock, is not exact
+    assert starvation.starvation({**starved_machine, "lockstep": {"used": True, "quiet_timeouts": 2}}) is not None
+    assert starvation.starvation({**starved_machine, "lockstep": {"used": False, "fallback": "x"}}) is not None
+
+
+def test_a_run_on_simulated_time_the_machine_starves_goes_again_at_1x(tmp_path: Path, monkeypatch) -> None:
+    """At 4x every process wakes four times as often per wall second, so a loaded machine starves
+    it sooner (make test: Lab 3's no_wrap controller scenario, starved at 4x in its recording and
+    its re-run, had an ``error`` item). Such a run is recorded at 1x, and the record says why; a
+    run the student's own loop starved, or one not starved, stays at 4x."""
+    import grader.scenario
+    from grader.grading.timescale import run_at_scale, too_busy_for
+    from grader.scenario import resolve
+    from grader.scenario.model import Scenario
+
+    assert too_busy_for(rec(0.2), 4.0) is None
+    assert too_busy_for(busy(1.4, 9.5), 4.0) is None                 # the student's own busy loop
+    assert too_busy_for(rec(0.54), 4.0).startswith("the grading machine was too busy for 4x (the simulator waited")
+    scales: list[float] = []
+
+    def fake_run(run, folder):                   # the 4x recording starved, the 1x one not
+        scales.append(run.time_scale)
+        folder.mkdir(parents=True, exist_ok=True)
+        record = rec(0.9 if run.time_scale > 1 else 0.1)
+        if run.time_scale > 1:
+            record["time_scale"] = {"used": run.time_scale}
+        (folder / "scenario.json").write_text(json.dumps(record))
+        return record
+
+    monkeypatch.setattr(grader.scenario, "run_scenario", fake_run)
+    run = resolve("sc", Scenario.model_validate({"steps": [{"id": "s", "wait": 1.0}]}), None)
+    record = run_at_scale(run, tmp_path / "sc", 4.0, None)
+    assert scales == [4.0, 1.0]
+    ts = json.loads((tmp_path / "sc" / "scenario.json").read_text())["time_scale"]
+    assert ts["used"] == 1.0 and ts["requested"] == 4.0 and "too busy for 4x" in ts["fallback"], ts
+    assert record["time_scale"] == ts
+
+
+def test_after_one_run_too_busy_for_4x_the_retries_run_at_1x(tmp_path: Path, monkeypatch) -> None:
+    """The starvation retries of a scenario the machine was too busy to run at 4x go at 1x at
+    once (not 4x, starved, then 1x, every attempt), and every record says why it is at 1x."""
+    import grader.scenario
+    from grader.grading.timescale import ScaledRecording
+    from grader.scenario import resolve
+    from grader.scenario.model import Scenario
+
+    scales: list[float] = []
+
+    def fake_run(run, folder):                   # everything starved: the machine is saturated
+        scales.append(run.time_scale)
+        folder.mkdir(parents=True, exist_ok=True)
+        record = rec(0.9)
+        if run.time_scale > 1:
+            record["time_scale"] = {"used": run.time_scale}
+        (folder / "scenario.json").write_text(json.dumps(record))
+        return record
+
+    monkeypatch.setattr(grader.scenario, "run_scenario", fake_run)
+    folder = tmp_path / "sc"
+    run = resolve("sc", Scenario.model_validate({"steps": [{"id": "s", "wait": 1.0}]}), None)
+    record = record_unstarved(ScaledRecording(run, folder, 4.0, None), folder, pause=lambda s: None)
+    assert scales == [4.0, 1.0, 1.0, 1.0], scales
+    assert record["starved"]["starved"] == 1 + starvation.RETRIES
+    saved = json.loads((folder / "scenario.json").read_text())["time_scale"]
+    assert saved["used"] == 1.0 and "too busy for 4x" in saved["fallback"], saved

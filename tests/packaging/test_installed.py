@@ -260,6 +260,60 @@ def test_gradescope_bundle_grades_like_grader_grade(autograder: Path, tmp_path: 
 
 
 
+SMALL_CONTAINER = (0.5, 768)        # Gradescope's default autograder: 0.5 vCPU, 768 MB
+
+
+def test_gradescope_bundle_grades_in_gradescopes_default_container(autograder: Path, tmp_path: Path) -> None:
+    """Inside a cgroup of Gradescope's default resources (0.5 CPU, 768 MB, set up as root), the
+    bundle's ``run_autograder`` grades the Lab 3 reference and a buggy controller, one after the
+    other as Gradescope's containers would: the reference in under 5 minutes (201 s measured), the
+    controller with the wrong sign, which never settles and holds each of its four goals for the
+    whole 60 s, within Gradescope's default 10-minute timeout (320 s measured: at 1x, the default
+    in so small a container), every item at its expected.yaml (a starved timing item is recorded
+    again, never failed), nothing killed for memory, and ``grader doctor`` inside the group
+    reports the quota and the limit it found.
+    (The reference lost 2 points there, measured 23 Hz for its 30 Hz timer, before the grader
+    sized itself by the cgroup: issue 35.)"""
+    import time
+
+    from grader.testing.cgroup import limited_group
+
+    cpus, memory_mb = SMALL_CONTAINER
+    problems = []
+    for fixture, how, limit_s in (("reference", "zip", 300), ("wrong_sign", "workspace", 600)):
+        with limited_group(cpus, memory_mb, name=f"grader-gs-{fixture}-{os.getpid()}") as group:
+            if group is None:
+                pytest.skip("no writable cgroup with the cpu and memory controllers (run as root)")
+            doctor = subprocess.run([venv_grader(autograder), "doctor"], capture_output=True, text=True,
+                                    env=clean_env(), preexec_fn=group.join, timeout=300)
+            assert f"CPU quota {cpus:g} of" in doctor.stdout and f"memory limit {memory_mb} MiB" in doctor.stdout, \
+                doctor.stdout
+            root = tmp_path / fixture
+            root.mkdir()
+            for name in ("source", "grader-venv", "grader-cache"):
+                (root / name).symlink_to(autograder / name)
+            _submit(fixture, how, root / "submission")
+            t0 = time.monotonic()
+            proc = subprocess.run([root / "source" / "run_autograder"], cwd=root, capture_output=True, text=True,
+                                  env=clean_env(GRADER_AUTOGRADER_ROOT=str(root)), preexec_fn=group.join,
+                                  timeout=600)
+            took = time.monotonic() - t0
+            assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+            oom = group.dirs["memory"] / "memory.oom_control"
+            if oom.exists():                          # cgroup v1: "oom_kill N" (kernel 4.13+)
+                kills = dict(line.split() for line in oom.read_text().splitlines()).get("oom_kill", "0")
+                assert kills == "0", f"{fixture}: {kills} processes killed for memory"
+        assert took < limit_s, f"{fixture} took {took:.0f} s in {cpus:g} CPU / {memory_mb} MB"
+        doc = json.loads((root / "results" / "results.json").read_text())
+        jsonschema.validate(doc, SCHEMA)
+        expected = yaml.safe_load((FIXTURES / fixture / "expected.yaml").read_text())["expected"]
+        tests = {t["extra_data"]["item"]: t for t in doc["tests"]}
+        problems += [f"{fixture} {i}: expected {want}, got {tests[i]['extra_data']['status']}: "
+                     f"{tests[i]['output'][:200]}"
+                     for i, want in expected.items() if tests[i]["extra_data"]["status"] not in _allowed(want)]
+    assert not problems, "\n".join(problems)
+
+
 def test_installed_grader_grades_the_chase_lab_with_its_own_analyzer_file(autograder: Path,
                                                                           tmp_path: Path) -> None:
     """The fifth lab, written only through the analyzer plug-in point (issue 19), graded by the

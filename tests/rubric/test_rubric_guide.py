@@ -51,7 +51,8 @@ def test_runner_implements_every_action_and_condition() -> None:
     """What a rubric can say, the runner does: one handler per action class, one predicate per
     condition class of the scenario model."""
     from grader.scenario import model as m
-    from grader.scenario.steps import CONDITIONS, HANDLERS
+    from grader.scenario.predicates import CONDITIONS
+    from grader.scenario.steps import HANDLERS
 
     assert set(HANDLERS) == set(typing.get_args(m.Action))
     conditions = typing.get_args(typing.get_args(m.Condition)[0])

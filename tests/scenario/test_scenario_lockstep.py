@@ -156,13 +156,42 @@ def _stepper_stand_in(call: Callable[..., str], settle: Callable[[bool], None], 
     from grader.scenario.lockstep import Stepper
 
     stepper = object.__new__(Stepper)
-    stepper.now_ns, stepper.ticks, stepper.tick_wall_s = 0, 0, 0.0
+    stepper.now_ns, stepper.ticks, stepper.tick_wall_s, stepper.call_wall_s = 0, 0, 0.0, 0.0
     stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
     stepper._due, stepper._order = [], itertools.count()
     stepper.cpu = cpu
-    stepper._clock, stepper._world = "clock", "world"
+    stepper._clock, stepper._world, stepper._step = "clock", "world", None
     stepper._call, stepper._settle = call, settle
     return stepper
+
+
+def test_the_step_services_are_probed_until_they_answer_and_nothing_ticks() -> None:
+    """Found is not answered: a request or its reply can be lost before discovery has matched
+    both ends, and a lost step may have ticked. So the clock is probed (``data: false``, time
+    only) and the world asked (once per time) until each answers; a silent one fails in time."""
+    from types import SimpleNamespace
+
+    from grader.scenario.lockstep import LockstepError
+
+    lost = {"clock": 3, "world": 1}
+    seen: list[tuple[str, object]] = []
+
+    def call(client, request=None, wait_s: float = 0.0) -> str:
+        seen.append((client.srv_name, getattr(request, "data", None)))
+        if lost[client.srv_name] > 0:
+            lost[client.srv_name] -= 1
+            raise LockstepError("lost")
+        return "0 0"
+
+    stepper = _stepper_stand_in(call, lambda own: None, None)
+    stepper._clock, stepper._world = (SimpleNamespace(srv_name=name, wait_for_service=lambda timeout_sec: True)
+                                      for name in ("clock", "world"))
+    assert stepper.ready(5.0)
+    assert seen == [("clock", False)] * 4 + [("world", None)] * 2
+    assert stepper.ticks == 0 and stepper.now_ns == 0
+    lost["clock"] = 10**6
+    start = time.monotonic()
+    assert not stepper.ready(0.3) and time.monotonic() - start < 2.0
 
 
 def test_scheduled_actions_run_at_the_tick_boundary_in_the_ticking_thread() -> None:

@@ -32,8 +32,18 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
                                                                           "off": 0}},
          "until": "service_done", "timeout": 10},
     ], "limits": {"wall_s": 60}})
+    import resource
+
+    from grader.scenario import children_cpu_s
+
+    counted, reaped = children_cpu_s(), resource.getrusage(resource.RUSAGE_CHILDREN)
     record = run_scenario(resolve("drive", scenario, None), tmp_path / "drive")
     assert record["errors"] == [], record
+    # the scenario child's CPU and its processes' (simulator, recorder) is this thread's to read:
+    # what the kernel says every child of this test process used
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    used = (after.ru_utime - reaped.ru_utime) + (after.ru_stime - reaped.ru_stime)
+    assert used > 0.5 and children_cpu_s() - counted == pytest.approx(used, abs=0.05)
     assert [s["ended_by"] for s in record["steps"]] == ["condition", "done", "done", "done", "done", "condition"]
     assert record["steps"][5]["detail"]["type"] == "turtlesim/srv/SetPen"   # found from the graph
     from grader.bag.frames import load_frames
@@ -321,3 +331,29 @@ def test_a_line_logged_in_a_constructor_is_recorded_when_the_recorder_is_late(pa
     assert record["errors"] == [], record
     rosout = load_frames(tmp_path / "logged" / "bag").get("/rosout")
     assert rosout is not None and (rosout["msg"] == "ticker up").sum() == 1, rosout
+
+
+@pytest.mark.ros
+def test_a_turtle_at_a_fixed_point_ends_its_goal_step_early(tmp_path: Path) -> None:
+    """``give_up_still``: the turtle, sent one command, moves for turtlesim's 1 s command timeout
+    and then stands still with that command unchanged, away from the goal: the step ends
+    ``decided`` about 2 s later (not after its 30 s), the record says why; without the option
+    the same step waits for its whole limit."""
+    def steps(give_up: float | None, timeout: float) -> dict:
+        until = {"condition": "goal_reached", "goal": [9.0, 9.0], "tolerance": 0.1}
+        if give_up is not None:
+            until["give_up_still"] = give_up
+        return Scenario.model_validate({"steps": [
+            {"id": "go", "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
+                                     "msg": {"linear": {"x": 1.0}}}, "timeout": 0.2},
+            {"id": "reach", "until": until, "timeout": timeout},
+        ], "limits": {"wall_s": 60}})
+
+    record = run_scenario(resolve("still", steps(2.0, 30.0), None), tmp_path / "still")
+    assert record["errors"] == [], record
+    reach = record["steps"][1]
+    assert reach["ended_by"] == "decided", reach
+    assert 2.0 <= reach["duration_s"] <= 6.0, reach
+    assert "stood still" in reach["detail"]["ended_early"] and "give_up_still" in reach["detail"]["ended_early"]
+    waited = run_scenario(resolve("waited", steps(None, 4.0), None), tmp_path / "waited")["steps"][1]
+    assert waited["ended_by"] == "timeout" and waited["duration_s"] >= 4.0, waited

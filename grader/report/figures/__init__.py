@@ -147,14 +147,17 @@ def figures_for(ctx: FigureContext, uid: str) -> tuple[list[RenderedFigure], lis
     fns = _FIGURES.get(ctx.item.analyzer or "", [])
     if not fns or not ctx.evidence:
         return [], []
-    from grader.report.figures._mpl import render
+    from grader.report.figures._mpl import report_style, to_svg
 
     out: list[RenderedFigure] = []
     errors: list[str] = []
     with _LOCK:
         for k, fn in enumerate(fns):
             try:
-                out += render(fn, ctx, f"{uid}-{k}")
+                with report_style():
+                    made = fn(ctx)
+                    plots: Sequence[Plot] = [] if made is None else ([made] if isinstance(made, Plot) else list(made))
+                    out += [RenderedFigure(to_svg(p, f"{uid}-{k}-{n}"), p.title, p.alt) for n, p in enumerate(plots)]
             except Exception as exc:  # noqa: BLE001 - a figure never breaks a report
                 tb = traceback.format_exception(type(exc), exc, exc.__traceback__)
                 errors.append(f"{fn.__name__} ({ctx.item.id}): {type(exc).__name__}: {exc}\n"

@@ -13,7 +13,7 @@ import math
 import re
 import textwrap
 from html import escape
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any
 
 import matplotlib
 
@@ -23,9 +23,6 @@ from cycler import cycler  # noqa: E402  (a matplotlib dependency)
 from matplotlib import rc_context  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
-
-if TYPE_CHECKING:
-    from grader.report.figures import FigureContext, Plot, RenderedFigure
 
 #: Okabe-Ito: distinguishable with the common colour-vision deficiencies and in greyscale print
 BLUE, ORANGE, GREEN, PINK, YELLOW, SKY, VERMILION, BLACK = (
@@ -72,23 +69,19 @@ def new_figure(title: str, size: tuple[float, float], nrows: int = 1, ncols: int
 OUTSIDE: dict[str, Any] = {"loc": "upper left", "bbox_to_anchor": (1.02, 1.0), "borderaxespad": 0.0}
 
 
-def render(fn: Any, ctx: "FigureContext", uid: str) -> list["RenderedFigure"]:
-    """Call a figure function inside the report style; its Plot(s) as SVG."""
-    from grader.report.figures import Plot, RenderedFigure
-
-    with rc_context(STYLE):
-        made = fn(ctx)
-        plots: Sequence[Plot] = [] if made is None else ([made] if isinstance(made, Plot) else list(made))
-        return [RenderedFigure(to_svg(p, f"{uid}-{n}"), p.title, p.alt) for n, p in enumerate(plots)]
+def report_style() -> Any:
+    """The report's matplotlib style, as a context: figures are drawn and written to SVG inside
+    it (``svg.fonttype`` among its settings: written outside, text became glyph paths)."""
+    return rc_context(STYLE)
 
 
 _ID = re.compile(r'\bid="([^"]+)"')
 _REF = re.compile(r'(url\(#|xlink:href="#|href="#)([^")]+)')
 
 
-def to_svg(plot: "Plot", uid: str) -> str:
-    """The figure as an inline ``<svg>`` element: accessible name and description from the
-    plot's title and alt text, scalable (viewBox only), ids unique under ``uid``."""
+def to_svg(plot: Any, uid: str) -> str:
+    """The figure of ``plot`` (a ``Plot``) as an inline ``<svg>`` element: accessible name and
+    description from the plot's title and alt text, scalable (viewBox only), ids unique under ``uid``."""
     buf = io.StringIO()
     plot.fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": None, "Format": None,
                                                   "Type": None})
