@@ -19,7 +19,7 @@ import numpy as np
 
 from grader.analyze import Finding, register
 from grader.analyze._common import Frames, times, topic
-from grader.analyze.action_server import action_goals
+from grader.analyze.action_server import action_goals, under_other_action_name
 
 EVIDENCE = {
     "cmd_topic": ("velocity command topic", ""),
@@ -44,6 +44,10 @@ EVIDENCE = {
 })
 def action_loop_paced(frames: Frames, p: dict) -> Finding:
     """Commands per second while accepted goals ran, within [min_hz, max_hz]."""
+    return under_other_action_name(frames, _action_loop_paced(frames, p))
+
+
+def _action_loop_paced(frames: Frames, p: dict) -> Finding:
     gs = [g for g in action_goals(frames) if g["accepted"] and g["t_result"] is not None
           and g["t_result"] - g["t_sent"] >= p["min_duration_s"]]
     if not gs:

@@ -16,12 +16,13 @@ goal, response, feedback and result per goal, kept with them so each item reads 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
 import numpy as np
 
-from grader.analyze.evidence import SHARE
+from grader.analyze.evidence import SHARE, TIME
 from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
 from grader.spec.world import WORLD_SIZE_M
@@ -63,6 +64,7 @@ EVIDENCE = {
     "responsive_after": ("client reacted to the next goal", ""),
     "output_after_next_line": ("client output after the next goal", ""),
     "timeline": None,
+    "t_end": ("goal ended at", TIME),
 }
 
 _STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
@@ -208,6 +210,28 @@ def _timeline(frames: Frames, pose_topic: str, max_points: int = 150) -> dict:
     return {"goals": rows, "feedback_t": fb[thin(len(fb), 200)].tolist()}
 
 
+def sent_elsewhere(frames: Frames, name: str | None = None) -> str | None:
+    """The name the goals went to when the server offers the rubric's action (``name``: any)
+    under another name of its type (``ActionGoal.by_type``), else None."""
+    for e in events(frames, (Event.ACTION_SERVER_FOUND, Event.ACTION_GOAL_SENT)):
+        asked = e.get("asked_for")
+        if asked and (name is None or "/" + str(asked).lstrip("/") == name):
+            return str(e.get("action"))
+    return None
+
+
+def under_other_action_name(frames: Frames, finding: Finding) -> Finding:
+    """``finding`` with what it saw said to be under the student's name for the action."""
+    other = sent_elsewhere(frames)
+    if other is None or finding.status == "error":
+        return finding
+    asked = next(str(e["asked_for"]) for e in events(frames, Event.ACTION_GOAL_SENT) if e.get("asked_for"))
+    note = (f" (Sent to {other}, the name your server offers the action under; the lab's name is {asked}: "
+            "that is charged once, by the item about the action's name.)")
+    return dataclasses.replace(finding, feedback=finding.feedback + note,
+                               evidence={**finding.evidence, "served_as": other})
+
+
 def _no_action_events(frames: Frames) -> Finding:
     if topic(frames, "/grader/events") is None:
         return Finding.error("/grader/events was not recorded: the action scenario did not run (scenario problem).")
@@ -251,7 +275,16 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
         return Finding.fail(f"The grader waited for the action server {name} but it never appeared: create "
                             f"ActionServer(..., action_name=\"{name.lstrip('/')}\", ...) and spin the node "
                             "(MultiThreadedExecutor as in the template).", ev)
-    if any(g["accepted"] is not None for g in action_goals(frames)):
+    elsewhere = sent_elsewhere(frames, name)
+    if elsewhere is not None:         # the item about the action's name: the one charge for it
+        ev["served_as"] = elsewhere
+        return Finding(f"served as {elsewhere}", 0.0, "fail",
+                       f"There is no action {name}: your server offers it as {elsewhere} (the grader sent its goals "
+                       "there, so the other items judge what your server does). The lab's client and ros2 action "
+                       f"send_goal use {name}: create ActionServer(..., \"{name.lstrip('/')}\", ...).", ev)
+    answered = events(frames, Event.ACTION_GOAL_RESPONSE)
+    if any((e.get("action") is None or "/" + str(e["action"]).lstrip("/") == name) and not e.get("asked_for")
+           for e in answered):
         return Finding(name, 1.0, "pass", f"The action server {name} answered goal requests.", ev)
     if topic(frames, "/grader/events") is None and m is None:
         return Finding.error("Neither events nor topic metadata were recorded (scenario problem).", ev)
@@ -272,6 +305,10 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
 })
 def action_goals_succeed(frames: Frames, p: dict) -> Finding:
     """Reachable goals are accepted and end with success=True with the turtle really within goal_tol."""
+    return under_other_action_name(frames, _action_goals_succeed(frames, p))
+
+
+def _action_goals_succeed(frames: Frames, p: dict) -> Finding:
     gs = [g for g in action_goals(frames) if _in_box(g, p["inner_bound"]) and not _is_timeout_probe(g, p)]
     if not gs:
         return _no_action_events(frames)
@@ -280,7 +317,7 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
     for g in gs:
         tol = g["goal_tol"] if g["goal_tol"] else p["default_goal_tol"]
         row = {"goal": [g["x"], g["y"]], "goal_tol": tol, "accepted": g["accepted"], "success": g["success"],
-               "status": g["status"],
+               "status": g["status"], "t_end": g["t_result"] or g["t_response"] or g["t_sent"],
                "duration_s": (g["t_result"] - g["t_sent"]) if g["t_result"] is not None else None}
         problem = None
         if g["accepted"] is None:
@@ -314,7 +351,7 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
         ok_n += problem is None
         rows.append(row)
     frac = ok_n / len(gs)
-    ev = {"goals": rows, "timeline": _timeline(frames, p["pose_topic"])}
+    ev: dict[str, Any] = {"goals": rows, "timeline": _timeline(frames, p["pose_topic"])}
     if any(r.get("teleported") for r in rows):
         ev["student_moves"] = [c.plain(frames) for c in moved[:10]]
     value = f"{ok_n}/{len(gs)} succeeded"
@@ -324,6 +361,8 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
     if ok_n == len(gs):
         return Finding(value, 1.0, "pass", f"All {len(gs)} reachable goals were accepted and reached.", ev)
     bad = next(r for r in rows if not r["ok"])
+    ev["at_s"] = float(since_start(frames, bad["t_end"]))
+    ev["at"] = f"goal ({bad['goal'][0]:g}, {bad['goal'][1]:g}): {bad['problem']}"
     hint = ""
     if "away" in (bad["problem"] or ""):
         hint = " Compute d_e as the distance to the goal and break only when d_e <= goal_tol."
@@ -338,6 +377,10 @@ def action_goals_succeed(frames: Frames, p: dict) -> Finding:
           defaults={"outer_bound": OUTER})
 def action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
     """Goals outside the world are rejected in goal_callback (GoalResponse.REJECT)."""
+    return under_other_action_name(frames, _action_rejects_out_of_bounds(frames, p))
+
+
+def _action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
     gs = [g for g in action_goals(frames) if g["x"] is not None and not _in_box(g, p["outer_bound"])]
     if not gs:
         return _no_action_events(frames)
@@ -374,6 +417,10 @@ def action_timeout(frames: Frames, p: dict) -> Finding:
     Note the template's loop condition ``T1 - now <= timeout`` is always true (T1 - now is
     negative); a server that never times out is the typical finding here.
     """
+    return under_other_action_name(frames, _action_timeout(frames, p))
+
+
+def _action_timeout(frames: Frames, p: dict) -> Finding:
     gs = [g for g in action_goals(frames) if _in_box(g, p["outer_bound"]) and _is_timeout_probe(g, p)]
     if not gs:
         return _no_action_events(frames)

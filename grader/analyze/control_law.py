@@ -23,6 +23,7 @@ from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sentence, since_start, thin, times,
                                     topic)
 from grader.analyze.goals import fit_gain, heading_error
+from grader.analyze.action_server import under_other_action_name
 from grader.analyze.controller import _GOAL_DEFAULTS, EVIDENCE, _goals_with_end, _no_goals, _no_pose, _pose
 from grader.scenario.events import Event
 
@@ -48,6 +49,11 @@ def control_law(frames: Frames, p: dict) -> Finding:
     Credit: half for the linear law (K1 > 0, R^2 >= r2_min), half for the angular law (K2 > 0,
     R^2 >= r2_min, theta_e wrapped). A right sign with a poor fit earns a quarter.
     """
+    finding = _control_law(frames, p)
+    return under_other_action_name(frames, finding) if p["goal_source"] == "action" else finding
+
+
+def _control_law(frames: Frames, p: dict) -> Finding:
     pose = _pose(frames, p)
     if pose is None:
         return _no_pose(frames, p)

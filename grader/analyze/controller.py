@@ -56,6 +56,8 @@ EVIDENCE = {
     "reached": ("reached", ""),
     "time_to_reach": ("time to reach", "s"),
     "reached_at": None,
+    "closest_t": ("closest at", TIME),
+    "last_t": ("goal ended at", TIME),
     "settle_displacement": ("movement in the last second", "m"),
     "settle_max_speed": ("top speed in the last second", "m/s"),
     "stopped": ("stopped", ""), "held": ("stayed at the goal", ""),
@@ -220,6 +222,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     ev.update(_wall_contacts(frames, t, x, y))
     value = f"{n_reached}/{len(gl)} reached"
     problems = _goal_problems(frames, p, rows, counted)
+    ev.update(_decisive_moment(frames, rows))
     if not problems:
         times_txt = ", ".join(f"{r['time_to_reach']:.1f} s" for r in rows)
         return Finding(value, 1.0, "pass", f"All {len(gl)} goals reached and held (time to reach: {times_txt}).", ev)
@@ -231,6 +234,21 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
 
 
+def _decisive_moment(frames: Frames, rows: list[dict]) -> dict[str, Any]:
+    """``at_s``/``at`` of the first goal that cost points: its closest approach, or the end of
+    its window for one reached but not held; nothing when every goal was reached and held."""
+    for r in rows:
+        label = f"goal {r['goal']} ({r['x']:g}, {r['y']:g})"
+        if not r.get("reached") and "closest_t" in r:
+            return {"at_s": float(since_start(frames, r["closest_t"])),
+                    "at": f"{label}: closest approach, {r['min_distance']:.2f} m"}
+        if r.get("reached") and not (r.get("held") and r.get("stopped")):
+            return {"at_s": float(since_start(frames, r["last_t"])), "at": f"{label}: the end of its time, not stopped"}
+        if not r.get("reached"):
+            return {"at_s": float(since_start(frames, r["t_sent"])), "at": f"{label}: {r.get('note', 'not reached')}"}
+    return {}
+
+
 def _arrival(p: dict, g: Any, tt: np.ndarray, xs: np.ndarray, ys: np.ndarray, vs: np.ndarray | None,
              row: dict) -> tuple[bool, bool, bool]:
     """One goal's poses while it was active: reached within ``tol_reached`` (and the time limit),
@@ -240,7 +258,8 @@ def _arrival(p: dict, g: Any, tt: np.ndarray, xs: np.ndarray, ys: np.ndarray, vs
     hit = np.nonzero((d < p["tol_reached"]) & (tt <= limit))[0]
     reached = len(hit) > 0
     row.update(start_distance=float(d[0]), min_distance=float(d.min()), final_error=float(d[-1]),
-               reached=reached, time_to_reach=float(tt[hit[0]] - g.t) if reached else None)
+               reached=reached, time_to_reach=float(tt[hit[0]] - g.t) if reached else None,
+               closest_t=float(tt[int(np.argmin(d))]), last_t=float(tt[-1]))
     if reached:
         row["reached_at"] = [round(float(xs[hit[0]]), 3), round(float(ys[hit[0]]), 3)]
     settle = tt >= tt[-1] - p["settle_s"]

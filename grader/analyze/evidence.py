@@ -52,6 +52,9 @@ COMMON: dict[str, Label] = {
     "t": ("time", TIME),
     "n": ("values", ""),
     "meta": None,
+    # the moment of the run that decided the item (the report's replay opens there)
+    "at_s": ("the moment that decided it", SINCE_START),
+    "at": ("what happened then", ""),
 }
 
 

@@ -180,10 +180,12 @@ class Findings(dict):
 
 
 def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
-                 unusable: dict[str, str] | None = None) -> tuple[Findings, list[str]]:
+                 unusable: dict[str, str] | None = None,
+                 on_frames: Callable[[Path, Any], None] | None = None) -> tuple[Findings, list[str]]:
     """Run every item's analyzer on its scenario bags (offline). Returns findings and problems.
     ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
-    finalised): its items become errors saying so."""
+    finalised): its items become errors saying so. ``on_frames(scenario folder, frames)``: called
+    once per recording read, while its frames are in memory (the report's replay data)."""
     from grader.analyze import Finding
     from grader.analyze.contract import check_contract
     from grader.rubric.contract import merge_mismatches
@@ -232,6 +234,13 @@ def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
             mismatches[sc] = check_contract(rubric.contract, rubric.scenario_roles(sc), frames)
     findings.contract = merge_mismatches(mismatches)
     _fingerprint(sub_out, frames_cache, problems)
+    if on_frames is not None:
+        for sc, frames in frames_cache.items():
+            if not isinstance(frames, Exception):
+                try:
+                    on_frames(sub_out / SCENARIOS_DIR / sc, frames)
+                except Exception as exc:  # noqa: BLE001 - a report's extra never costs a grade
+                    problems.append(f"scenario {sc}: replay data not written ({type(exc).__name__}: {exc})")
     return findings, problems
 
 

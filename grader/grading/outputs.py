@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from grader import __version__
+from grader.report.replay import replays
 
 if TYPE_CHECKING:
     from grader.grading.graded import GradedSubmission
@@ -93,7 +94,8 @@ def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public
                problems=problems, params=effective_params(rubric),
                notes=time_scale_notes(time_scales) + early_end_notes(ended_early)
                + ([] if public_only else notes(other, recordings)),
-               intake=getattr(graded, "intake", None))
+               intake=getattr(graded, "intake", None), replays=replays(graded.out),
+               item_scenarios={item.id: list(item.scenario) for item in rubric.items})
 
 
 def write_batch_outputs(out: Path, rubric: Rubric) -> None:

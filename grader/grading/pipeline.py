@@ -21,6 +21,7 @@ from grader.grading.analysis import SCENARIOS_DIR, analyze_bags, settles_check
 from grader.grading.graded import GradedSubmission
 from grader.grading.repeat import run_until_settled
 from grader.grading.timescale import expected_rates, machine_time_scale
+from grader.report.replay import write_replay
 from grader.scenario import children_cpu_s
 
 if TYPE_CHECKING:
@@ -125,7 +126,7 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
 
     say(f"{sid}: analyzing")
     t2, cpu2 = time.monotonic(), thread_cpu_s()
-    findings, problems = analyze_bags(rubric, items, out)
+    findings, problems = analyze_bags(rubric, items, out, on_frames=write_replay)
     errors += problems
     result, kept = apply_saved_manual_scores(out, score(rubric, findings))
     timings.update(analysis_s=round(time.monotonic() - t2, 2), analysis_cpu_s=round(thread_cpu_s() - cpu2, 2))
@@ -272,7 +273,7 @@ def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = Fal
     if (sub_out / "result.json").exists():
         old = json.loads((sub_out / "result.json").read_text())
     unusable, notes = recordings_to_refuse(sub_out, old)
-    findings, problems = analyze_bags(rubric, items, sub_out, unusable)
+    findings, problems = analyze_bags(rubric, items, sub_out, unusable, on_frames=write_replay)
     result, kept = apply_saved_manual_scores(sub_out, score(rubric, findings))   # merged manual scores
     result, late_notes = apply_intake(sub_out, rubric, result)                   # late policy, again
     problems = notes + problems + kept + late_notes

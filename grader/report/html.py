@@ -1,7 +1,9 @@
 """The report page of one submission: what to fix first, then every item by section.
 
-Self-contained (inline CSS, figures as inline SVG, canvas PNGs as data URIs, no script) so a
-report can be mailed, archived, printed or opened offline. Each failing item opens with one
+Self-contained (inline CSS, figures as inline SVG, canvas PNGs as data URIs) so a report can be
+mailed, archived, printed or opened offline; its one script is the replay player's
+(:mod:`grader.report.player`, data beside the page in ``scenarios/<id>/replay.js``), and the
+page reads completely without it. Each failing item opens with one
 sentence of what was measured against what was expected, then the feedback and hint, then its
 figure; passing items are one line each that expands to their measurements and figure. Status is
 text plus symbol, never colour alone. The class view lives in ``grader.report.index``.
@@ -17,6 +19,7 @@ from typing import Any, Mapping, Sequence
 
 from grader.report import readable
 from grader.report.figures import FigureContext, figures_for
+from grader.report.player import PLAYER_CSS, moment_link, player_html
 from grader.report.result import atomic_write, check_submission_id, plain_file_name
 from grader.report.style import CSS
 from grader.rubric.result import PENDING, ItemResult, Notice, Result, SectionResult
@@ -43,11 +46,17 @@ def _points(item: ItemResult) -> str:
 class _Page:
     """Renders items once each; remembers figure errors (shown to instructors only)."""
 
-    def __init__(self, result: Result, params: Mapping[str, Mapping[str, Any]]) -> None:
+    def __init__(self, result: Result, params: Mapping[str, Mapping[str, Any]], replays: Sequence[str] = (),
+                 item_scenarios: Mapping[str, Sequence[str]] | None = None) -> None:
         self.result = result
         self.student = result.student_view
         self.params = params
+        self.replays = replays                      # scenario folders with replay data
+        self.item_scenarios = item_scenarios or {}
         self.figure_errors: list[str] = []
+
+    def moment(self, item: ItemResult) -> str:
+        return moment_link(item, self.item_scenarios.get(item.id, ()), self.replays)
 
     def _params(self, item: ItemResult) -> dict[str, Any]:
         return readable.item_params(item, self.params.get(item.id))
@@ -121,7 +130,7 @@ class _Page:
                 f'<h3 id="h-{escape(item.id)}">{_badge(item.status)} <span>{escape(item.title)}</span>'
                 f'<span class="pts">{_points(item)}</span><span class="id">{escape(item.id)}</span></h3>'
                 f'{self.sentence(item)}<p class="feedback">{escape(item.feedback)}</p>{hint}'
-                f'{self.figures(item)}{more}</article>')
+                f'{self.moment(item)}{self.figures(item)}{more}</article>')
 
     def line(self, item: ItemResult, in_card: bool) -> str:
         """One line per item in its section: a link to the card, or expandable details."""
@@ -135,7 +144,7 @@ class _Page:
                     f'</div></li>')
         if item.kind == "manual":
             return f'<li {attrs} id="item-{escape(item.id)}"><div class="line">{head}</div></li>'
-        body = self.sentence(item) + self.figures(item) + self.details(item)
+        body = self.sentence(item) + self.moment(item) + self.figures(item) + self.details(item)
         return (f'<li {attrs} id="item-{escape(item.id)}"><details><summary>{head}</summary>'
                 f'<div class="body">{body}</div></details></li>')
 
@@ -261,14 +270,17 @@ def _who_html(intake: Mapping[str, Any] | None) -> str:
 def render_html(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
                 canvas_png: Any = None, problems: Sequence[str] = (),
                 params: Mapping[str, Mapping[str, Any]] | None = None, notes: Sequence[str] = (),
-                intake: Mapping[str, Any] | None = None) -> str:
+                intake: Mapping[str, Any] | None = None, replays: Sequence[str] = (),
+                item_scenarios: Mapping[str, Sequence[str]] | None = None) -> str:
     """The report page of one submission. Pass ``result.for_student()`` for the self-check
     view; ``canvas_png`` is a PNG path (or {label: path}) embedded as a data URI; ``problems``
     are build/scenario errors shown at the top; ``params`` (item id -> effective analyzer
     parameters) is used for items whose result does not carry its own ``params``; ``notes``:
     lines on how the scenarios ran (``--time-scale``); ``intake``: result.json's ``intake``
-    (the student and the LMS's ids, under the title)."""
-    page = _Page(result, params or {})
+    (the student and the LMS's ids, under the title); ``replays``: the scenario folders with
+    replay data (``scenarios/<id>/replay.js`` beside the page), ``item_scenarios`` the scenarios
+    each item is judged on (the replay player, :mod:`grader.report.player`)."""
+    page = _Page(result, params or {}, replays, item_scenarios)
     fix = _to_fix(result)
     carded = {i.id for i in fix}
     lost = sum(i.max_points - (i.points or 0) for i in fix if i.kind == "auto")
@@ -293,7 +305,7 @@ def render_html(result: Result, submission: str, *, versions: Mapping[str, str] 
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{escape(title)}</title><style>{CSS}</style></head>
+<title>{escape(title)}</title><style>{CSS}{PLAYER_CSS if replays else ""}</style></head>
 <body><main>
 <header><p class="sub">{escape(result.title)}</p>
 <h1>{"Self-check" if result.student_view else "Grade report"}: <span id="submission">{escape(submission)}</span></h1>
@@ -307,6 +319,7 @@ def render_html(result: Result, submission: str, *, versions: Mapping[str, str] 
 {fix_html}
 {sections}
 {_canvas_html(canvas_png)}
+{player_html(replays, result.items, item_scenarios or {})}
 </main>
 <footer><p>Generated by grader{(" — " + escape(version_text)) if version_text else ""}.
 Lab <code>{escape(result.lab)}</code>. Times are seconds since the scenario started; every measurement is in

@@ -145,6 +145,10 @@ def _item_table(subs: Sequence[Submission]) -> str:
         counts = " · ".join(f"{words} {len(got[k])}" for k, words in CATEGORIES if got[k])
         mark = {"fail": "✗", "error": "!", "partial": "◐"}
         who = [_link(sid, item.id, f"{mark[k]}\u00a0{sid}") for k in ("fail", "error", "partial") for sid in got[k]]
+        lost = got["fail"] + got["partial"]
+        if lost:            # its report's player, at the moment that decided the item
+            who.append(f'<a class="replay-link" href="{escape(lost[0])}/report.html#replay-item={escape(item.id)}">'
+                       f'▶\u00a0replay of {escape(lost[0])}</a>')
         points = "no points" if item.kind == "advisory" else f"{item.max_points:g}"
         body.append(f'<tr data-item="{escape(item.id)}"><th scope="row">{escape(item.title)}<br>'
                     f'<span class="id">{escape(item.id)}</span></th><td class="num">{points}</td>'

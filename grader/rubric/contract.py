@@ -297,6 +297,11 @@ def _walk(value: Any, path: tuple, table: dict, problems: list) -> Any:
         match = REF.match(ref) if isinstance(ref, str) else None
         if match and "type" not in value and table.get(match[1], ("", {}))[1].get("type"):
             out["type"] = table[match[1]][1]["type"]
+        # ``until: {condition: advertised, action: $x, by_type: true}`` takes the action's type
+        ref = value.get("action") if value.get("condition") == "advertised" and value.get("by_type") else None
+        match = REF.match(ref) if isinstance(ref, str) else None
+        if match and "action_type" not in value and table.get(match[1], ("", {}))[1].get("type"):
+            out["action_type"] = table[match[1]][1]["type"]
         return out
     return value
 

@@ -8,8 +8,8 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import BeforeValidator, Field, field_validator, model_validator
 
-from grader.scenario.fields import (Goal, LocalId, Model, NonNegativeFloat, PositiveFloat, PositiveInt,
-                                    RosName)
+from grader.scenario.fields import (ActionType, Goal, LocalId, Model, NonNegativeFloat, PositiveFloat,
+                                    PositiveInt, RosName)
 
 
 class GoalReached(Model):
@@ -88,11 +88,18 @@ class Advertised(Model):
     topic: RosName | None = None
     service: RosName | None = None
     action: RosName | None = None
+    action_type: ActionType | None = Field(
+        None, description="with `action`: holds too once a student node offers one action of this type "
+                          "under another name (the goals' `by_type`); filled from the contract with `by_type`")
+    by_type: bool = Field(False, description="with `action`: an action of the contract's type under another "
+                                             "name counts too (see `action_type`)")
 
     @model_validator(mode="after")
     def _exactly_one(self) -> "Advertised":
         if sum(v is not None for v in (self.topic, self.service, self.action)) != 1:
             raise ValueError("advertised needs exactly one of topic, service or action")
+        if self.by_type and (self.action is None or self.action_type is None):
+            raise ValueError("by_type needs an action of the contract (its type is the contract's) or action_type")
         return self
 
 

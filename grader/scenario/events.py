@@ -33,7 +33,9 @@ class Event(StrEnum):
     #   rubric's name when the call went to the name the ``served_by`` node uses instead
     SERVICE_RESPONSE = "service_response"    # step, service, response (None: no response in time), asked_for
     SERVICE_MISSING = "service_missing"      # step, service
-    ACTION_SERVER_FOUND = "action_server_found"      # step, action
+    # action: the name the goal went to; asked_for: the rubric's name when that was another
+    #   name of the same type (``ActionGoal.by_type``)
+    ACTION_SERVER_FOUND = "action_server_found"      # step, action, asked_for
     ACTION_SERVER_MISSING = "action_server_missing"  # step, action
     ACTION_GOAL_SENT = "action_goal_sent"    # step, action, goal
     ACTION_GOAL_RESPONSE = "action_goal_response"    # step, action, accepted (recovered_from_status)

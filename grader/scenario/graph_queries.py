@@ -14,6 +14,8 @@ from grader.scenario.events import Event
 
 #: every node of the grader's own (driver, recorder, stepper) is named with this prefix
 GRADER_NODE_PREFIX = "grader_"
+#: the service an action server answers goals on, after the action's name
+ACTION_GOAL_SERVICE = "/_action/send_goal"
 
 
 class GraphQueries:
@@ -135,5 +137,20 @@ class GraphQueries:
                if not any(t.startswith(("rcl_interfaces/", "type_description_interfaces/")) for t in types)]
         return own[0] if len(own) == 1 else None
 
+    def student_action_of_type(self, action_type: str) -> str | None:
+        """The one action of ``action_type`` (``pkg/action/Name``) the student's nodes serve, under
+        whatever name: a student's other name for the action the lab names, or None when they
+        serve none or several of that type."""
+        goal_service = action_type + "_SendGoal"
+        found = set()
+        for name, ns in self.student_nodes():
+            try:
+                offered = self.node.get_service_names_and_types_by_node(name, ns)
+            except Exception:  # noqa: BLE001 - the node is not (or no longer) there
+                continue
+            found |= {service.removesuffix(ACTION_GOAL_SERVICE) for service, types in offered
+                      if service.endswith(ACTION_GOAL_SERVICE) and goal_service in types}
+        return found.pop() if len(found) == 1 else None
+
     def action_available(self, name: str) -> bool:
-        return self.service_type(name.rstrip("/") + "/_action/send_goal") is not None
+        return self.service_type(name.rstrip("/") + ACTION_GOAL_SERVICE) is not None

@@ -196,6 +196,11 @@ class ActionGoal(Model):
     server_timeout: PositiveFloat = Field(5.0, description="s to wait for the action server")
     response_timeout: PositiveFloat = Field(10.0, description="s to wait for the server to accept or "
                                             "reject the goal")
+    by_type: bool = Field(
+        False, description="with no server of `name`, the one action server of `type` a student node "
+                           "offers is sent the goal instead (a student's other name for the action; the goal's "
+                           "events say `asked_for: name`), so items about what the server does are judged "
+                           "and only the item about its name is charged")
 
 
 class Replay(Model):

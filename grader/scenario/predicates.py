@@ -84,8 +84,10 @@ def _advertised(rt: Runtime, cond: m.Advertised, state: StepState) -> Predicate:
     if cond.service is not None:
         service = cond.service
         return lambda: driver.service_type(service) is not None
-    action = cond.action or ""
-    return lambda: driver.action_available(action)
+    action, action_type = cond.action or "", cond.action_type if cond.by_type else None
+    if action_type is None:
+        return lambda: driver.action_available(action)
+    return lambda: driver.action_available(action) or driver.student_action_of_type(action_type) is not None
 
 
 #: conditions on the ROS graph (discovery), not on what happens in simulated time

@@ -44,6 +44,8 @@ class Runtime:
         self.action_clients: dict[tuple[str, str], Any] = {}
         #: a service's name -> the name its server uses instead (``ServiceCall.served_by``)
         self.service_names: dict[str, str] = {}
+        #: an action's name -> the name its server uses instead (``ActionGoal.by_type``)
+        self.action_names: dict[str, str] = {}
 
     def processes_of(self, name: str) -> list[Any]:
         return [self.driver.processes[n] for n in self.members.get(name, []) if n in self.driver.processes]

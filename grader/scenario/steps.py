@@ -114,38 +114,58 @@ def _client_id(client: Any) -> dict[str, Any]:
         return {"client_gid": None, "client_gid_error": f"{type(exc).__name__}: {exc}"}
 
 
-def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> dict[str, Any]:
+def _action_client(rt: Runtime, name: str, type_name: str) -> Any:
+    """The driver's client of action ``name`` (made once per scenario, its status watched)."""
     from rclpy.action import ActionClient
+
+    key = (name, type_name)
+    if key not in rt.action_clients:
+        rt.action_clients[key] = ActionClient(rt.driver.node, import_type(type_name), name)
+        rt.driver.watch_action_status(name)
+    return rt.action_clients[key]
+
+
+def _action_server(rt: Runtime, spec: m.ActionGoal) -> tuple[str, Any, bool]:
+    """The action to send ``spec``'s goal to: its name, the driver's client and whether the
+    server was found; with ``by_type`` and no server of ``spec.name``, the one action of its
+    type a student node serves (remembered for the scenario's later goals)."""
+    name = rt.action_names.get(spec.name, spec.name)
+    if spec.by_type and name == spec.name and not rt.driver.action_available(name):
+        other = rt.driver.student_action_of_type(spec.type)
+        if other is not None and other != name:
+            name = rt.action_names[spec.name] = other
+    client = _action_client(rt, name, spec.type)
+    return name, client, bool(client.wait_for_server(timeout_sec=spec.server_timeout))
+
+
+def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> dict[str, Any]:
     from unique_identifier_msgs.msg import UUID
 
     driver = rt.driver
-    key = (spec.name, spec.type)
-    if key not in rt.action_clients:
-        rt.action_clients[key] = ActionClient(driver.node, import_type(spec.type), spec.name)
-        driver.watch_action_status(spec.name)
-    client = rt.action_clients[key]
-    found = client.wait_for_server(timeout_sec=spec.server_timeout)
+    name, client, found = _action_server(rt, spec)
+    # under another name (``by_type``): the goal's events carry the name used
+    asked = {"asked_for": spec.name} if name != spec.name else {}
     driver.event(Event.ACTION_SERVER_FOUND if found else Event.ACTION_SERVER_MISSING,
-                 step=step.id, action=spec.name)
+                 step=step.id, action=name, **asked)
     if not found:
         state.action_done = True
         return {"server": False}
     goal = fill(import_type(spec.type).Goal(), spec.goal)
     goal_uuid = UUID(uuid=list(uuid.uuid4().bytes))
-    driver.event(Event.ACTION_GOAL_SENT, step=step.id, action=spec.name, goal=to_plain(goal))
-    result: dict[str, Any] = {"server": True}
+    driver.event(Event.ACTION_GOAL_SENT, step=step.id, action=name, goal=to_plain(goal), **asked)
+    result: dict[str, Any] = {"server": True, **asked}
 
     def on_result(future: Any) -> None:
         res = future.result()
         result.update(status=int(res.status), result=to_plain(res.result))
-        driver.event(Event.ACTION_RESULT, step=step.id, action=spec.name, status=int(res.status),
-                     result=to_plain(res.result))
+        driver.event(Event.ACTION_RESULT, step=step.id, action=name, status=int(res.status),
+                     result=to_plain(res.result), **asked)
         state.action_done = True
 
     def accepted(handle: Any, **extra: Any) -> None:
         result["accepted"] = bool(handle.accepted)
-        driver.event(Event.ACTION_GOAL_RESPONSE, step=step.id, action=spec.name,
-                     accepted=bool(handle.accepted), **extra)
+        driver.event(Event.ACTION_GOAL_RESPONSE, step=step.id, action=name,
+                     accepted=bool(handle.accepted), **asked, **extra)
         if handle.accepted:
             state.goal_handle = handle
             handle.get_result_async().add_done_callback(on_result)
@@ -156,10 +176,10 @@ def _action(rt: Runtime, step: m.Step, spec: m.ActionGoal, state: StepState) -> 
         client.send_goal_async(goal, goal_uuid=goal_uuid).add_done_callback(lambda f: accepted(f.result()))
     if not driver.wait_until(lambda: "accepted" in result, spec.response_timeout):
         # no goal response: the server's status topic says whether it accepted the goal anyway
-        status = driver.action_status(spec.name, bytes(goal_uuid.uuid))
+        status = driver.action_status(name, bytes(goal_uuid.uuid))
         if status is None:
-            driver.event(Event.ACTION_GOAL_UNANSWERED, step=step.id, action=spec.name,
-                         waited_s=spec.response_timeout)
+            driver.event(Event.ACTION_GOAL_UNANSWERED, step=step.id, action=name,
+                         waited_s=spec.response_timeout, **asked)
             state.action_done = True
         else:
             from rclpy.action.client import ClientGoalHandle

@@ -11,6 +11,9 @@ from typing import Iterator
 
 from grader.sandbox.cgroups import CPU_PERIOD_US, _mounts, _own_paths
 
+CPU_SHARES_MAX = 262144             # cgroup v1 cpu.shares
+CPU_WEIGHT_MAX = 10000              # cgroup v2 cpu.weight
+
 
 class LimitedGroup:
     """The group's directories; ``procs`` the files a process joins it through."""
@@ -73,6 +76,10 @@ def limited_group(cpus: float, memory_mb: int, name: str = "") -> Iterator[Limit
     group = LimitedGroup(dirs, v2)
     try:
         group.set_cpus(cpus)
+        # a container's quota is its own: the most weight the kernel allows, so busy neighbours
+        # (another test session) cannot take the group below its quota and the quota is what limits
+        d = dirs["cpu"]
+        (d / ("cpu.weight" if v2 else "cpu.shares")).write_text(str(CPU_WEIGHT_MAX if v2 else CPU_SHARES_MAX))
         mem = dirs["memory"]
         (mem / ("memory.max" if v2 else "memory.limit_in_bytes")).write_text(str(memory_mb * 2**20))
         yield group

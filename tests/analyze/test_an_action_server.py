@@ -212,3 +212,31 @@ def test_a_success_the_goal_status_contradicts_is_not_a_success() -> None:
     ev[-1][2]["status"] = 6
     f = check(get("action_goals_succeed")(_frames([ev], [(T0 + 8.9, 1.0, 9.05)]), {}))
     assert f.status == "fail" and "ABORTED" in f.feedback and "goal_handle.succeed()" in f.feedback
+
+
+def test_a_server_under_another_name_is_charged_once() -> None:
+    """The goals went to the student's other name for the action (``ActionGoal.by_type``): the
+    name item fails and says where the server is; the items about what the server does are
+    judged on those goals and say under which name they saw it (issue 37)."""
+    other = {"action": "/go_to_goal", "asked_for": "/turtle_goal"}
+    evs = [[(T0 + 0.5, "action_server_found", {"step": "g1", **other})],
+           _goal(T0 + 1, 1.0, 9.0, True, True, T0 + 9, gid="g1"), _goal(T0 + 20, 15.0, 5.0, False, gid="g2")]
+    for ev in evs:
+        for _t, kind, payload in ev:
+            if kind.startswith("action_goal"):
+                payload.update(other)
+    fr = _frames(evs, [(T0 + 8.9, 1.0, 9.05)])
+    f = check(get("action_advertised")(fr, {}))
+    assert f.status == "fail" and f.evidence["served_as"] == "/go_to_goal", f.feedback
+    assert f.feedback.startswith("There is no action /turtle_goal: your server offers it as /go_to_goal")
+    for analyzer in ("action_goals_succeed", "action_rejects_out_of_bounds"):
+        f = check(get(analyzer)(fr, {}))
+        assert f.status == "pass" and "Sent to /go_to_goal" in f.feedback and "/turtle_goal" in f.feedback, f.feedback
+    # the same goals answered under the lab's name: the name item passes, nothing is noted
+    for ev in evs:
+        for _t, _kind, payload in ev:
+            payload.pop("asked_for", None)
+            payload["action"] = "/turtle_goal"
+    fr = _frames(evs, [(T0 + 8.9, 1.0, 9.05)])
+    assert check(get("action_advertised")(fr, {})).status == "pass"
+    assert "Sent to" not in check(get("action_goals_succeed")(fr, {})).feedback

@@ -59,6 +59,7 @@ def items(out: Path, sid: str) -> dict[str, dict]:
     return {i["id"]: i for i in json.loads((out / sid / "result.json").read_text())["items"]}
 
 
+@pytest.mark.timeout(900)
 def test_a_starved_batch_charges_no_timing_item_and_the_slow_timer_still_fails(tmp_path: Path) -> None:
     subs, out = make_class(tmp_path / "class"), tmp_path / "out"
     rubric = controller_rubric(tmp_path / "ex2.yaml")

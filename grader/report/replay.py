@@ -1,0 +1,240 @@
+"""A scenario's replay data, taken from its bag once: what the report's player draws.
+
+The turtles' poses as the simulator published them (its own record, :func:`sim_pose`), the pen
+as the student and the grader set it, every grader event (steps, goals, placements, calls and
+their answers, lines typed, processes starting and ending), the velocity commands and the log
+lines, all as seconds since the scenario started, rounded to the millisecond. Written beside the
+bag as ``replay.js`` (a script that adds one entry to ``window.graderReplays``), so a report
+opened from ``file://`` without network loads it: browsers refuse ``fetch`` of a local file,
+not a ``<script src>``.
+
+Size: poses at half turtlesim's 62.5 Hz (linear interpolation between two samples 32 ms apart
+stays within 1 mm of the pose for any speed the lab's controllers reach: the turtle turns at most
+~0.3 rad between them), commands thinned to :data:`MAX_COMMANDS`, log lines capped at
+:data:`MAX_LINES`: the Lab 3 reference's five scenarios take ~150 KB in all.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from grader.analyze._common import (Frames, events, rosout_lines, scenario_end_time, scenario_start,
+                                    service_calls, sim_pose, stdout_lines, thin, times, topic)
+from grader.analyze.goals import goal_xy
+from grader.report.result import atomic_write
+from grader.scenario.events import Event
+from grader.spec.world import WORLD_SIZE_M
+
+REPLAY_FILE = "replay.js"
+POSE_STRIDE = 2              # every second pose of turtlesim's 62.5 Hz (see the module's docstring)
+MAX_POSES = 6000             # per turtle: 190 s at 31 Hz, more than any lab's scenario
+MAX_COMMANDS = 1500          # per turtle: velocity commands kept for the timeline
+MAX_LINES = 400              # log lines and grader events, each
+MAX_TEXT = 160               # characters of one line
+PEN_DEFAULT = (179, 184, 255, 3, 0)      # turtlesim's pen (r, g, b, width, off)
+PLACING = ("teleport_absolute", "spawn")     # the services the grader places a turtle with
+_POSE = re.compile(r"^/([A-Za-z][A-Za-z0-9_]*)/pose$")
+#: grader events the timeline lists, with what each says
+_SAID = {
+    Event.STEP_START: lambda e: f"step {e.get('step')} starts",
+    Event.STEP_END: lambda e: f"step {e.get('step')} ends ({e.get('ended_by')})",
+    Event.GOAL_SENT: lambda e: f"goal {_xy(e.get('goal'))} sent" + (f" on {e['topic']}" if e.get("topic") else ""),
+    Event.MESSAGE_SENT: lambda e: f"grader published on {e.get('topic')}",
+    Event.SERVICE_CALL: lambda e: f"grader calls {e.get('service')} {_short(e.get('request'))}",
+    Event.SERVICE_RESPONSE: lambda e: f"{e.get('service')} answers {_short(e.get('response'))}",
+    Event.SERVICE_MISSING: lambda e: f"no service {e.get('service')}",
+    Event.ACTION_SERVER_MISSING: lambda e: f"no action server {e.get('action')}",
+    Event.ACTION_GOAL_SENT: lambda e: f"goal {_xy(goal_xy(e.get('goal')))} sent to {e.get('action')}",
+    Event.ACTION_GOAL_RESPONSE: lambda e: f"{e.get('action')} {'accepts' if e.get('accepted') else 'rejects'} the goal",
+    Event.ACTION_RESULT: lambda e: f"{e.get('action')} result {_short(e.get('result'))} (status {e.get('status')})",
+    Event.ACTION_CANCEL_SENT: lambda e: "grader cancels the goal",
+    Event.STDIN_LINE: lambda e: f"typed into {e.get('process')}: {e.get('line')}",
+    Event.NODE_STARTED: lambda e: f"{e.get('process')} started",
+    Event.PROCESS_EXIT: lambda e: f"{e.get('process')} exited ({e.get('returncode')})",
+    Event.TURTLES_HELD: lambda e: "grader holds the turtle",
+    Event.TURTLES_RELEASED: lambda e: "grader releases the turtle",
+    Event.REPLAY_START: lambda e: f"grader replays {e.get('count')} messages",
+    Event.LIMIT_HIT: lambda e: f"limit reached: {e.get('limit')}",
+}
+
+
+def _xy(xy: Any) -> str:
+    try:
+        return f"({float(xy[0]):.2f}, {float(xy[1]):.2f})"
+    except (TypeError, ValueError, IndexError, KeyError):
+        return "?"
+
+
+def _short(value: Any) -> str:
+    return json.dumps(value, separators=(",", ":"), default=str)[:80]
+
+
+def _rel(frames: Frames, t: Any) -> np.ndarray:
+    t0 = scenario_start(frames)
+    return np.round(np.asarray(t, float) - (t0 if t0 is not None else 0.0), 3)
+
+
+def _turtles(frames: Frames) -> dict[str, dict[str, list[float]]]:
+    out = {}
+    for name in sorted(frames):
+        match = _POSE.match(str(name))
+        df = sim_pose(frames, name) if match else None
+        if match is None or df is None or not {"x", "y", "theta"} <= set(df.columns):
+            continue
+        keep = np.arange(0, len(df), POSE_STRIDE)
+        if len(df) - 1 not in keep:
+            keep = np.append(keep, len(df) - 1)
+        keep = keep[thin(len(keep), MAX_POSES)]
+        rows = df.iloc[keep]
+        out[match[1]] = {"t": _rel(frames, times(df)[keep]).tolist(),
+                         "x": np.round(rows["x"].to_numpy(float), 3).tolist(),
+                         "y": np.round(rows["y"].to_numpy(float), 3).tolist(),
+                         "th": np.round(rows["theta"].to_numpy(float), 3).tolist()}
+    return out
+
+
+def _pens(frames: Frames, turtles: list[str]) -> dict[str, list[list[float]]]:
+    """Each turtle's pen changes, ``[t, r, g, b, width, off]``: its ``set_pen`` calls as the
+    simulator received them (service introspection), whoever made them."""
+    out: dict[str, list[list[float]]] = {}
+    for turtle in turtles:
+        df = topic(frames, f"/{turtle}/set_pen/_service_event")
+        if df is None:
+            continue
+        rows = []
+        for call in service_calls(df):
+            req = call["request"]
+            pen = [int(req.get(k, d)) for k, d in zip(("r", "g", "b", "width", "off"), PEN_DEFAULT)]
+            rows.append([float(_rel(frames, call["t"])), *pen])
+        out[turtle] = rows
+    return out
+
+
+def _clears(frames: Frames) -> list[float]:
+    """When the drawing was wiped (``/clear``, ``/reset``)."""
+    found: list[float] = []
+    for service in ("/clear", "/reset"):
+        df = topic(frames, f"{service}/_service_event")
+        if df is not None:
+            found += [float(_rel(frames, c["t"])) for c in service_calls(df)]
+    return sorted(found)
+
+
+def _commands(frames: Frames, turtles: list[str]) -> dict[str, dict[str, list[float]]]:
+    out = {}
+    for turtle in turtles:
+        df = topic(frames, f"/{turtle}/cmd_vel")
+        if df is None or "linear.x" not in df.columns or "angular.z" not in df.columns:
+            continue
+        keep = thin(len(df), MAX_COMMANDS)
+        out[turtle] = {"t": _rel(frames, times(df)[keep]).tolist(),
+                       "v": np.round(df["linear.x"].to_numpy(float)[keep], 3).tolist(),
+                       "w": np.round(df["angular.z"].to_numpy(float)[keep], 3).tolist()}
+    return out
+
+
+def _steps(frames: Frames) -> list[list[Any]]:
+    """``[start, end, id, ended_by]`` of each step."""
+    open_: dict[str, float] = {}
+    rows = []
+    for e in events(frames, (Event.STEP_START, Event.STEP_END)):
+        t = float(_rel(frames, e["t"]))
+        if e["event"] == Event.STEP_START:
+            open_[str(e.get("step"))] = t
+        else:
+            sid = str(e.get("step"))
+            rows.append([open_.pop(sid, t), t, sid, str(e.get("ended_by") or "")])
+    return rows
+
+
+def _goals(frames: Frames) -> list[list[Any]]:
+    """``[t, x, y, how]`` of every goal the grader handed over (a topic, a service, an action)."""
+    rows = []
+    for e in events(frames, (Event.GOAL_SENT, Event.ACTION_GOAL_SENT)):
+        xy: Any = e.get("goal") if e["event"] == Event.GOAL_SENT else goal_xy(e.get("goal"))
+        try:
+            x, y = float(xy[0]), float(xy[1])
+        except (TypeError, ValueError, IndexError, KeyError):
+            continue
+        how = e.get("topic") or e.get("action") or "service"
+        rows.append([float(_rel(frames, e["t"])), round(x, 3), round(y, 3), str(how)])
+    return rows
+
+
+def _placements(frames: Frames) -> list[list[Any]]:
+    """``[t, x, y, theta, service]`` of every turtle the grader placed (teleport or spawn)."""
+    rows = []
+    for e in events(frames, Event.SERVICE_CALL):
+        service, req = str(e.get("service") or ""), e.get("request") or {}
+        if service.rsplit("/", 1)[-1] in PLACING and isinstance(req, dict) and "x" in req and "y" in req:
+            rows.append([float(_rel(frames, e["t"])), round(float(req["x"]), 3), round(float(req["y"]), 3),
+                         round(float(req.get("theta", 0.0)), 3), service])
+    return rows
+
+
+def _said(frames: Frames) -> list[list[Any]]:
+    rows = []
+    for e in events(frames, tuple(_SAID)):
+        rows.append([float(_rel(frames, e["t"])), str(e["event"]), _SAID[Event(e["event"])](e)[:MAX_TEXT]])
+    return rows[:MAX_LINES]
+
+
+def _lines(frames: Frames) -> list[list[Any]]:
+    """Log lines: ``[t, who, text]`` from /rosout and the processes' stdout."""
+    rows: list[list[Any]] = []
+    ro = rosout_lines(frames)
+    if len(ro):
+        rows += [[float(t), str(w), str(x)[:MAX_TEXT]]
+                 for t, w, x in zip(_rel(frames, ro["time"]), ro["logger"], ro["text"])]
+    so = stdout_lines(frames)
+    if len(so):
+        rows += [[float(t), str(w), str(x)[:MAX_TEXT]]
+                 for t, w, x in zip(_rel(frames, so["time"]), so["process"], so["text"])]
+    rows.sort(key=lambda r: r[0])
+    return rows[:MAX_LINES]
+
+
+def replay_data(frames: Frames, scenario: str) -> dict[str, Any]:
+    """What the player needs of one scenario run (pure: frames in, plain data out)."""
+    turtles = _turtles(frames)
+    end = float(_rel(frames, scenario_end_time(frames)))
+    ends = [end] + [d["t"][-1] for d in turtles.values() if d["t"]]
+    return {"scenario": scenario, "world": WORLD_SIZE_M, "end": round(max(ends), 3),
+            "turtles": turtles, "pens": _pens(frames, list(turtles)), "clears": _clears(frames),
+            "pen_default": list(PEN_DEFAULT), "commands": _commands(frames, list(turtles)),
+            "steps": _steps(frames), "goals": _goals(frames), "placements": _placements(frames), "events": _said(frames), "lines": _lines(frames)}
+
+
+def replay_script(data: dict[str, Any]) -> str:
+    """``replay.js``: adds ``data`` to ``window.graderReplays`` under its scenario."""
+    body = json.dumps(data, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    key = json.dumps(data["scenario"])
+    return f"(window.graderReplays = window.graderReplays || {{}})[{key}] = {body};\n"
+
+
+def write_replay(scenario_dir: Path, frames: Frames) -> None:
+    """The scenario folder's ``replay.js`` from its frames (the folder's name is the scenario)."""
+    path = Path(scenario_dir) / REPLAY_FILE
+    atomic_write(path, replay_script(replay_data(frames, Path(scenario_dir).name)))
+
+
+def replays(sub_out: Path, scenarios_dir: str = "scenarios") -> list[str]:
+    """The scenario folders of a submission's output that have replay data, in order."""
+    root = Path(sub_out) / scenarios_dir
+    return sorted(p.parent.name for p in root.glob(f"*/{REPLAY_FILE}")) if root.is_dir() else []
+
+
+def pose_at(data: dict[str, Any], turtle: str, t: float) -> tuple[float, float]:
+    """The turtle's position at ``t`` as the player draws it (linear between samples): what a
+    test compares with the bag."""
+    track = data["turtles"][turtle]
+    ts = np.asarray(track["t"], float)
+    return float(np.interp(t, ts, track["x"])), float(np.interp(t, ts, track["y"]))
+
+
+__all__ = ["REPLAY_FILE", "pose_at", "replay_data", "replay_script", "replays", "write_replay"]
