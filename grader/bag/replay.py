@@ -179,6 +179,9 @@ def _one_pass(p: ReplayPlan, publishers: list[Any], rate: float, clock_pub: Any,
 
 def run(args: Any) -> int:
     p = plan(args.bag, args.topics, args.start_offset, parse_remaps(args.remap))
+    print(f"[replay] {args.bag}: {len(p.times)} messages on {len(p.topics)} topics. To look at it instead: open "
+          "its .mcap file in Foxglove, or the report's replay of the scenario (report.html#replay=<scenario>); "
+          f"with a sourced ROS 2: ros2 bag play {args.bag}", file=sys.stderr)
     if not p.times:
         print("[replay] nothing to publish (no messages after the start offset)", file=sys.stderr)
 

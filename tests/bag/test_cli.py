@@ -88,3 +88,13 @@ def test_subcommands_are_registered(capsys) -> None:
     for flag in ("--regex", "--all", "--rate", "--remap", "--loop", "--start-offset", "--clock",
                  "--json", "--no-backup"):
         assert flag in out
+
+
+def test_replay_says_where_else_a_bag_opens(tmp_path: Path, capsys) -> None:
+    """Nothing after the start offset: nothing published, but it says how to look at the bag
+    (Foxglove, the report's player, ros2 bag play)."""
+    bag = synth(tmp_path / "b", 10, 5)
+    assert main(["replay", str(bag), "--start-offset", "3600"]) == 0
+    err = capsys.readouterr().err
+    assert "Foxglove" in err and f"ros2 bag play {bag}" in err and "report.html#replay=" in err
+    assert "nothing to publish" in err

@@ -32,6 +32,11 @@ def test_check_on_a_buggy_workspace(tmp_path: Path, capsys, monkeypatch) -> None
     assert "integrity." not in out              # hidden items are not shown to students
     report = ws / ".grader-check" / "check"
     assert (report / "report.html").exists()
+    # the self-check's report replays each scenario it ran, from data beside it (issue 39)
+    html = (report / "report.html").read_text()
+    ran = sorted(p.parent.parent.name for p in report.glob("scenarios/*/bag/metadata.yaml"))
+    assert len(ran) >= 5 and all((report / "scenarios" / sc / "replay.js").is_file() and
+                                 f'data-scenario="{sc}"' in html for sc in ran), ran
     doc = json.loads((report / "result.json").read_text())
     assert doc["view"] == "student"
     assert not any(i["id"].startswith("integrity.") for i in doc["items"])

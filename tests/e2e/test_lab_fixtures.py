@@ -160,7 +160,12 @@ def test_batch_outputs(batches: dict[str, Path]) -> None:
         for s in subs:
             sub = out / s
             assert (sub / "report.html").exists() and (sub / "build.log").exists()
-            assert list(sub.glob("scenarios/*/bag/metadata.yaml")), f"{lab}/{s}: no bags kept"
+            recorded = sorted(p.parent.parent.name for p in sub.glob("scenarios/*/bag/metadata.yaml"))
+            assert recorded, f"{lab}/{s}: no bags kept"
+            # a replay player per recorded scenario, its data beside the bag (issue 39)
+            html = (sub / "report.html").read_text()
+            assert all((sub / "scenarios" / sc / "replay.js").is_file() and f'data-scenario="{sc}"' in html
+                       for sc in recorded), (lab, s, recorded)
 
 
 def test_a_reference_meets_every_messages_condition(batches: dict[str, Path]) -> None:
