@@ -72,6 +72,29 @@ define split_sessions
 	test $$bx -eq 0 && test $$rest -eq 0
 endef
 
+# test-heavy: a third session beside those two, for the tests that grade inside a small cgroup
+# (0.4-0.5 CPU: the starved batch, Gradescope's default container) or install and run the grader
+# as a user would (the wheel, the Gradescope bundle): mostly waiting on a quota or on pip, so
+# little CPU beside the other two. One after the other in the second session they took ~25 of its
+# 70+ min and CI ran out of its 90 (2026-12-02).
+SMALL_TESTS := tests/packaging/test_installed.py tests/e2e/test_starved_machine.py
+define split3_sessions
+	@rm -rf $(SPLIT_TMP)/$(2) && mkdir -p $(SPLIT_TMP)/$(2)
+	@$(VENV)/bin/python -m pytest -m "$(1)" $(BATCH_TESTS) --basetemp=$(SPLIT_TMP)/$(2)/batches \
+	  $(PYTEST_ARGS) > $(SPLIT_TMP)/$(2)/batches.log 2>&1 & batches=$$!; \
+	$(VENV)/bin/python -m pytest -m "$(1)" $(SMALL_TESTS) --basetemp=$(SPLIT_TMP)/$(2)/small \
+	  $(PYTEST_ARGS) > $(SPLIT_TMP)/$(2)/small.log 2>&1 & small=$$!; \
+	$(VENV)/bin/python -m pytest -m "$(1)" $(addprefix --ignore=,$(BATCH_TESTS) $(SMALL_TESTS)) \
+	  --basetemp=$(SPLIT_TMP)/$(2)/rest $(PYTEST_ARGS); rest=$$?; \
+	wait $$small; sx=$$?; wait $$batches; bx=$$?; \
+	echo "---- make $(2): $(SMALL_TESTS) (run beside the above) ----"; \
+	cat $(SPLIT_TMP)/$(2)/small.log; \
+	echo "---- make $(2): $(BATCH_TESTS) (run beside the above) ----"; \
+	cat $(SPLIT_TMP)/$(2)/batches.log; \
+	echo "make $(2): batches exit $$bx, small-machine tests exit $$sx, the rest exit $$rest"; \
+	test $$bx -eq 0 && test $$sx -eq 0 && test $$rest -eq 0
+endef
+
 # everything but the heavy tests, as two sessions side by side: 24 min on a fresh clone with the
 # fixture batch alone beside the rest (31 one after the other); CI (.ci/run) runs test-heavy after it
 test: bootstrap
@@ -81,13 +104,13 @@ test-fast: bootstrap
 	$(VENV)/bin/python -m pytest -m "not slow and not heavy" $(PYTEST_ARGS)
 
 # the longest end-to-end tests: every fixture of every lab, the fault corpus, a real Slurm
-# cluster, installs from git/pipx, the Gradescope image (see the `heavy` marker). Two pytest
-# sessions side by side: the fixture batch, and everything else (its log is printed when it
-# ends): 42 min on 2 cores; one after the other they took 81 (the fixture batch 32), over
-# CI's 90 with `make test`; every heavy test passed with another grading batch running beside
-# it (grading is built for a loaded machine: a starved recording is made again)
+# cluster, installs from git/pipx, the Gradescope image (see the `heavy` marker). Three pytest
+# sessions side by side: the fixture batch, the small-machine and install tests, and everything
+# else (the other two logs are printed when it ends); one after the other they took 81 min
+# (2026-11), over CI's 90 with `make test`; every heavy test passed with another grading batch
+# running beside it (grading is built for a loaded machine: a starved recording is made again)
 test-heavy: bootstrap
-	$(call split_sessions,heavy,test-heavy)
+	$(call split3_sessions,heavy,test-heavy)
 
 # the Slurm example on a real single-node Slurm (slurmctld + slurmd started and stopped by the
 # test; part of `make test-heavy` too)
