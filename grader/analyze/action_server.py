@@ -395,6 +395,8 @@ def _action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
     if unanswered:
         return unanswered.with_evidence(ev)
     bad = next(g for g in gs if g["accepted"] is not False)
+    ev["at_s"] = float(since_start(frames, bad["t_response"] or bad["t_sent"]))
+    ev["at"] = f"goal ({bad['x']:g}, {bad['y']:g}): the answer"
     what = "got no response" if bad["accepted"] is None else "was accepted"
     return Finding(value, frac, graded(frac),
                    f"Goal ({bad['x']:g}, {bad['y']:g}) is outside the world [0, {p['outer_bound']:.2f}] but {what}: "
@@ -428,7 +430,9 @@ def _action_timeout(frames: Frames, p: dict) -> Finding:
     to = g["time_out"] or p["short_timeout_s"]
     ev = {"goal": [g["x"], g["y"]], "time_out": g["time_out"], "accepted": g["accepted"], "success": g["success"],
           "status": g["status"], "duration_s": (g["t_result"] - g["t_sent"]) if g["t_result"] else None,
-          "timeline": _timeline(frames, p["pose_topic"])}
+          "timeline": _timeline(frames, p["pose_topic"]),
+          "at_s": float(since_start(frames, g["t_result"] or g["t_response"] or g["t_sent"])),
+          "at": f"goal ({g['x']:g}, {g['y']:g}) with time_out {to:g} s: its end"}
     if g["accepted"] is not True:
         return Finding("not accepted", 0.0, "fail",
                        f"The short-timeout goal ({g['x']:g}, {g['y']:g}) was {'rejected' if g['accepted'] is False else 'not answered'}; "

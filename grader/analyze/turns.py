@@ -75,7 +75,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         req = float(heading_error(x[i0], y[i0], th[i0], g.x, g.y))
         naive = float(math.atan2(g.y - y[i0], g.x - x[i0]) - th[i0])
         wrap_matters = abs(naive - req) > 1.0
-        row = {"goal": k, "x": g.x, "y": g.y, "start": [float(x[i0]), float(y[i0]), float(th[i0])],
+        row = {"goal": k, "x": g.x, "y": g.y, "t_sent": g.t, "start": [float(x[i0]), float(y[i0]), float(th[i0])],
                "required_turn_deg": math.degrees(req), "naive_turn_deg": math.degrees(naive),
                "wrap_matters": bool(wrap_matters)}
         series.append(_heading_series(frames, k, t[m], x[m], y[m], th[m], g))
@@ -106,6 +106,9 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     if good == judged:
         return Finding(value, 1.0, "pass", f"The turtle turned the short way for all {judged} large-turn goal(s).", ev)
     bad = [r for r in rows if r.get("evaluated") and not r.get("short_way")]
+    # the moment that decided it: when the turn was judged (the goal sent, plus the reaction time)
+    ev["at_s"] = float(since_start(frames, bad[0]["t_sent"] + bad[0].get("judged_from_s", 0.0)))
+    ev["at"] = f"goal {bad[0]['goal']} ({bad[0]['x']:g}, {bad[0]['y']:g}): the turn"
     return Finding(value, frac, graded(frac), _long_way_message(bad[0]), ev)
 
 
