@@ -63,7 +63,8 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
     moved = provenance.moves(frames, p["pose_topic"])
     counted: list[provenance.Call] = []
-    rows, judged, good = [], 0, 0
+    rows: list[dict[str, Any]] = []
+    judged, good = 0, 0
     series: list[dict] = []
     for k, g in enumerate(gl, 1):
         i0 = int(np.searchsorted(t, g.t, side="right")) - 1
@@ -95,7 +96,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         judged += 1
         good += _turned_short_way(p, g, req, t, th, cmd, released.get(g.extra.get("step")), row)
         rows.append(row)
-    ev = {"goals": rows, "heading_error": series}
+    ev: dict[str, Any] = {"goals": rows, "heading_error": series}
     if counted:
         ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
     if judged == 0:
@@ -107,7 +108,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"The turtle turned the short way for all {judged} large-turn goal(s).", ev)
     bad = [r for r in rows if r.get("evaluated") and not r.get("short_way")]
     # the moment that decided it: when the turn was judged (the goal sent, plus the reaction time)
-    ev["at_s"] = float(since_start(frames, bad[0]["t_sent"] + bad[0].get("judged_from_s", 0.0)))
+    ev["at_s"] = float(since_start(frames, float(bad[0]["t_sent"]) + float(bad[0].get("judged_from_s", 0.0))))
     ev["at"] = f"goal {bad[0]['goal']} ({bad[0]['x']:g}, {bad[0]['y']:g}): the turn"
     return Finding(value, frac, graded(frac), _long_way_message(bad[0]), ev)
 
