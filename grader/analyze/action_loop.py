@@ -19,7 +19,7 @@ import numpy as np
 
 from grader.analyze import Finding, register
 from grader.analyze._common import Frames, times, topic
-from grader.analyze.action_server import action_goals, under_other_action_name
+from grader.analyze.action_goals import action_goals, under_other_action_name
 
 EVIDENCE = {
     "cmd_topic": ("velocity command topic", ""),

@@ -2,21 +2,19 @@
 
 The driver's own action client emits ``action_goal_sent`` (goal, goal_tol, time_out),
 ``action_goal_response`` (accepted) and ``action_result`` (status, result.success) events; the
-turtle's poses show whether a reported success is real. Events are paired by ``goal_id``/``id``
-when the driver provides one, else in order (responses answer goals in the order they were sent,
-results answer accepted goals in order), which does not depend on the driver waiting between goals.
+turtle's poses show whether a reported success is real; the goals with their answers are rebuilt
+from the events by :mod:`grader.analyze.action_goals`.
 
 Bounds: the world is [0, WORLD_SIZE_M]^2 (11.09 m). The lab's template rejects goals outside [0, 11], so goals
 inside [0, ``inner_bound``] must be accepted and reached, goals outside [0, ``outer_bound``] must be
 rejected, and the thin band in between is not judged.
 
-A little over the project's ~400 lines: the five Exercise 3 items share one reconstruction of
-goal, response, feedback and result per goal, kept with them so each item reads the same rows.
+The six Exercise 3 items are kept together: they share the bounds, the timeline and the way a
+goal nobody answered is reported.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
@@ -27,7 +25,7 @@ from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
 from grader.spec.world import WORLD_SIZE_M
 from grader.analyze.goal_publisher import parse_xy_line
-from grader.analyze.goals import goal_xy
+from grader.analyze.action_goals import action_goals, sent_elsewhere, under_other_action_name
 from grader.scenario.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -67,82 +65,9 @@ EVIDENCE = {
     "t_end": ("goal ended at", TIME),
 }
 
-_STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
-_ID_KEYS = ("step",)      # the driver tags each goal's events with its step
-
 INNER = 11.0          # goals inside [0, inner_bound]^2 must be accepted and reached
 OUTER = WORLD_SIZE_M     # goals outside [0, outer_bound]^2 must be rejected
 SHORT_TIMEOUT = 5.0   # a goal with 0 < time_out <= short_timeout_s is the "timeout" probe
-
-
-def _field(e: dict, *keys: str) -> Any:
-    for k in keys:
-        if k in e:
-            return e[k]
-        g = e.get("goal")
-        if isinstance(g, dict) and k in g:
-            return g[k]
-        r = e.get("request")
-        if isinstance(r, dict) and k in r:
-            return r[k]
-    return None
-
-
-def _status_name(s: Any) -> str | None:
-    if s is None:
-        return None
-    if isinstance(s, (int, float)) and not isinstance(s, bool):
-        return _STATUS.get(int(s), str(s))
-    return str(s).upper().replace("STATUS_", "")
-
-
-def action_goals(frames: Frames) -> list[dict]:
-    """Goals sent to the action server with their response and result, in send order."""
-    ev = events(frames, (Event.ACTION_GOAL_SENT, Event.ACTION_GOAL_RESPONSE, Event.ACTION_RESULT))
-    goals_: list[dict] = []
-    wait_resp: list[dict] = []
-    wait_res: list[dict] = []
-    g: dict | None
-    for e in ev:
-        kind = e["event"]
-        gid = next((str(e[k]) for k in _ID_KEYS if e.get(k) is not None), None)
-        if kind == Event.ACTION_GOAL_SENT:
-            xy = goal_xy(e.get("goal")) or goal_xy(e.get("request")) or goal_xy(e)
-            tol = _field(e, "goal_tol")
-            to = _field(e, "time_out", "timeout")
-            g = {"t_sent": e["t"], "x": xy[0] if xy else None, "y": xy[1] if xy else None,
-                 "goal_tol": float(tol) if tol is not None else None,
-                 "time_out": float(to) if to is not None else None,
-                 "label": str(e.get("label") or e.get("purpose") or e.get("name") or ""),
-                 "id": gid, "accepted": None, "t_response": None, "status": None, "success": None,
-                 "t_result": None}
-            goals_.append(g)
-            wait_resp.append(g)
-        elif kind == Event.ACTION_GOAL_RESPONSE:
-            # the oldest goal still waiting with the same id (ids may repeat), else the oldest one
-            g = next((c for c in wait_resp if gid is not None and c["id"] == gid), None) or \
-                next(iter(wait_resp), None)
-            if g is None:
-                continue
-            if g in wait_resp:
-                wait_resp.remove(g)
-            g["accepted"] = bool(e.get("accepted"))
-            g["t_response"] = e["t"]
-            if g["accepted"]:
-                wait_res.append(g)
-        else:
-            g = next((c for c in wait_res if gid is not None and c["id"] == gid), None) or \
-                next(iter(wait_res), None)
-            if g is None:
-                continue
-            if g in wait_res:
-                wait_res.remove(g)
-            res = e.get("result")
-            succ = res.get("success") if isinstance(res, dict) else e.get("success")
-            g["success"] = None if succ is None else bool(succ)
-            g["status"] = _status_name(e.get("status"))
-            g["t_result"] = e["t"]
-    return goals_
 
 
 def _in_box(g: dict, hi: float) -> bool:
@@ -208,28 +133,6 @@ def _timeline(frames: Frames, pose_topic: str, max_points: int = 150) -> dict:
                 if name.endswith("/_action/feedback") and not name.startswith("/turtle1/") and len(f)]
     fb = np.sort(np.concatenate(feedback)) if feedback else np.array([])
     return {"goals": rows, "feedback_t": fb[thin(len(fb), 200)].tolist()}
-
-
-def sent_elsewhere(frames: Frames, name: str | None = None) -> str | None:
-    """The name the goals went to when the server offers the rubric's action (``name``: any)
-    under another name of its type (``ActionGoal.by_type``), else None."""
-    for e in events(frames, (Event.ACTION_SERVER_FOUND, Event.ACTION_GOAL_SENT)):
-        asked = e.get("asked_for")
-        if asked and (name is None or "/" + str(asked).lstrip("/") == name):
-            return str(e.get("action"))
-    return None
-
-
-def under_other_action_name(frames: Frames, finding: Finding) -> Finding:
-    """``finding`` with what it saw said to be under the student's name for the action."""
-    other = sent_elsewhere(frames)
-    if other is None or finding.status == "error":
-        return finding
-    asked = next(str(e["asked_for"]) for e in events(frames, Event.ACTION_GOAL_SENT) if e.get("asked_for"))
-    note = (f" (Sent to {other}, the name your server offers the action under; the lab's name is {asked}: "
-            "that is charged once, by the item about the action's name.)")
-    return dataclasses.replace(finding, feedback=finding.feedback + note,
-                               evidence={**finding.evidence, "served_as": other})
 
 
 def _no_action_events(frames: Frames) -> Finding:

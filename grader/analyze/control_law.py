@@ -23,7 +23,7 @@ from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sentence, since_start, thin, times,
                                     topic)
 from grader.analyze.goals import fit_gain, heading_error
-from grader.analyze.action_server import under_other_action_name
+from grader.analyze.action_goals import under_other_action_name
 from grader.analyze.controller import _GOAL_DEFAULTS, EVIDENCE, _goals_with_end, _no_goals, _no_pose, _pose
 from grader.scenario.events import Event
 

@@ -7,7 +7,7 @@ import pytest
 
 from analyze_synth import T0, check, events_frame, frame, rosout_frame, stdout_frame, with_meta
 from grader.analyze import get
-from grader.analyze.action_server import action_goals
+from grader.analyze.action_goals import action_goals
 
 
 def _pose(track: list[tuple[float, float, float]]) -> object:
