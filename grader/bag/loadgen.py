@@ -49,7 +49,7 @@ def fill(msg: Any, i: int, pattern: str, rng: random.Random) -> Any:
     return msg
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m grader.bag.loadgen")
     p.add_argument("--type", required=True)
     p.add_argument("--topics", nargs="+", required=True)
@@ -69,7 +69,29 @@ def main(argv: list[str] | None = None) -> int:
                         "introspection (events transient local) and call it this many times, once "
                         "the event topic has --wait-subscribers subscriptions")
     p.add_argument("--node-name", default="loadgen")
-    args = p.parse_args(argv)
+    return p
+
+
+def _publish_paced(pubs: list[Any], payloads: list[bytes], rate_hz: float) -> tuple[int, float]:
+    """Every payload on every publisher at ``rate_hz`` (catching up after a late wake-up): how
+    many rounds were sent and the seconds it took."""
+    t0 = time.monotonic()
+    sent, count = 0, len(payloads)
+    period = 1.0 / rate_hz
+    while sent < count:
+        due = min(count, int((time.monotonic() - t0) / period) + 1)
+        while sent < due:
+            for pub in pubs:
+                pub.publish(payloads[sent])
+            sent += 1
+        wait = t0 + sent * period - time.monotonic()
+        if wait > 0:
+            time.sleep(min(wait, 0.01) if wait < 0.002 else wait - 0.001)
+    return sent, time.monotonic() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
 
     import os
 
@@ -108,19 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         print("TIMEOUT waiting for subscribers", flush=True)
         return 3
     print("READY", flush=True)
-    t0 = time.monotonic()
-    sent = 0
-    period = 1.0 / args.rate
-    while sent < args.count:
-        due = min(args.count, int((time.monotonic() - t0) / period) + 1)
-        while sent < due:
-            for pub in pubs:
-                pub.publish(payloads[sent])
-            sent += 1
-        wait = t0 + sent * period - time.monotonic()
-        if wait > 0:
-            time.sleep(min(wait, 0.01) if wait < 0.002 else wait - 0.001)
-    elapsed = time.monotonic() - t0
+    sent, elapsed = _publish_paced(pubs, payloads, args.rate)
     if args.service_calls:
         # the graph shows the subscriptions; their DDS match may follow, which the events'
         # transient-local history covers

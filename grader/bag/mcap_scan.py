@@ -266,6 +266,33 @@ def _scan_chunk(records: bytes, res: ScanResult) -> dict[int, MessageBlock]:
             for cid, v in per.items()}
 
 
+def _definition_into(op: int, body: memoryview, res: ScanResult) -> bool:
+    """A header, schema, channel or metadata record into ``res``; False for any other record."""
+    if op == OP_HEADER:
+        res.profile, p = _read_str(body, 0)
+        res.library, _ = _read_str(body, p)
+    elif op == OP_SCHEMA:
+        s = _parse_schema(body)
+        res.schemas[s.id] = s
+    elif op == OP_CHANNEL:
+        c = _parse_channel(body)
+        res.channels[c.id] = c
+    elif op == OP_METADATA:
+        name, p = _read_str(body, 0)
+        res.metadata[name], _ = _read_map(body, p)
+    else:
+        return False
+    return True
+
+
+def _chunk_records(body: memoryview) -> bytes:
+    """A chunk record's records, decompressed (raises on any corruption)."""
+    (usize,) = _U64.unpack_from(body, 16)
+    comp, p = _read_str(body, 28)
+    (clen,) = _U64.unpack_from(body, p)
+    return _decompress(comp, bytes(body[p + 8:p + 8 + clen]), usize)
+
+
 def scan(path: Path) -> ScanResult:
     """Read every complete record of an MCAP file, stopping cleanly at a truncation.
 
@@ -307,15 +334,8 @@ def scan(path: Path) -> ScanResult:
         body = memoryview(data)[pos + 9:pos + 9 + ln]
         if op != OP_MESSAGE_INDEX and pending is not None:
             settle()
-        if op == OP_HEADER:
-            res.profile, p = _read_str(body, 0)
-            res.library, _ = _read_str(body, p)
-        elif op == OP_SCHEMA:
-            s = _parse_schema(body)
-            res.schemas[s.id] = s
-        elif op == OP_CHANNEL:
-            c = _parse_channel(body)
-            res.channels[c.id] = c
+        if _definition_into(op, body, res):
+            pass
         elif op == OP_MESSAGE:
             _, _, cid, seq, lt, pt = _MSG_HEAD.unpack_from(data, pos)
             blk = MessageBlock(data, np.array([pos + MSG_HEAD_SIZE], np.int64),
@@ -324,11 +344,7 @@ def scan(path: Path) -> ScanResult:
             res.blocks.setdefault(cid, []).append(blk)
         elif op == OP_CHUNK:
             try:
-                (usize,) = _U64.unpack_from(body, 16)
-                comp, p = _read_str(body, 28)
-                (clen,) = _U64.unpack_from(body, p)
-                raw = bytes(body[p + 8:p + 8 + clen])
-                records = _decompress(comp, raw, usize)
+                records = _chunk_records(body)
             except Exception as exc:  # noqa: BLE001 - any corruption ends the readable part
                 res.problem = f"chunk at byte {pos} cannot be read: {exc}"
                 break
@@ -339,9 +355,6 @@ def scan(path: Path) -> ScanResult:
                 (cid,) = _U16.unpack_from(body, 0)
                 (n,) = _U32.unpack_from(body, 2)
                 index[cid] = bytes(body[6:6 + n])
-        elif op == OP_METADATA:
-            name, p = _read_str(body, 0)
-            res.metadata[name], _ = _read_map(body, p)
         elif op in (OP_DATA_END, OP_FOOTER):
             res.complete = True
             if op == OP_DATA_END:
