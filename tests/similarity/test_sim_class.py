@@ -23,7 +23,7 @@ from grader.testing.browser import Browser, find_chromium
 from grader.testing.similarity_class import (COPIES, HONEST, KNOWN, TEST_STEP_TIMEOUT, build_class,
                                              controller_rubric)
 
-pytestmark = [pytest.mark.slow, pytest.mark.heavy, pytest.mark.ros, pytest.mark.timeout(1800)]
+pytestmark = [pytest.mark.slow, pytest.mark.heavy, pytest.mark.ros, pytest.mark.timeout(3600)]
 
 KNOWN_ID = KNOWN_PREFIX + "public_turtle_lab3"
 
