@@ -87,7 +87,7 @@ table.summary th:last-child,table.summary td:last-child{display:none}th,td{paddi
 table.summary th,table.summary td{overflow-wrap:anywhere}}
 @media print{@page{size:auto;margin:12mm}body{font-size:10pt;max-width:none;padding:0}
 th{background:none}table{page-break-inside:auto}tr,figure,.card h3,svg.plot{break-inside:avoid}
-h2,h3{break-after:avoid}.controls,th button.sort::after{display:none}.scroll{overflow:visible}
+h2,h3{break-after:avoid}.controls,th button.sort::after,.replay-link{display:none}.scroll{overflow:visible}
 table.subs{font-size:8.5pt}table.subs td,table.subs th{padding:.15rem .25rem;overflow-wrap:anywhere}
 a{color:inherit;text-decoration:none}details>summary::marker{content:""}pre.raw{max-height:none}}
 """
