@@ -6,7 +6,7 @@ PYTHON ?= python3
 VENV   := .venv
 GRADER := $(VENV)/bin/grader
 
-.PHONY: bootstrap demo demo-all test test-fast test-heavy test-slurm bench clean lint
+.PHONY: bootstrap demo demo-all test test-fast test-ci test-heavy test-slurm bench clean lint
 
 bootstrap:
 	@$(PYTHON) -m grader.bootstrap
@@ -96,15 +96,24 @@ define split3_sessions
 endef
 
 # everything but the heavy tests, as two sessions side by side: 24 min on a fresh clone with the
-# fixture batch alone beside the rest (31 one after the other); CI (.ci/run) runs test-heavy after it
+# fixture batch alone beside the rest (31 one after the other; 40 in CI, 2026-12-02)
 test: bootstrap
 	$(call split_sessions,not heavy,test)
+
+# what CI (.ci/run) runs after `make test`: the heavy tests marked `ci`, the Lab 3 cheat corpus
+# (the grader teleports too) and the 0.4-CPU starved machine. The whole heavy set no longer fits
+# CI's 90 min beside `make test` (the last two CI runs: killed at 90 min in test-heavy, 2026-12-01;
+# `make test` alone 40 min there, 2026-12-02): run `make test-heavy` by hand before a release and
+# after a change to grading, the sandbox, packaging, Slurm or Gradescope (docs/development.md)
+test-ci: bootstrap
+	$(VENV)/bin/python -m pytest -m "heavy and ci" $(PYTEST_ARGS)
 
 test-fast: bootstrap
 	$(VENV)/bin/python -m pytest -m "not slow and not heavy" $(PYTEST_ARGS)
 
-# the longest end-to-end tests: every fixture of every lab, the fault corpus, a real Slurm
-# cluster, installs from git/pipx, the Gradescope image (see the `heavy` marker). Three pytest
+# the longest end-to-end tests, by hand (CI runs only those marked `ci`: test-ci): every fixture of
+# every lab, the fault corpus, a real Slurm cluster, installs from git/pipx, the Gradescope image
+# (see the `heavy` marker). Three pytest
 # sessions side by side: the fixture batch, the installed wheel and Gradescope tests, and everything
 # else (the other two logs are printed when it ends); one after the other they took 81 min
 # (2026-11), over CI's 90 with `make test`; every heavy test passed with another grading batch

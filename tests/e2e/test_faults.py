@@ -193,6 +193,7 @@ def lab3_batch(tmp_path_factory) -> dict:
     return {"rc": rc, "out": out, "root": root}
 
 
+@pytest.mark.ci
 def test_the_lab3_batch_finishes_and_leaves_nothing_running(lab3_batch: dict) -> None:
     assert lab3_batch["rc"] == 0
     mark = str(lab3_batch["root"])
@@ -208,12 +209,14 @@ def test_the_lab3_batch_finishes_and_leaves_nothing_running(lab3_batch: dict) ->
     assert left == []
 
 
+@pytest.mark.ci
 @pytest.mark.parametrize("fault", [*LAB3_SPEC["faults"]])
 def test_each_lab3_fault_grades_as_expected(lab3_batch: dict, fault: str) -> None:
     bad = differences(result(lab3_batch, fault), LAB3_SPEC["faults"][fault]["expected"])
     assert not bad, f"{fault}:\n" + "\n".join(bad)
 
 
+@pytest.mark.ci
 def test_the_lab3_teleport_earns_nothing_and_the_honest_one_everything(lab3_batch: dict) -> None:
     """The acceptance line of issue 17: the teleport fault earns 0 of ex2.goals_reached and is
     flagged; the reference beside it keeps every point."""
@@ -226,6 +229,7 @@ def test_the_lab3_teleport_earns_nothing_and_the_honest_one_everything(lab3_batc
         [(i["id"], i["points"], i["max_points"]) for i in honest["items"] if i["points"] != i["max_points"]]
 
 
+@pytest.mark.ci
 def test_the_lab3_reasons_are_true(lab3_batch: dict) -> None:
     def item(sid: str, iid: str) -> dict:
         return next(i for i in result(lab3_batch, sid)["items"] if i["id"] == iid)

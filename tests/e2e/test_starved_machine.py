@@ -21,7 +21,7 @@ import yaml
 
 from grader.testing.cgroup import limited_group
 
-pytestmark = [pytest.mark.heavy]
+pytestmark = [pytest.mark.heavy, pytest.mark.ci]
 
 REPO = Path(__file__).resolve().parents[2]
 LAB3 = REPO / "rubrics" / "enee467_lab3.yaml"
