@@ -1,7 +1,8 @@
 # Two commands for a fresh machine:
 #   make demo   grade four example submissions of every lab (fixtures/) into demo-out/<lab>/ (demo-all: all)
 #   make test   run the test suite (what .ci/run calls, after make lint)
-#   make lint   ruff (grader/, tests/) and mypy (strict on spec, analyze, rubric, grading, api); pyproject.toml
+#   make lint   ruff (grader/, tests/), mypy (strict on spec, analyze, rubric, grading, api) and the
+#               import floors (lint-imports); all configured in pyproject.toml
 PYTHON ?= python3
 VENV   := .venv
 GRADER := $(VENV)/bin/grader
@@ -49,6 +50,7 @@ $(VENV)/.lint-tools: requirements/lint.txt | bootstrap
 lint: bootstrap $(VENV)/.lint-tools
 	$(VENV)/bin/ruff check grader tests
 	$(VENV)/bin/mypy
+	$(VENV)/bin/lint-imports
 
 # Two pytest sessions side by side, $(1) the marker expression: the grading batches (the fixture
 # batch, whose lockstep scenarios wait on quiet checks more than they use the CPUs, load 1-3

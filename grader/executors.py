@@ -1,4 +1,5 @@
-"""The rclpy executor every long-running grader node uses (simulator, scenario driver).
+"""The rclpy executor every long-running grader node uses (simulator, scenario driver), and the
+bounded spin (:func:`spin_until`) the bag tools, the tests and the benchmarks wait with.
 
 rclpy's EventsExecutor (C++, Jazzy "experimental") costs a fraction of the CPU of the Python
 executors, which rebuild their wait set on every wake; on a 2-core machine that margin keeps the
@@ -8,7 +9,8 @@ rclpy without EventsExecutor) falls back to the SingleThreadedExecutor.
 
 from __future__ import annotations
 
-from typing import Any
+import time
+from typing import Any, Callable
 
 
 def make_executor(context: Any, kind: str = "events") -> Any:
@@ -22,3 +24,13 @@ def make_executor(context: Any, kind: str = "events") -> Any:
     from rclpy.executors import SingleThreadedExecutor
 
     return SingleThreadedExecutor(context=context)
+
+
+def spin_until(executor: Any, predicate: Callable[[], bool], timeout: float, step: float = 0.02) -> bool:
+    """Spin until ``predicate()`` is true or ``timeout`` seconds pass; returns the predicate."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        executor.spin_once(timeout_sec=step)
+    return predicate()

@@ -19,6 +19,8 @@ import sys
 import time
 from typing import Any
 
+from grader.executors import spin_until
+
 
 def fill(msg: Any, i: int, pattern: str, rng: random.Random) -> Any:
     """Put the index (or random data) into a message; knows a few types, else the first floats."""
@@ -120,8 +122,6 @@ def main(argv: list[str] | None = None) -> int:
         _setup_service(node, service_state)
 
     from rclpy.executors import SingleThreadedExecutor
-
-    from grader.testing.ros import spin_until
 
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)

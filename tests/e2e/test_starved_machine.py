@@ -3,7 +3,9 @@
 The Lab 3 reference and a look-alike whose controller timer is 0.1 s (10 Hz instead of 30) are
 graded side by side (`--jobs 4`) inside a cgroup of 0.4 CPU and 768 MB, so their controller
 scenarios starve each other. Once the batch has graded them and says it records starved
-scenarios again, the quota is lifted: the re-run is unstarved. The reference then has no `fail`
+scenarios again, the quota is lifted: the re-run is unstarved. (On a quiet machine the
+reference may pass every item on its starved recordings; the batch then records nothing again,
+and the result's errors say the machine was too busy.) The reference then has no `fail`
 on any item (a timing item is pass, or error saying the machine was too busy), and the 10 Hz
 controller still fails `ex2.control_rate`, measured at 10 Hz, while its other items pass.
 """
@@ -55,8 +57,12 @@ def make_class(root: Path) -> Path:
     return root
 
 
+def result(out: Path, sid: str) -> dict:
+    return json.loads((out / sid / "result.json").read_text())
+
+
 def items(out: Path, sid: str) -> dict[str, dict]:
-    return {i["id"]: i for i in json.loads((out / sid / "result.json").read_text())["items"]}
+    return {i["id"]: i for i in result(out, sid)["items"]}
 
 
 @pytest.mark.timeout(900)
@@ -87,8 +93,12 @@ def test_a_starved_batch_charges_no_timing_item_and_the_slow_timer_still_fails(t
             reader.join(10)
     log = "".join(said)
     assert proc.returncode == 0, log + stdout
-    # the first pass was starved, and the batch recorded it again by itself
-    assert "recording their scenarios again" in log, log
+    # the first pass was starved: the batch recorded a submission again by itself, or (when every
+    # item passed on its starved recordings, which a pass may: starvation only costs) the result
+    # says so; a batch that was never starved would test nothing here
+    said_starved = [e for sid in ("reference", "ctrl_10hz") for e in result(out, sid)["errors"]
+                    if "the grading machine was too busy" in e]
+    assert "recording their scenarios again" in log or said_starved, log
     reference = items(out, "reference")
     assert not [i for i, r in reference.items() if r["status"] == "fail"], reference
     for r in reference.values():
