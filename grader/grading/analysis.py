@@ -18,7 +18,7 @@ from grader.analyze import timing
 from grader.analyze._common import events, own_exits, stdout_lines
 from grader.errors import GraderError
 from grader.grading.repeat import exact_lockstep, outcome, repeated_finding, run_folders, settled
-from grader.grading.starvation import starvation
+from grader.grading.starvation import recorded_scale, starvation
 from grader.scenario.events import Event
 
 if TYPE_CHECKING:
@@ -134,7 +134,8 @@ def starved_timing(item: Item, finding: Finding, frames: dict) -> Finding | None
     record = meta.attrs.get("scenario") if meta is not None else None
     if finding.status not in ("fail", "partial") or not words or not record:
         return None
-    found = starvation(record)
+    scale = recorded_scale(record)
+    found = starvation(record, scale=scale)
     if found is None or found.own:
         return None
     measured = finding.feedback.strip()
@@ -143,7 +144,8 @@ def starved_timing(item: Item, finding: Finding, frames: dict) -> Finding | None
                              f"recording ({found.reason}), so it says nothing about your code; it needs a new "
                              f"recording on a quieter machine."
                              + (f" What this recording showed: {measured}" if measured else "")),
-                   evidence={**finding.evidence, "starved": found.reason, "starved_status": finding.status})
+                   evidence={**finding.evidence, "starved": found.reason, "starved_status": finding.status}
+                   | ({"starved_at_scale": scale} if scale > 1 else {}))
 
 
 def combine_findings(item: Item, per_scenario: list, scenarios: Sequence[str] = ()) -> Finding | None:

@@ -9,9 +9,11 @@ When it ends, the cache is brought under its size cap and the batch's hit counts
 
 A submission whose timing items could not be measured because the grading machine starved
 their recordings (``Result.starved``, ``grader.grading.starvation``) is graded again once the
-batch is done, one submission and one scenario at a time (``rerun_starved``): the machine is
-then as quiet as this batch can make it. With reuse on, only its starved recordings are made
-again (a starved recording is never kept for reuse); the new result replaces the old.
+batch is done, one submission and one scenario at a time, in real time (``rerun_starved``,
+``grader.grading.starvation.REGRADE_TIME_SCALE``): the machine is then as quiet as this batch
+can make it, and a stall is shortest in simulated time. With reuse on, its recordings made at
+1x and not starved are reused (a starved recording is never kept for reuse); the new result
+replaces the old.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from typing import Any, Callable
 
 from grader.errors import GraderError
 from grader.grading.schedule import Slots
+from grader.grading.starvation import REGRADE_TIME_SCALE
 
 
 def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
@@ -85,7 +88,7 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
             cancel_all()          # running scenarios finalize their bags and stop
             raise
     failures.update(rerun_starved(graded_now, todo, rubric, out, cache_dir=cache_dir, reuse=reuse,
-                                  time_scale=time_scale, due_override=due_override, on_done=on_done))
+                                  due_override=due_override, on_done=on_done))
     ended = end_batch(Path(cache_dir or default_cache_dir()), uses, cache_max_size)
     if ended.get("message"):
         print(f"grader: {ended['message']}", file=sys.stderr)
@@ -93,7 +96,7 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
 
 
 def rerun_starved(graded: dict[str, Any], todo: list[tuple[str, Any, Any]], rubric: Any, out: Path, *,
-                  cache_dir: Path | None, reuse: bool, time_scale: float | None, due_override: dict | None,
+                  cache_dir: Path | None, reuse: bool, due_override: dict | None,
                   on_done: Callable[[str, Any, str | None], None] | None) -> dict[str, str]:
     """Grade again, one at a time, each submission of ``graded`` whose result has starved timing
     items; returns ``{id: why it has no result}`` for those that could not be graded again (their
@@ -104,12 +107,12 @@ def rerun_starved(graded: dict[str, Any], todo: list[tuple[str, Any, Any]], rubr
     again = [(sid, path, record) for sid, path, record in todo if sid in graded and graded[sid].result.starved]
     if again:
         print(f"grader: {len(again)} submission(s) had timing items the grading machine was too busy to measure; "
-              "recording their scenarios again, one at a time", file=sys.stderr)
+              "recording their scenarios again, one at a time, in real time", file=sys.stderr)
     failures: dict[str, str] = {}
     for sid, path, record in again:
         try:
             regraded = grade_submission(path, rubric, out, cache_dir=cache_dir, sid=sid, slots=Slots(1),
-                                        reuse=reuse, time_scale=time_scale, intake=record,
+                                        reuse=reuse, time_scale=REGRADE_TIME_SCALE, intake=record,
                                         due_override=due_override)
         except GraderError as exc:
             failures[sid] = f"graded again (timing not measured the first time), but: {exc}"

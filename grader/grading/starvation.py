@@ -24,6 +24,18 @@ run queue: the whole grader group is throttled. Its own counter says so (``cpu_q
 record: the seconds the quota held the group back while the scenario was recorded); above
 ``QUOTA_THROTTLED_MAX`` s per s the recording is starved too.
 
+The limits are those of a 1x recording; above them a recording is made again, and one at K x
+(``--time-scale``) goes again at 1x (``grader.grading.timescale.too_busy_for``). But at K x a
+stall of the same wall length is K times as long in simulated time, which is what the items
+measure: the first_nodes greeting_timer fixture (correct: a 0.1 s controller timer) at 4x beside
+a busy suite, its simulator waiting 0.43 s per second (under the 1x limit), sent two commands
+1.16 s of simulated time apart and failed `circle.keeps_moving` (turtlesim's 1 s command
+timeout); at 1x the same wait is a 0.29 s gap. So a timing item that lost points on a K x
+recording is judged against a K-th of the limits (``starvation(record, scale=K)``): above them
+it is an error, recorded again at 1x. A pass stands (starvation only costs), so the loaded
+machine's K x recordings are kept: at 4x beside make test the simulator waited 0.21-0.46 s per
+second (10th-90th percentile of 283), above the K-th nearly always.
+
 Who starved it decides what a starved recording costs (``Starvation.own``): where the student's
 processes took most of the CPUs the grader has (``OWN_CPU_SHARE``, CPU s per s, of at most one
 CPU, their sandbox's quota) or hit that quota, the student's code did it (a loop that never
@@ -63,6 +75,11 @@ QUOTA_THROTTLED_MAX = 0.25
 #: whole quota (1.0); the Lab 3 reference's nodes take 0.03-0.08 (benchmarks/bench_executor.py)
 OWN_CPU_SHARE = 0.8
 
+#: the time scale a result with starved timing items is recorded again at (``grader grade`` at
+#: the end of its batch, the Gradescope run, a self-check whose starved items were at K x): at
+#: 1x a stall of the machine is shortest in simulated time, and the run needs a K-th of the CPU
+REGRADE_TIME_SCALE = 1.0
+
 
 @dataclass(frozen=True)
 class Starvation:
@@ -72,27 +89,39 @@ class Starvation:
     own: bool = False
 
 
-def _probe_waited(record: dict[str, Any]) -> str | None:
+def recorded_scale(record: dict[str, Any]) -> float:
+    """How many times faster than real time the recording ran (``time_scale.used``; 1 without)."""
+    used = (record.get("time_scale") or {}).get("used", 1.0)
+    return max(1.0, float(used)) if isinstance(used, (int, float)) else 1.0
+
+
+def _bound(most: float, scale: float) -> str:
+    return f"at most {most:g}" if scale == 1.0 else f"at most {most:g} at {scale:g}x: {most * scale:g} at 1x"
+
+
+def _probe_waited(record: dict[str, Any], scale: float) -> str | None:
     waits = record.get("cpu_wait") or {}
     name = next((n for n in PROBES if n in waits), None)
     if name is None:
         return None
-    what, most = PROBES[name]
+    what, at_1x = PROBES[name]
+    most = at_1x / scale
     share = (waits[name] or {}).get("wait_share")
     if isinstance(share, (int, float)) and share > most:
-        return f"{what} waited {share:.2f} s per second for a CPU (at most {most:g})"
+        return f"{what} waited {share:.2f} s per second for a CPU ({_bound(most, scale)})"
     return None
 
 
-def _quota_throttled(record: dict[str, Any]) -> str | None:
+def _quota_throttled(record: dict[str, Any], scale: float) -> str | None:
     quota = record.get("cpu_quota") or {}
     held, wall = quota.get("throttled_s"), quota.get("wall_s")
     if not isinstance(held, (int, float)) or not wall:
         return None
     share = held / wall
-    if share > QUOTA_THROTTLED_MAX:
+    most = QUOTA_THROTTLED_MAX / scale
+    if share > most:
         return (f"the grading machine's CPU quota ({quota.get('cpus', 0):g} CPU) held the grader back "
-                f"{share:.2f} s per second (at most {QUOTA_THROTTLED_MAX:g})")
+                f"{share:.2f} s per second ({_bound(most, scale)})")
     return None
 
 
@@ -119,11 +148,13 @@ def exact_lockstep(record: dict[str, Any]) -> bool:
     return bool(ls.get("used")) and not ls.get("fallback") and ls.get("quiet_timeouts") == 0
 
 
-def starvation(record: dict[str, Any]) -> Starvation | None:
-    """Why the recording is not a measurement of the code (None: it is), and who caused it."""
+def starvation(record: dict[str, Any], scale: float = 1.0) -> Starvation | None:
+    """Why the recording is not a measurement of the code (None: it is), and who caused it.
+    ``scale``: the limits are a ``scale``-th of those of a 1x recording (a timing item's verdict
+    on a recording made ``scale`` times faster than real time, :func:`recorded_scale`)."""
     if exact_lockstep(record):
         return None
-    reason = _probe_waited(record) or _quota_throttled(record)
+    reason = _probe_waited(record, scale) or _quota_throttled(record, scale)
     if reason is None:
         return None
     busy = _students_busy(record)

@@ -16,7 +16,7 @@ keeps grader's own result.json and report.html next to it, and converts the Resu
 A submission that cannot be graded at all (empty, no ROS package) still gets a valid results.json
 with score 0 and the reason, instead of Gradescope's "The autograder failed to execute correctly".
 A submission with timing items the grading machine was too busy to measure (``Result.starved``)
-is graded once more before ``results.json`` is written; what is still not measured scores 0 and
+is graded once more, in real time (``REGRADE_TIME_SCALE``), before ``results.json`` is written; what is still not measured scores 0 and
 its ``output`` says so.
 
 Student code runs in the same sandbox as in ``grader grade`` (``grader.sandbox``): ``setup.sh``
@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from grader.errors import GraderError
+from grader.grading.starvation import REGRADE_TIME_SCALE
 
 SCHEMA = Path(__file__).resolve().parent / "gradescope.schema.json"
 #: the folder under the autograder root where grader keeps its own outputs (result.json, bags)
@@ -203,7 +204,7 @@ def run(root: Path, rubric_path: Path, *, cache_dir: Path | None = None) -> dict
             print(f"timing of {', '.join(graded.result.starved)} not measured (the machine was starved): "
                   "recording again", flush=True)
             graded = grade_submission(submission, rubric, root / WORK_DIR, cache_dir=cache_dir, sid=SUBMISSION_ID,
-                                      progress=lambda msg: print(msg, flush=True))
+                                      time_scale=REGRADE_TIME_SCALE, progress=lambda msg: print(msg, flush=True))
         doc = results_document(graded.result, rubric, problems=graded.errors, build_ok=graded.build_ok,
                                execution_time=time.monotonic() - t0)
     except GraderError as exc:

@@ -97,6 +97,14 @@ class Result:
                 if i.status == "error" and isinstance(i.evidence, Mapping) and i.evidence.get("starved")}
 
     @property
+    def starved_faster(self) -> dict[str, str]:
+        """Those of :attr:`starved` measured on a recording made faster than real time (their
+        limits were a K-th at K x): a recording at 1x is the one to make again."""
+        starved = self.starved
+        return {i.id: starved[i.id] for i in self.items
+                if i.id in starved and float(i.evidence.get("starved_at_scale") or 1.0) > 1.0}
+
+    @property
     def auto_score(self) -> float:
         return _sum(i.points for i in self.items if i.kind == "auto")
 

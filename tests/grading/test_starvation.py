@@ -25,6 +25,28 @@ def test_the_simulator_is_the_probe() -> None:
     assert starved({"cpu_wait": {"turtlesim": {"wait_share": 0.2}, "scenario": {"wait_share": 0.9}}}) is None
 
 
+def test_a_timing_verdict_at_k_times_real_time_has_a_k_th_of_the_limits() -> None:
+    """A stall of the same wall length is K times as long in simulated time at K x: the first_nodes
+    greeting_timer fixture (correct) at 4x, its simulator waiting 0.43 s per second, sent two
+    commands 1.16 s of simulated time apart and failed turtlesim's 1 s command timeout. The
+    recording itself is kept (a pass on it stands); a timing item's lost points are judged
+    against a K-th of the limits."""
+    def at_scale(record: dict) -> starvation.Starvation | None:
+        return starvation.starvation(record, scale=starvation.recorded_scale(record))
+
+    at_4x = {**rec(0.434), "time_scale": {"used": 4.0, "requested": 4.0}}
+    assert starved(at_4x) is None and at_scale(rec(0.434)) is None      # the recording; a 1x one
+    assert "waited 0.43 s per second for a CPU (at most 0.125 at 4x: 0.5 at 1x)" in at_scale(at_4x).reason
+    assert at_scale({**rec(0.1), "time_scale": {"used": 4.0}}) is None
+    assert at_scale({**rec(0.434), "time_scale": {"used": 1.0, "requested": 4.0, "fallback": "x"}}) is None
+    quota = {"cpu_wait": {"turtlesim": {"wait_share": 0.05}}, "time_scale": {"used": 4.0},
+             "cpu_quota": {"cpus": 2.0, "throttled_s": 3.0, "wall_s": 30.0}}     # 0.1 s per s
+    assert "(at most 0.0625 at 4x: 0.25 at 1x)" in at_scale(quota).reason
+    assert starved(quota) is None
+    own = {**at_4x, "cpu_wait": {"turtlesim": {"wait_share": 0.434}, "node": {"cpu_s": 9.0, "alive_s": 10.0}}}
+    assert at_scale(own).own                                            # its own loop: as measured
+
+
 def test_a_starved_recording_is_made_again_until_one_is_not(tmp_path: Path) -> None:
     shares = iter([1.1, 0.9, 0.15])
     folder = tmp_path / "sc"

@@ -58,6 +58,20 @@ def test_a_rate_the_machine_cannot_explain_still_fails() -> None:
     assert analyze_item(item, cmd_vel_at(33.3, MACHINE_STARVED)).status == "pass"
 
 
+def test_at_4x_a_wait_under_the_1x_limit_still_spares_a_timing_item() -> None:
+    """At 4x a stall is four times as long in simulated time: the first_nodes greeting_timer
+    fixture (correct) failed turtlesim's command timeout at 4x while its simulator waited 0.43 s
+    per second, under the 1x limit (0.5)."""
+    item = RUBRIC.item("ex2.control_rate")
+    loaded = {"cpu_wait": {"turtlesim": {"wait_share": 0.43}, "controller": {"cpu_s": 1.2, "alive_s": 40.0}}}
+    assert analyze_item(item, cmd_vel_at(23.1, loaded)).status == "fail"           # a 1x recording
+    at_4x = analyze_item(item, cmd_vel_at(23.1, {**loaded, "time_scale": {"used": 4.0, "requested": 4.0}}))
+    assert at_4x.status == "error", at_4x.feedback
+    assert "(at most 0.125 at 4x: 0.5 at 1x)" in at_4x.feedback
+    # quiet at 4x: the 10 Hz timer is the code's own
+    assert analyze_item(item, cmd_vel_at(10.0, {**QUIET, "time_scale": {"used": 4.0}})).status == "fail"
+
+
 def test_only_items_that_depend_on_timing_are_spared() -> None:
     timing = {i.id for i in RUBRIC.items if analyze.timing(i.analyzer, i.timing)}
     assert {"ex1.pub_rate", "ex2.control_rate", "ex3.loop_paced", "ex3.timeout"} <= timing
@@ -77,3 +91,14 @@ def test_the_result_and_the_class_view_list_what_was_not_measured() -> None:
     assert "Not measured: the machine was too busy" in page and 'data-item="ex2.control_rate"' in page
     measured = score(RUBRIC, {item.id: analyze_item(item, cmd_vel_at(10.0, QUIET))})
     assert not measured.starved and "Not measured" not in render_index({"bob": measured})
+
+
+def test_a_result_starved_at_4x_asks_for_a_recording_in_real_time() -> None:
+    """``Result.starved_faster``: the items a self-check records again at 1x (its 1x recordings were
+    already made again while starved: a result starved at 1x only says so)."""
+    item = RUBRIC.item("ex2.control_rate")
+    loaded = {"cpu_wait": {"turtlesim": {"wait_share": 0.43}, "controller": {"cpu_s": 1.2, "alive_s": 40.0}}}
+    at_4x = score(RUBRIC, {item.id: analyze_item(item, cmd_vel_at(23.1, {**loaded, "time_scale": {"used": 4.0}}))})
+    assert list(at_4x.starved_faster) == list(at_4x.starved) == ["ex2.control_rate"]
+    at_1x = score(RUBRIC, {item.id: analyze_item(item, cmd_vel_at(23.1, MACHINE_STARVED))})
+    assert list(at_1x.starved) == ["ex2.control_rate"] and not at_1x.starved_faster
