@@ -39,7 +39,7 @@ from grader.analyze.toolkit import Frames, events, since_start, sim_pose, thin, 
 from grader.analyze.evidence import SHARE
 from grader.report.figures import FigureContext, Plot, figure
 from grader.scenario.client_gid import GUID_PREFIX_BYTES
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE: dict[str, Any] = {

@@ -41,8 +41,8 @@ from grader.analyze.plugins import load_builtin_and_installed
 from grader.analyze.registry import (_DEFAULTS, _EXPECT, _JUDGES, _LABELS, _ORIGIN, _REGISTRY, _TIMING,
                                      DuplicateAnalyzer, _defining, forget)
 from grader.errors import GraderError
-from grader.spec.jsonable import jsonable
-from grader.spec.status import STATUSES
+from grader.contracts.jsonable import jsonable
+from grader.contracts.status import STATUSES
 
 __all__ = ["Finding", "register", "get", "names", "forget", "defaults", "required", "run", "jsonable", "STATUSES",
            "evidence_labels", "expected_text", "REQUIRED", "DuplicateAnalyzer", "origin", "graded",

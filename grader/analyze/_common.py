@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from grader.bag.timebase import to_scenario_time
-from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 
 META = "__meta__"
 EVENTS = EVENTS_TOPIC

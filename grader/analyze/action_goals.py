@@ -15,7 +15,7 @@ from typing import Any
 from grader.analyze import Finding
 from grader.analyze._common import Frames, events
 from grader.analyze.goals import goal_xy
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 _STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
 _ID_KEYS = ("step",)      # the driver tags each goal's events with its step

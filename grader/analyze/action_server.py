@@ -23,10 +23,10 @@ import numpy as np
 from grader.analyze.evidence import SHARE, TIME
 from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
-from grader.spec.world import WORLD_SIZE_M
+from grader.contracts.world import WORLD_SIZE_M
 from grader.analyze.goal_publisher import parse_xy_line
 from grader.analyze.action_goals import action_goals, sent_elsewhere, under_other_action_name
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {

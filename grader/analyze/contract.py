@@ -19,7 +19,7 @@ from typing import Any
 from grader.analyze._common import Frames, events, meta, norm_type
 from grader.rubric.contract import (Contract, ExecutableEntry, LaunchEntry, Mismatch, NodeEntry, PackageEntry,
                                     TopicEntry, node_name)
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 #: topics every node has, and the grader's own
 _STANDARD_TOPICS = ("/rosout", "/parameter_events", "/clock")

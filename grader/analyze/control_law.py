@@ -25,7 +25,7 @@ from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback,
 from grader.analyze.goals import fit_gain, heading_error
 from grader.analyze.action_goals import under_other_action_name
 from grader.analyze.controller import _GOAL_DEFAULTS, EVIDENCE, _goals_with_end, _no_goals, _no_pose, _pose
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 
 @register("control_law", evidence={**EVIDENCE, "value": ("fitted control law", "")},

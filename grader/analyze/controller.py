@@ -25,10 +25,10 @@ import pandas as pd
 
 from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, times, topic)
-from grader.spec.world import WORLD_SIZE_M
+from grader.contracts.world import WORLD_SIZE_M
 from grader.analyze.goals import SentGoal, goals
 from grader.analyze.evidence import SHARE, TIME
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence); shared by the three analyzers
 EVIDENCE = {

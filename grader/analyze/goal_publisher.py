@@ -18,7 +18,7 @@ from grader.analyze import Finding, register
 from grader.analyze.evidence import SHARE, TIME
 from grader.analyze._common import (Frames, events, missing_topic_feedback, own_exits, stdout_lines, times,
                                     topic)
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 
 def parse_xy_line(line: str) -> tuple[float, float] | None:

@@ -10,7 +10,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from grader.analyze._common import TELEPORT_SERVICES, Frames, events, times, topic
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 
 def goal_xy(obj: Any) -> tuple[float, float] | None:

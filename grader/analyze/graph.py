@@ -11,7 +11,7 @@ from typing import cast
 
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze._common import Frames, events, own_exits, sim_node
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {

@@ -29,7 +29,7 @@ from grader.analyze._common import (Frames, end_time, events, meta, publishers_o
 from grader.analyze.rate import rate_stats
 from grader.sim import truth_pose_topic
 from grader.sim.record import record_topic
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 DT = 0.016
 

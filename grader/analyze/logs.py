@@ -22,7 +22,7 @@ from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SHARE
 from grader.analyze._common import (EVENTS, Frames, events, missing_topic_feedback, rosout_lines,
                                     sim_node, stdout_lines, times, topic, traceback_mask)
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {

@@ -35,7 +35,7 @@ from grader.errors import GraderError
 from grader.analyze.evidence import SHARE, SINCE_START, TIME
 from grader.analyze._common import (own_exits, sim_pose, sim_tick_times, Frames, fmt, held_mask,
                                     missing_topic_feedback, rosout_lines, scenario_end_time, thin, times, topic)
-from grader.spec.world import WORLD_SIZE_M
+from grader.contracts.world import WORLD_SIZE_M
 from grader.analyze.rate import rate_stats
 
 #: labels and units of the evidence (see grader.analyze.evidence)

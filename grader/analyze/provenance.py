@@ -31,7 +31,7 @@ from grader.analyze import Finding
 from grader.analyze._common import Frames, events, service_calls, sim_pose, since_start, times, topic
 from grader.analyze.evidence import SINCE_START
 from grader.scenario.client_gid import GUID_PREFIX_BYTES
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 GRADER, STUDENT, UNKNOWN = "grader", "student code", "unknown"
 #: services of a turtle that put it somewhere without driving it

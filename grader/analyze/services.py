@@ -16,7 +16,7 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SINCE_START
 from grader.analyze._common import Frames, events, missing_topic_feedback, since_start, times, topic
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {

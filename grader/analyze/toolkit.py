@@ -38,7 +38,7 @@ from grader.analyze._common import (
     topic,
     topics_present,
 )
-from grader.spec.world import WORLD_SIZE_M
+from grader.contracts.world import WORLD_SIZE_M
 
 __all__ = [
     "EVENTS", "META", "ROSOUT", "STDOUT", "WORLD_SIZE_M", "Frames",

@@ -19,7 +19,7 @@ from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import Frames, events, since_start, thin, times, topic
 from grader.analyze.controller import _GOAL_DEFAULTS, EVIDENCE, pose_and_goals
 from grader.analyze.goals import SentGoal, heading_error
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 
 @register("turn_direction", evidence={**EVIDENCE, "value": ("goals turned the short way", "")},

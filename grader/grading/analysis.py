@@ -19,7 +19,7 @@ from grader.analyze._common import events, own_exits, stdout_lines
 from grader.errors import GraderError
 from grader.grading.repeat import exact_lockstep, outcome, repeated_finding, run_folders, settled
 from grader.grading.starvation import recorded_scale, starvation
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 if TYPE_CHECKING:
     from grader.analyze import Finding

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from grader.errors import GraderError
-from grader.spec.speed import DEFAULT_TIME_SCALE, MIN_CPUS_FOR_DEFAULT
+from grader.contracts.speed import DEFAULT_TIME_SCALE, MIN_CPUS_FOR_DEFAULT
 
 if TYPE_CHECKING:
     from grader.grading.graded import GradedSubmission

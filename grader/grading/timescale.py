@@ -16,7 +16,7 @@ the speed. So a scenario only runs faster when
 
 Otherwise the scenario runs (again) at 1x, and its record says why: ``scenario.json`` and
 result.json carry ``time_scale: {requested, used, fallback}`` per scenario; the report and
-``grader check`` print it. The default speed is :data:`grader.spec.speed.DEFAULT_TIME_SCALE`.
+``grader check`` print it. The default speed is :data:`grader.contracts.speed.DEFAULT_TIME_SCALE`.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from grader.grading.scenario_packages import packages_run, workspace_packages
 from grader.grading.starvation import starvation
 from grader.rosenv import PY_SITE
 from grader.sandbox import allotment
-from grader.spec.speed import default_time_scale
+from grader.contracts.speed import default_time_scale
 from grader.workspace.executables import executable_paths, is_python_script
 from grader.scenario.runspec import RateExpectation, ScenarioRun
 
@@ -220,7 +220,7 @@ def run_at_scale(run: ScenarioRun, folder: Path, time_scale: float, build: Any,
 
 def machine_time_scale(requested: float | None = None) -> float:
     """The speed scenarios run at: ``requested``, else the default for the CPUs this grader is
-    given (its cgroup's quota in a container): :func:`grader.spec.speed.default_time_scale`."""
+    given (its cgroup's quota in a container): :func:`grader.contracts.speed.default_time_scale`."""
     return default_time_scale(allotment.current().cpus) if requested is None else requested
 
 

@@ -27,8 +27,8 @@ from grader.analyze._common import (Frames, events, rosout_lines, scenario_end_t
                                     service_calls, sim_pose, stdout_lines, thin, times, topic)
 from grader.analyze.goals import goal_xy
 from grader.report.result import atomic_write
-from grader.scenario.events import Event
-from grader.spec.world import WORLD_SIZE_M
+from grader.contracts.events import Event
+from grader.contracts.world import WORLD_SIZE_M
 
 REPLAY_FILE = "replay.js"
 POSE_STRIDE = 2              # every second pose of turtlesim's 62.5 Hz (see the module's docstring)

@@ -19,7 +19,7 @@ from typing import Any, Mapping
 from grader.errors import GraderError
 from grader.rubric.schema import Rubric, Section, SectionSpec
 from grader.rubric.result import ItemResult, Notice, Result
-from grader.spec.jsonable import jsonable
+from grader.contracts.jsonable import jsonable
 
 RESULT_SCHEMA = 1
 SUBMISSION_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@+-]{0,127}$")

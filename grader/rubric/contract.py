@@ -28,7 +28,7 @@ from pydantic import Field, field_validator, model_validator
 
 from grader.scenario.fields import (ActionType, ExecutableName, LaunchFile, Model, MsgType, PackageName,
                                     RosName, SrvType)
-from grader.spec.text import pattern_text, suggest
+from grader.contracts.text import pattern_text, suggest
 
 Role = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "a role id like news or greeter (lower case, digits, _)")]
 Why = Annotated[str, Field(min_length=1, pattern=r"\S", description="where the lab text fixes it")]

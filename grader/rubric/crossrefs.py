@@ -11,7 +11,7 @@ from typing import Any, Collection, Mapping
 
 from grader.rubric.intake_fields import intake_problems
 from grader.rubric.schema import POINTS_EPS, Rubric
-from grader.spec.text import suggest
+from grader.contracts.text import suggest
 
 
 def rubric_problems(rubric: Rubric, analyzers: Mapping[str, Any] | Collection[str] | None,

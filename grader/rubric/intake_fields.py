@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from grader.scenario.fields import ExecutableName, Model, PackageName
-from grader.spec.text import pattern_text
+from grader.contracts.text import pattern_text
 
 #: ``my_node.py`` or ``my_node.py:main`` (the function the console script calls; default main)
 PyFile = Annotated[str, pattern_text(r"^[A-Za-z_][A-Za-z0-9_]*\.py(:[A-Za-z_][A-Za-z0-9_]*)?$",

@@ -20,7 +20,7 @@ from pydantic import BaseModel, RootModel
 from yaml.constructor import SafeConstructor
 from yaml.nodes import MappingNode, Node, SequenceNode
 
-from grader.spec.text import PATTERN_WHAT, suggest
+from grader.contracts.text import PATTERN_WHAT, suggest
 
 MERGE_TAG = "tag:yaml.org,2002:merge"
 _IDENT_KEY = re.compile(r"^[A-Za-z_][A-Za-z0-9_-]*$")

@@ -25,7 +25,7 @@ from grader.rubric.intake_fields import LatePolicy, LooseFiles
 from grader.rubric.contract import Contract, item_roles, resolve_references, scenario_roles
 from grader.scenario.fields import Model, PackageName, with_rules
 from grader.scenario.model import Scenario
-from grader.spec.text import pattern_text
+from grader.contracts.text import pattern_text
 
 SCHEMA_VERSION: Literal[1] = 1
 KINDS = ("auto", "manual", "advisory", "integrity")

@@ -20,7 +20,7 @@ from grader.errors import GraderError
 from grader.rubric.contract import Mismatch
 from grader.rubric.result import PENDING, ItemResult, Result
 from grader.rubric.schema import Item, Rubric
-from grader.spec.status import STATUSES
+from grader.contracts.status import STATUSES
 
 _RANK = {"fail": 0, "partial": 1, "error": 2, "pass": 3}
 

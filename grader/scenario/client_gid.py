@@ -4,7 +4,7 @@ service calls from a student's by the call itself, not by when it happened.
 Every call to a simulator service is in the bag as ``<service>/_service_event`` (the simulator
 runs its services with introspection), and each event carries ``info.client_gid``: the GID of
 the client that made the call, as the server saw it. The driver records the GID of the client
-it calls with in its ``service_call`` event (:mod:`grader.scenario.events`), and the analyzers
+it calls with in its ``service_call`` event (:mod:`grader.contracts.events`), and the analyzers
 compare the two (:mod:`grader.analyze.provenance`).
 
 Why ``ctypes``: rclpy 7.1.6 has no binding for a client's GID (its ``Client`` offers

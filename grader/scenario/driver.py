@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterator
 
 from grader.executors import make_executor
 from grader.runner import ManagedProcess
-from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 from grader.scenario.graph_queries import GRADER_NODE_PREFIX, GraphQueries
 from grader.scenario.messages import import_type
 from grader.sim.clock import HOLD_SERVICE

@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 
 #: every node of the grader's own (driver, recorder, stepper) is named with this prefix
 GRADER_NODE_PREFIX = "grader_"

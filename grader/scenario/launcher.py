@@ -17,7 +17,7 @@ import time
 from typing import Any, Sequence
 
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 from grader.scenario.model import Limits, Process
 from grader.scenario.runspec import LaunchedProcess, ScenarioRun
 

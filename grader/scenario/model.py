@@ -29,8 +29,8 @@ from pydantic import (BeforeValidator, ConfigDict, Field, RootModel, ValidationI
                       model_validator)
 
 # re-exported: the whole scenario language is importable from here
-from grader.spec.text import suggest
-from grader.spec.world import WORLD_SIZE_M
+from grader.contracts.text import suggest
+from grader.contracts.world import WORLD_SIZE_M
 from grader.scenario.conditions import (  # noqa: F401
     ActionDone, Advertised, Condition, GoalReached, Messages, Output, ProcessExit, ReplayDone, ServiceDone,
     Subscribed)

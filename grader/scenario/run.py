@@ -33,7 +33,7 @@ from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import ManagedProcess, ProcessSpec, RosGraph
 from grader.scenario.cpuwait import cpu_wait
-from grader.scenario.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
 from grader.scenario.launcher import FIRST_CLOCK_S, Launcher
 from grader.scenario.lockstep import LockstepFailed
 from grader.scenario.runspec import ScenarioRun

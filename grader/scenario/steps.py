@@ -15,7 +15,7 @@ import uuid
 from typing import Any, Callable
 
 from grader.scenario import model as m
-from grader.scenario.events import Event
+from grader.contracts.events import Event
 from grader.scenario.lockstep import LockstepFailed
 from grader.scenario.messages import fill, import_type, to_plain
 from grader.scenario.pacing import Pacer

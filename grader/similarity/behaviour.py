@@ -76,7 +76,7 @@ def _events(frames: Mapping[str, Any], kind: str) -> list[dict]:
 
 def _student_nodes(frames: Mapping[str, Any]) -> tuple[set[str], dict[str, set[str]], set[str]]:
     """(student node names, topic -> student publishers, student services) from graph events."""
-    from grader.scenario.events import Event
+    from grader.contracts.events import Event
 
     start = _events(frames, Event.SCENARIO_START)
     grader = set(GRADER_NODES) | {str(e.get("sim_node")) for e in start if e.get("sim_node")}
@@ -100,7 +100,7 @@ def _student_nodes(frames: Mapping[str, Any]) -> tuple[set[str], dict[str, set[s
 def _windows(frames: Mapping[str, Any]) -> list[tuple[str, float, float]]:
     """(step id, time its goal was sent or it started, end) of each step; the whole run if none."""
     from grader.analyze._common import end_time
-    from grader.scenario.events import Event
+    from grader.contracts.events import Event
 
     starts = {e.get("step"): e["t"] for e in _events(frames, Event.STEP_START) if e.get("step")}
     goals = {e.get("step"): e["t"] for e in _events(frames, Event.GOAL_SENT) if e.get("step")}

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from grader.grading import timescale
 from grader.sandbox.allotment import Allotment
-from grader.spec.speed import DEFAULT_TIME_SCALE, default_time_scale
+from grader.contracts.speed import DEFAULT_TIME_SCALE, default_time_scale
 
 
 def test_the_default_follows_the_cpus_the_grader_is_given(monkeypatch) -> None:

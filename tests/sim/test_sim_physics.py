@@ -55,7 +55,7 @@ def drive_ticks(sim: Sim, n: int) -> tuple[float, float, float, float, float]:
 
 def test_world_size_and_start_pose(sim: Sim) -> None:
     assert W == 11.088889122009277 == H
-    from grader.spec.world import WORLD_SIZE_M
+    from grader.contracts.world import WORLD_SIZE_M
 
     assert abs(W - WORLD_SIZE_M) < 1e-6      # the one world size every other package uses
     assert sim.t1.pose() == (5.544444561004639, 5.544444561004639, 0.0, 0.0, 0.0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from grader.spec.world import WORLD_SIZE_M
+from grader.contracts.world import WORLD_SIZE_M
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import OUTSIDE, BLUE, FAIL, GREEN, MUTED, PALETTE, PASS, floats, fmt, key, num
 

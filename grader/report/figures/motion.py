@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping, cast
 
-from grader.spec.world import WORLD_SIZE_M
+from grader.contracts.world import WORLD_SIZE_M
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import BLUE, GREEN, OUTSIDE, VERMILION, floats, fmt, key, num
 

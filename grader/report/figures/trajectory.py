@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
-from grader.spec.world import WORLD_SIZE_M     # the world is [0, WORLD_SIZE_M]^2 (a wall on every side)
+from grader.contracts.world import WORLD_SIZE_M     # the world is [0, WORLD_SIZE_M]^2 (a wall on every side)
 from grader.report.figures import FigureContext, Plot, figure
 from grader.report.figures._mpl import OUTSIDE, LINESTYLES, MUTED, PALETTE, floats, fmt, key, num
 

@@ -1,4 +1,4 @@
-"""grader/spec: the values every package shares are defined once (issue 19's acceptance greps,
+"""grader/contracts: the values every package shares are defined once (issue 19's acceptance greps,
 kept true by a test), and the one ``jsonable`` serves both the evidence and the result files."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from grader.spec.jsonable import jsonable
+from grader.contracts.jsonable import jsonable
 
 GRADER = Path(__file__).resolve().parents[2] / "grader"
 
@@ -24,9 +24,9 @@ def _grep(pattern: str) -> list[str]:
 
 
 def test_each_shared_value_is_defined_once() -> None:
-    assert _grep(r"11\.0888") == ["spec/world.py:9"]
-    assert _grep(r"^def jsonable\b") == ["spec/jsonable.py:14"]
-    assert _grep(r"^STATUSES\s*=") == ["spec/status.py:6"]
+    assert _grep(r"11\.0888") == ["contracts/world.py:9"]
+    assert _grep(r"^def jsonable\b") == ["contracts/jsonable.py:14"]
+    assert _grep(r"^STATUSES\s*=") == ["contracts/status.py:6"]
     assert [hit.split(":")[0] for hit in _grep(r"^class Goal\b")] == ["scenario/fields.py"]
     assert _grep(r"\bresult: Any\b") == []
 
