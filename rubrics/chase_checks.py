@@ -39,7 +39,7 @@ from grader.analyze.toolkit import Frames, events, since_start, sim_pose, thin, 
 from grader.analyze.evidence import SHARE
 from grader.report.figures import FigureContext, Plot, figure
 from grader.scenario.client_gid import GUID_PREFIX_BYTES
-from grader.contracts.events import Event
+from grader.contracts.events import StepEnd, StepStart, TurtlesReleased
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE: dict[str, Any] = {
@@ -86,10 +86,9 @@ def _student_moves(frames: Frames, pose_topics: tuple[str, ...]) -> list[provena
 
 def _step_times(frames: Frames, step: str) -> tuple[float | None, float | None, float | None]:
     """(start, release, end) of a step: the release of its held hand-over, if it had one."""
-    start = next((e["t"] for e in events(frames, Event.STEP_START) if e.get("step") == step), None)
-    end = next((e["t"] for e in events(frames, Event.STEP_END) if e.get("step") == step), None)
-    released = next((e["t"] for e in events(frames, Event.TURTLES_RELEASED)
-                     if e.get("step") == step and e.get("ok", True)), None)
+    start = next((e.t for e in events(frames, StepStart) if e.step == step), None)
+    end = next((e.t for e in events(frames, StepEnd) if e.step == step), None)
+    released = next((e.t for e in events(frames, TurtlesReleased) if e.step == step and e.ok), None)
     return start, released, end
 
 

@@ -7,16 +7,18 @@ row per topic (``topic``, ``type``, ``count``, ``publishers``).
 
 from __future__ import annotations
 
+import collections
 import json
 import math
 import re
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, TypeVar, overload
 
 import numpy as np
 import pandas as pd
 
 from grader.bag.timebase import to_scenario_time
-from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.contracts.events import (EVENTS_TOPIC, STDOUT_TOPIC, EventRecord, Graph, ProcessExit, ScenarioEnd,
+                                    ScenarioStart, TurtlesHeld, TurtlesReleased, parse_event)
 
 META = "__meta__"
 EVENTS = EVENTS_TOPIC
@@ -166,8 +168,7 @@ def _nz(c: Any) -> bool:
 def missing_topic_feedback(frames: Frames, name: str, what: str = "") -> str:
     """Why ``name`` has no messages, in words that tell the causes apart: a node advertised it
     and never published, or nothing published there (and what was published instead)."""
-    graph = [n for e in events(frames, Event.GRAPH) if isinstance(e.get("publishers"), dict)
-             for n in e["publishers"].get(name) or []]
+    graph = [n for e in events(frames, Graph) for n in e.publishers.get(name) or []]
     advertisers = [p for p in dict.fromkeys([*publishers_of(frames, name), *graph]) if not str(p).startswith("grader_")]
     if advertisers:
         return (f"{', '.join(advertisers)} advertised {name} but published no message on it"
@@ -199,7 +200,11 @@ def end_time(frames: Frames) -> float:
 
 
 # --------------------------------------------------------------------------- grader events
-def _loads(s: Any) -> dict:
+_PARSED: collections.OrderedDict[int, tuple[pd.DataFrame, list[EventRecord]]] = collections.OrderedDict()
+_PARSED_KEPT = 16          # the events topics of the last few bags: every analyzer of a scenario reads them
+
+
+def _loads(s: Any) -> dict[str, Any]:
     if isinstance(s, dict):
         return s
     try:
@@ -209,35 +214,60 @@ def _loads(s: Any) -> dict:
     return d if isinstance(d, dict) else {}
 
 
-def events(frames: Frames, kind: str | Iterable[str] | None = None) -> list[dict]:
-    """Parsed /grader/events messages (each dict gets ``t`` = bag receive time), optionally filtered."""
+def _parsed(df: pd.DataFrame) -> list[EventRecord]:
+    """Every event of the bag's events topic as its model, parsed once per DataFrame (the
+    analyzers of a scenario each ask; the models are frozen, so sharing them is safe)."""
+    hit = _PARSED.get(id(df))
+    if hit is not None and hit[0] is df:
+        _PARSED.move_to_end(id(df))
+        return hit[1]
+    out = [parse_event(d, float(t)) for t, s in zip(times(df), df["data"]) if (d := _loads(s))]
+    _PARSED[id(df)] = (df, out)
+    while len(_PARSED) > _PARSED_KEPT:
+        _PARSED.popitem(last=False)
+    return out
+
+
+E = TypeVar("E", bound=EventRecord)
+E2 = TypeVar("E2", bound=EventRecord)
+E3 = TypeVar("E3", bound=EventRecord)
+
+
+@overload
+def events(frames: Frames, kind: None = None) -> list[EventRecord]: ...
+@overload
+def events(frames: Frames, kind: type[E]) -> list[E]: ...
+@overload
+def events(frames: Frames, kind: tuple[type[E], type[E2]]) -> list[E | E2]: ...
+@overload
+def events(frames: Frames, kind: tuple[type[E], type[E2], type[E3]]) -> list[E | E2 | E3]: ...
+@overload
+def events(frames: Frames, kind: tuple[type[EventRecord], ...]) -> list[EventRecord]: ...
+
+
+def events(frames: Frames, kind: type[EventRecord] | tuple[type[EventRecord], ...] | None = None) -> list[Any]:
+    """The driver's events of the bag (grader.contracts.events), in order, each with ``t`` = its
+    receive time; with ``kind`` (a model, or a tuple of them) only those of that kind."""
     df = topic(frames, EVENTS)
     if df is None or "data" not in df.columns:
         return []
-    kinds = {kind} if isinstance(kind, str) else (set(kind) if kind is not None else None)
-    out = []
-    for t, s in zip(times(df), df["data"]):
-        d = _loads(s)
-        if not d:
-            continue
-        if kinds is not None and d.get("event") not in kinds:
-            continue
-        d = dict(d)
-        d["t"] = float(t)
-        out.append(d)
-    return out
+    every = _parsed(df)
+    if kind is None:
+        return list(every)
+    models = kind if isinstance(kind, tuple) else (kind,)
+    return [e for e in every if type(e) in models]
 
 
 def sim_node(frames: Frames) -> str:
     """The reference simulator's node name (from ``scenario_start``): never a student's node."""
-    return str(next((e.get("sim_node") for e in events(frames, Event.SCENARIO_START)), None) or "turtlesim")
+    return next((e.sim_node for e in events(frames, ScenarioStart)), None) or "turtlesim"
 
 
-def own_exits(frames: Frames) -> list[dict]:
+def own_exits(frames: Frames) -> list[ProcessExit]:
     """``process_exit`` events of student processes that ended on their own (a crash, or a return
     while the scenario ran), not those the grader stopped at its end: what the run's summary, a
     node that never appeared and a turtle that stopped are each explained by."""
-    return [e for e in events(frames, Event.PROCESS_EXIT) if not e.get("stopped_by_grader")]
+    return [e for e in events(frames, ProcessExit) if not e.stopped_by_grader]
 
 
 def has_events(frames: Frames) -> bool:
@@ -250,11 +280,11 @@ def held_mask(frames: Frames, t: np.ndarray) -> np.ndarray:
     hand-over, time no student code could move the turtle in."""
     mask = np.zeros(len(t), dtype=bool)
     start = None
-    for e in events(frames, (Event.TURTLES_HELD, Event.TURTLES_RELEASED)):
-        if e["event"] == Event.TURTLES_HELD:
-            start = e["t"] if start is None else start
+    for e in events(frames, (TurtlesHeld, TurtlesReleased)):
+        if isinstance(e, TurtlesHeld):
+            start = e.t if start is None else start
         elif start is not None:
-            mask |= (t >= start) & (t <= e["t"])
+            mask |= (t >= start) & (t <= e.t)
             start = None
     if start is not None:
         mask |= t >= start
@@ -264,8 +294,8 @@ def held_mask(frames: Frames, t: np.ndarray) -> np.ndarray:
 def scenario_start(frames: Frames) -> float | None:
     """Receive time of the driver's ``scenario_start`` event: the origin of the times a report
     shows ("12.3 s after the scenario started"). None when the bag has no such event."""
-    ev = events(frames, "scenario_start")
-    return float(ev[0]["t"]) if ev else None
+    ev = events(frames, ScenarioStart)
+    return ev[0].t if ev else None
 
 
 def since_start(frames: Frames, t: Any) -> np.ndarray:
@@ -288,8 +318,8 @@ def thin(n: int, max_points: int = 400) -> np.ndarray:
 
 
 def scenario_end_time(frames: Frames) -> float:
-    ev = events(frames, Event.SCENARIO_END)
-    return ev[-1]["t"] if ev else end_time(frames)
+    ev = events(frames, ScenarioEnd)
+    return ev[-1].t if ev else end_time(frames)
 
 
 # --------------------------------------------------------------------------- student output lines

@@ -15,23 +15,14 @@ from typing import Any
 from grader.analyze import Finding
 from grader.analyze._common import Frames, events
 from grader.analyze.goals import goal_xy
-from grader.contracts.events import Event
+from grader.contracts.events import ActionGoalResponse, ActionGoalSent, ActionResult, ActionServerFound
 
 _STATUS = {0: "UNKNOWN", 1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
-_ID_KEYS = ("step",)      # the driver tags each goal's events with its step
 
 
-def _field(e: dict, *keys: str) -> Any:
-    for k in keys:
-        if k in e:
-            return e[k]
-        g = e.get("goal")
-        if isinstance(g, dict) and k in g:
-            return g[k]
-        r = e.get("request")
-        if isinstance(r, dict) and k in r:
-            return r[k]
-    return None
+def _field(goal: dict[str, Any], *keys: str) -> Any:
+    """The first of ``keys`` in the goal message (e.g. ``goal_tol``), None when it has none."""
+    return next((goal[k] for k in keys if k in goal), None)
 
 
 def _status_name(s: Any) -> str | None:
@@ -44,27 +35,26 @@ def _status_name(s: Any) -> str | None:
 
 def action_goals(frames: Frames) -> list[dict]:
     """Goals sent to the action server with their response and result, in send order."""
-    ev = events(frames, (Event.ACTION_GOAL_SENT, Event.ACTION_GOAL_RESPONSE, Event.ACTION_RESULT))
+    ev = events(frames, (ActionGoalSent, ActionGoalResponse, ActionResult))
     goals_: list[dict] = []
     wait_resp: list[dict] = []
     wait_res: list[dict] = []
     g: dict | None
     for e in ev:
-        kind = e["event"]
-        gid = next((str(e[k]) for k in _ID_KEYS if e.get(k) is not None), None)
-        if kind == Event.ACTION_GOAL_SENT:
-            xy = goal_xy(e.get("goal")) or goal_xy(e.get("request")) or goal_xy(e)
-            tol = _field(e, "goal_tol")
-            to = _field(e, "time_out", "timeout")
-            g = {"t_sent": e["t"], "x": xy[0] if xy else None, "y": xy[1] if xy else None,
+        gid = e.step or None               # the driver tags each goal's events with its step
+        if isinstance(e, ActionGoalSent):
+            xy = goal_xy(e.goal)
+            tol = _field(e.goal, "goal_tol")
+            to = _field(e.goal, "time_out", "timeout")
+            g = {"t_sent": e.t, "x": xy[0] if xy else None, "y": xy[1] if xy else None,
                  "goal_tol": float(tol) if tol is not None else None,
                  "time_out": float(to) if to is not None else None,
-                 "label": str(e.get("label") or e.get("purpose") or e.get("name") or ""),
+                 "label": "",
                  "id": gid, "accepted": None, "t_response": None, "status": None, "success": None,
                  "t_result": None}
             goals_.append(g)
             wait_resp.append(g)
-        elif kind == Event.ACTION_GOAL_RESPONSE:
+        elif isinstance(e, ActionGoalResponse):
             # the oldest goal still waiting with the same id (ids may repeat), else the oldest one
             g = next((c for c in wait_resp if gid is not None and c["id"] == gid), None) or \
                 next(iter(wait_resp), None)
@@ -72,8 +62,8 @@ def action_goals(frames: Frames) -> list[dict]:
                 continue
             if g in wait_resp:
                 wait_resp.remove(g)
-            g["accepted"] = bool(e.get("accepted"))
-            g["t_response"] = e["t"]
+            g["accepted"] = e.accepted
+            g["t_response"] = e.t
             if g["accepted"]:
                 wait_res.append(g)
         else:
@@ -83,21 +73,20 @@ def action_goals(frames: Frames) -> list[dict]:
                 continue
             if g in wait_res:
                 wait_res.remove(g)
-            res = e.get("result")
-            succ = res.get("success") if isinstance(res, dict) else e.get("success")
+            succ = e.result.get("success")
             g["success"] = None if succ is None else bool(succ)
-            g["status"] = _status_name(e.get("status"))
-            g["t_result"] = e["t"]
+            g["status"] = _status_name(e.status)
+            g["t_result"] = e.t
     return goals_
 
 
 def sent_elsewhere(frames: Frames, name: str | None = None) -> str | None:
     """The name the goals went to when the server offers the rubric's action (``name``: any)
     under another name of its type (``ActionGoal.by_type``), else None."""
-    for e in events(frames, (Event.ACTION_SERVER_FOUND, Event.ACTION_GOAL_SENT)):
-        asked = e.get("asked_for")
-        if asked and (name is None or "/" + str(asked).lstrip("/") == name):
-            return str(e.get("action"))
+    for e in events(frames, (ActionServerFound, ActionGoalSent)):
+        asked = e.asked_for
+        if asked and (name is None or "/" + asked.lstrip("/") == name):
+            return e.action
     return None
 
 
@@ -106,7 +95,7 @@ def under_other_action_name(frames: Frames, finding: Finding) -> Finding:
     other = sent_elsewhere(frames)
     if other is None or finding.status == "error":
         return finding
-    asked = next(str(e["asked_for"]) for e in events(frames, Event.ACTION_GOAL_SENT) if e.get("asked_for"))
+    asked = next(e.asked_for for e in events(frames, ActionGoalSent) if e.asked_for)
     note = (f" (Sent to {other}, the name your server offers the action under; the lab's name is {asked}: "
             "that is charged once, by the item about the action's name.)")
     return dataclasses.replace(finding, feedback=finding.feedback + note,

@@ -26,7 +26,8 @@ from grader.analyze._common import (Frames, sim_pose, events, meta, rosout_lines
 from grader.contracts.world import WORLD_SIZE_M
 from grader.analyze.goal_publisher import parse_xy_line
 from grader.analyze.action_goals import action_goals, sent_elsewhere, under_other_action_name
-from grader.contracts.events import Event
+from grader.contracts.events import (ActionGoalResponse, ActionGoalSent, ActionServerFound, ActionServerMissing,
+                                    ProcessExit, StdinLine)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -138,9 +139,9 @@ def _timeline(frames: Frames, pose_topic: str, max_points: int = 150) -> dict:
 def _no_action_events(frames: Frames) -> Finding:
     if topic(frames, "/grader/events") is None:
         return Finding.error("/grader/events was not recorded: the action scenario did not run (scenario problem).")
-    missing = events(frames, Event.ACTION_SERVER_MISSING)
-    if missing and not events(frames, Event.ACTION_GOAL_SENT):
-        name = missing[0].get("action") or "turtle_goal"
+    missing = events(frames, ActionServerMissing)
+    if missing and not events(frames, ActionGoalSent):
+        name = missing[0].action or "turtle_goal"
         return Finding.fail(f"No goal could be sent because the action server {name} was never found: "
                             "start the ActionServer in your node and keep spinning it.",
                             {"action_server_missing": len(missing)})
@@ -153,12 +154,10 @@ def _no_action_events(frames: Frames) -> Finding:
 def action_advertised(frames: Frames, p: dict) -> Finding:
     """The action server is advertised under the expected name (``ros2 action list`` shows it)."""
     name = "/" + str(p["action_name"]).lstrip("/")
-    found_ev = events(frames, (Event.ACTION_SERVER_FOUND, Event.ACTION_SERVER_MISSING))
-    ev: dict = {"action": name, "events": [{k: v for k, v in e.items()} for e in found_ev[:5]]}
+    found_ev = events(frames, (ActionServerFound, ActionServerMissing))
+    ev: dict = {"action": name, "events": [e.model_dump(exclude_unset=True) for e in found_ev[:5]]}
     for e in found_ev:
-        ok = e["event"] == Event.ACTION_SERVER_FOUND
-        act = e.get("action")
-        if ok and (act is None or "/" + str(act).lstrip("/") == name):
+        if isinstance(e, ActionServerFound) and (not e.action or "/" + e.action.lstrip("/") == name):
             return Finding(name, 1.0, "pass", f"The action server {name} was found on the ROS graph.", ev)
     m = meta(frames)
     action_topics = []
@@ -173,8 +172,7 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
         ev["action_topics"] = action_topics
         if ours:
             return Finding(name, 1.0, "pass", f"The action server {name} is advertised ({ours[0]} seen).", ev)
-    if any(e["event"] != Event.ACTION_SERVER_FOUND for e in found_ev) and not any(
-            e["event"] == Event.ACTION_SERVER_FOUND for e in found_ev):
+    if found_ev and not any(isinstance(e, ActionServerFound) for e in found_ev):
         return Finding.fail(f"The grader waited for the action server {name} but it never appeared: create "
                             f"ActionServer(..., action_name=\"{name.lstrip('/')}\", ...) and spin the node "
                             "(MultiThreadedExecutor as in the template).", ev)
@@ -185,9 +183,8 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
                        f"There is no action {name}: your server offers it as {elsewhere} (the grader sent its goals "
                        "there, so the other items judge what your server does). The lab's client and ros2 action "
                        f"send_goal use {name}: create ActionServer(..., \"{name.lstrip('/')}\", ...).", ev)
-    answered = events(frames, Event.ACTION_GOAL_RESPONSE)
-    if any((e.get("action") is None or "/" + str(e["action"]).lstrip("/") == name) and not e.get("asked_for")
-           for e in answered):
+    answered = events(frames, ActionGoalResponse)
+    if any((not e.action or "/" + e.action.lstrip("/") == name) and not e.asked_for for e in answered):
         return Finding(name, 1.0, "pass", f"The action server {name} answered goal requests.", ev)
     if topic(frames, "/grader/events") is None and m is None:
         return Finding.error("Neither events nor topic metadata were recorded (scenario problem).", ev)
@@ -377,19 +374,19 @@ def action_client_rejected(frames: Frames, p: dict) -> Finding:
     Why advisory: the client is given code; this item shows whether the student's server answers
     a rejection in a way the client can handle (a server that never responds makes it hang).
     """
-    stdin = events(frames, Event.STDIN_LINE)
-    procs = [e.get("process") for e in stdin]
+    stdin = events(frames, StdinLine)
+    procs = [e.process for e in stdin]
     proc = p["process"] or next((q for q in procs if q and "client" in str(q).lower()), procs[0] if procs else None)
-    lines = [e for e in stdin if e.get("process") == proc]
+    lines = [e for e in stdin if e.process == proc]
     if not lines:
         return Finding.error("No lines were typed into the action client, so its behaviour on a rejected goal "
                              "could not be tested.")
-    oob = [e for e in lines if (xy := parse_xy_line(e.get("line", ""))) is not None and
+    oob = [e for e in lines if (xy := parse_xy_line(e.line)) is not None and
            not (0 <= xy[0] <= p["outer_bound"] and 0 <= xy[1] <= p["outer_bound"])]
     if not oob:
         return Finding.error("No out-of-bounds goal was typed into the client.", {"process": proc})
     b = oob[0]
-    later = [e for e in lines if e["t"] > b["t"]]
+    later = [e for e in lines if e.t > b.t]
     ro = rosout_lines(frames)
     so = stdout_lines(frames)
     texts: list[tuple[float, str]] = []
@@ -400,25 +397,25 @@ def action_client_rejected(frames: Frames, p: dict) -> Finding:
         s = so[so["process"] == str(proc)]
         texts += list(zip(s["time"].tolist(), s["text"].tolist()))
     texts.sort()
-    t_end_window = later[0]["t"] if later else np.inf
-    rej = [tx for t, tx in texts if b["t"] - 0.05 <= t <= t_end_window + 0.5 and p["reject_pattern"] in tx.lower()]
-    exits = [e for e in events(frames, Event.PROCESS_EXIT) if e.get("process") == proc and e["t"] > b["t"]]
-    ev: dict = {"process": proc, "oob_line": b.get("line"), "reject_lines": rej[:3],
-                "exit_events": [{"t": e["t"], "returncode": e.get("returncode")} for e in exits]}
+    t_end_window = later[0].t if later else np.inf
+    rej = [tx for t, tx in texts if b.t - 0.05 <= t <= t_end_window + 0.5 and p["reject_pattern"] in tx.lower()]
+    exits = [x for x in events(frames, ProcessExit) if x.process == proc and x.t > b.t]
+    ev: dict = {"process": proc, "oob_line": b.line, "reject_lines": rej[:3],
+                "exit_events": [{"t": x.t, "returncode": x.returncode} for x in exits]}
     responsive = None
     if later:
-        t2 = later[0]["t"]
+        t2 = later[0].t
         after = [tx for t, tx in texts if t > t2 and tx.strip() and "goal position" not in tx.lower()]
         responsive = bool(after)
         ev["output_after_next_line"] = after[:3]
     ev["responsive_after"] = responsive
     if not rej:
         return Finding("no rejection message", 0.0, "fail",
-                       f"After the out-of-bounds goal '{b.get('line')}' the client never reported 'Goal Rejected': "
+                       f"After the out-of-bounds goal '{b.line}' the client never reported 'Goal Rejected': "
                        "your server must answer with GoalResponse.REJECT from goal_callback.", ev)
     if responsive is False:
         return Finding("hangs", 0.5, "partial",
                        "The client reported the rejection but did not react to the next goal afterwards.", ev)
     return Finding("rejected, responsive", 1.0, "pass",
-                   f"The client reported the rejection of '{b.get('line')}'"
+                   f"The client reported the rejection of '{b.line}'"
                    + (" and kept working." if responsive else "."), ev)

@@ -16,10 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from grader.analyze._common import Frames, events, meta, norm_type
+from grader.analyze._common import Frames, events, meta, norm_type, sim_node
 from grader.rubric.contract import (Contract, ExecutableEntry, LaunchEntry, Mismatch, NodeEntry, PackageEntry,
                                     TopicEntry, node_name)
-from grader.contracts.events import Event
+from grader.contracts.events import Graph, Packages
 
 #: topics every node has, and the grader's own
 _STANDARD_TOPICS = ("/rosout", "/parameter_events", "/clock")
@@ -43,18 +43,17 @@ class _Graph:
 
     @classmethod
     def of(cls, frames: Frames) -> "_Graph":
-        start = events(frames, Event.SCENARIO_START)
-        g = cls(sim=str((start[0].get("sim_node") if start else None) or "turtlesim"))
-        for e in events(frames, Event.GRAPH):
-            g.nodes |= {node_name(n) for n in e.get("nodes") or []}
-            g.services |= set(e.get("services") or [])
-            for key, target in (("publishers", g.pubs), ("subscribers", g.subs), ("topic_types", g.topic_types),
-                                ("service_types", g.service_types)):
-                for name, values in (e.get(key) or {}).items():
+        g = cls(sim=sim_node(frames))
+        for e in events(frames, Graph):
+            g.nodes |= {node_name(n) for n in e.nodes}
+            g.services |= set(e.services)
+            for table, target in ((e.publishers, g.pubs), (e.subscribers, g.subs), (e.topic_types, g.topic_types),
+                                  (e.service_types, g.service_types)):
+                for name, values in table.items():
                     target.setdefault(name, set()).update(str(v) for v in values or [])
-            if isinstance(e.get("servers"), dict):
+            if e.servers is not None:
                 g.servers = g.servers or {}
-                for name, values in e["servers"].items():
+                for name, values in e.servers.items():
                     g.servers.setdefault(name, set()).update(str(v) for v in values or [])
         m = meta(frames)
         if m is not None and "type" in m.columns:        # recorded topics' types (older bags)
@@ -78,8 +77,8 @@ class _Graph:
 
 
 def _facts(frames: Frames) -> dict[str, dict[str, Any]] | None:
-    found = events(frames, Event.PACKAGES)
-    return found[-1].get("packages") if found else None
+    found = events(frames, Packages)
+    return found[-1].packages if found else None
 
 
 def _said(kind: str, expected: str, found: list[str], lead: str, tail: str = "") -> str:

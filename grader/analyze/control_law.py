@@ -25,7 +25,7 @@ from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback,
 from grader.analyze.goals import fit_gain, heading_error
 from grader.analyze.action_goals import under_other_action_name
 from grader.analyze.controller import _GOAL_DEFAULTS, EVIDENCE, _goals_with_end, _no_goals, _no_pose, _pose
-from grader.contracts.events import Event
+from grader.contracts.events import TurtlesReleased
 
 
 @register("control_law", evidence={**EVIDENCE, "value": ("fitted control law", "")},
@@ -136,7 +136,7 @@ def _paired_commands(frames: Frames, p: dict, cmd: pd.DataFrame, pose: pd.DataFr
     since = j["t"].to_numpy() - goal_t[k]
     # a goal handed over while the turtle was held: from its release (until then a command may
     # still be for the old goal); else skip_after_goal_s after it
-    released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
+    released = {e.step: e.t for e in events(frames, TurtlesReleased) if e.ok}
     start = np.array([released.get(g.extra.get("step"), g.t + p["skip_after_goal_s"]) for g in gl])
     j = j[(since >= p["skip_after_goal_s"]) & (j["t"].to_numpy() >= start[k])]
     return j, gd

@@ -28,7 +28,7 @@ from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback,
 from grader.contracts.world import WORLD_SIZE_M
 from grader.analyze.goals import SentGoal, goals
 from grader.analyze.evidence import SHARE, TIME
-from grader.contracts.events import Event
+from grader.contracts.events import ScenarioEnd, StepEnd
 
 #: labels and units of the evidence (see grader.analyze.evidence); shared by the three analyzers
 EVIDENCE = {
@@ -129,8 +129,8 @@ def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[SentGoa
     if p["steps"]:
         gl = [g for g in gl if g.extra.get("step") in set(p["steps"])]
     t_last = float(pose.index.max())
-    ends = {e.get("step"): e["t"] for e in events(frames, Event.STEP_END) if e.get("step") is not None}
-    scen_end = [e["t"] for e in events(frames, Event.SCENARIO_END)]
+    ends = {e.step: e.t for e in events(frames, StepEnd)}
+    scen_end = [e.t for e in events(frames, ScenarioEnd)]
     for g in gl:
         cands = [t_last]
         if math.isfinite(g.t_end):

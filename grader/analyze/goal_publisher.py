@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -18,7 +18,7 @@ from grader.analyze import Finding, register
 from grader.analyze.evidence import SHARE, TIME
 from grader.analyze._common import (Frames, events, missing_topic_feedback, own_exits, stdout_lines, times,
                                     topic)
-from grader.contracts.events import Event
+from grader.contracts.events import ProcessExit, StdinLine
 
 
 def parse_xy_line(line: str) -> tuple[float, float] | None:
@@ -35,17 +35,17 @@ def parse_xy_line(line: str) -> tuple[float, float] | None:
     return x, y
 
 
-def _stdin(frames: Frames, process: str | None) -> tuple[str | None, list[dict]]:
+def _stdin(frames: Frames, process: str | None) -> tuple[str | None, list[StdinLine]]:
     """stdin_line events of the goal publisher process (given, or the only/first one typed to)."""
-    ev = events(frames, Event.STDIN_LINE)
+    ev = events(frames, StdinLine)
     procs = []
     for e in ev:
-        if e.get("process") not in procs:
-            procs.append(e.get("process"))
+        if e.process not in procs:
+            procs.append(e.process)
     if process is None:
         pick = [q for q in procs if q and "goal" in str(q).lower()]
         process = pick[0] if pick else (procs[0] if procs else None)
-    return process, [e for e in ev if e.get("process") == process]
+    return process, [e for e in ev if e.process == process]
 
 
 def _goal_msgs(frames: Frames, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
@@ -91,11 +91,11 @@ EVIDENCE = {
 def goal_publisher(frames: Frames, p: dict) -> Finding:
     """The typed goals appear on /turtle1/goal as [x, y], in the order they were typed."""
     proc, lines = _stdin(frames, p["process"])
-    expected = []
+    expected: list[dict[str, Any]] = []
     for e in lines:
-        xy = parse_xy_line(e.get("line", ""))
-        if xy is not None and e.get("delivered") is not False:
-            expected.append({"x": xy[0], "y": xy[1], "t": e["t"], "line": e.get("line")})
+        xy = parse_xy_line(e.line)
+        if xy is not None and e.delivered:
+            expected.append({"x": xy[0], "y": xy[1], "t": e.t, "line": e.line})
     if not expected:
         expected = [{"x": float(a), "y": float(b), "t": -np.inf, "line": f"{a},{b}"} for a, b in p["expected"]]
     msgs = _goal_msgs(frames, p["goal_topic"])
@@ -103,12 +103,12 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
     # goals typed after a malformed line the node did not survive are goal_publisher_robust's
     # business: whether the next line still reached the dying process is a matter of a few
     # milliseconds (bench_flake: 1 of 2 goals in one run of three, 1 of 1 in the others)
-    bad = [e for e in lines if parse_xy_line(e.get("line", "")) is None]
+    bad = [e for e in lines if parse_xy_line(e.line) is None]
     if bad and _stopped_by(frames, proc, bad[0], p):
-        after = [g for g in expected if g["t"] > bad[0]["t"]]
+        after = [g for g in expected if g["t"] > bad[0].t]
         if after:
-            expected = [g for g in expected if g["t"] <= bad[0]["t"]]
-            ev["after_malformed"] = {"line": bad[0].get("line"), "not_counted": [g["line"] for g in after]}
+            expected = [g for g in expected if g["t"] <= bad[0].t]
+            ev["after_malformed"] = {"line": bad[0].line, "not_counted": [g["line"] for g in after]}
     ev["expected"] = [[g["x"], g["y"]] for g in expected]
     if msgs is None:
         return Finding.fail(missing_topic_feedback(frames, p["goal_topic"], "std_msgs/msg/Float32MultiArray [x, y]")
@@ -153,27 +153,27 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
 _TRACEBACK = re.compile(r"^\s*(Traceback \(most recent call last\)|\w+(Error|Exception)\b.*)")
 
 
-def _exits_and_traceback(frames: Frames, proc: str | None, bad: dict) -> tuple[list[dict], list[str]]:
+def _exits_and_traceback(frames: Frames, proc: str | None, bad: StdinLine) -> tuple[list[ProcessExit], list[str]]:
     """The process's own exits (not the grader's stopping it) from the malformed line ``bad`` on,
     and the traceback lines it printed from then."""
-    exits = [e for e in own_exits(frames) if e.get("process") == proc and e["t"] >= bad["t"]]
+    exits = [e for e in own_exits(frames) if e.process == proc and e.t >= bad.t]
     out = stdout_lines(frames)
     tb: list[str] = []
     if len(out):
-        mine = out[(out["process"] == str(proc)) & (out["time"] >= bad["t"] - 0.05)]
+        mine = out[(out["process"] == str(proc)) & (out["time"] >= bad.t - 0.05)]
         tb = [s for s in mine["raw"].tolist() if _TRACEBACK.match(s)]
     return exits, tb
 
 
-def _stopped_by(frames: Frames, proc: str | None, bad: dict, p: dict) -> bool:
+def _stopped_by(frames: Frames, proc: str | None, bad: StdinLine, p: dict) -> bool:
     """The process stopped on its own after the malformed line ``bad`` (an exit with an error,
     or a traceback in its output) and published none of the goals typed after it. Timing-free:
     when the exit came (before or after the next line was typed) does not matter."""
     exits, tb = _exits_and_traceback(frames, proc, bad)
-    if not (tb or any(e.get("returncode") not in (0, None) for e in exits)):
+    if not (tb or any(e.returncode not in (0, None) for e in exits)):
         return False
     msgs = _goal_msgs(frames, p["goal_topic"])
-    return msgs is None or not bool(np.any(msgs[0] > bad["t"]))
+    return msgs is None or not bool(np.any(msgs[0] > bad.t))
 
 
 @register("goal_publisher_robust", evidence={**EVIDENCE, "value": ("after a malformed line", "")},
@@ -193,42 +193,42 @@ def goal_publisher_robust(frames: Frames, p: dict) -> Finding:
     if not lines:
         return Finding.error("The scenario recorded no stdin_line events, so robustness to a malformed line "
                              "could not be tested.")
-    bad = [e for e in lines if parse_xy_line(e.get("line", "")) is None]
+    bad = [e for e in lines if parse_xy_line(e.line) is None]
     if not bad:
         return Finding.error("The scenario typed no malformed line, so robustness could not be tested.",
                              {"process": proc})
     b = bad[0]
-    later = [e for e in lines if e["t"] > b["t"]]
-    next_t = later[0]["t"] if later else np.inf
-    ev: dict = {"process": proc, "malformed_line": b.get("line"), "t_malformed": b["t"]}
+    later = [e for e in lines if e.t > b.t]
+    next_t = later[0].t if later else np.inf
+    ev: dict = {"process": proc, "malformed_line": b.line, "t_malformed": b.t}
     exits, tb = _exits_and_traceback(frames, proc, b)
-    crash_exit = [e for e in exits if e["t"] < next_t + 0.5]
-    undelivered = [e for e in later if e.get("delivered") is False]
-    ev.update({"exit_events": [{"t": e["t"], "returncode": e.get("returncode")} for e in exits],
-               "traceback_lines": tb[:6], "undelivered_lines": [e.get("line") for e in undelivered]})
-    good_later = [parse_xy_line(e.get("line", "")) for e in later]
+    crash_exit = [e for e in exits if e.t < next_t + 0.5]
+    undelivered = [e for e in later if not e.delivered]
+    ev.update({"exit_events": [{"t": e.t, "returncode": e.returncode} for e in exits],
+               "traceback_lines": tb[:6], "undelivered_lines": [e.line for e in undelivered]})
+    good_later = [parse_xy_line(e.line) for e in later]
     good_later = [g for g in good_later if g is not None]
     survived = False
     msgs = _goal_msgs(frames, p["goal_topic"])
     if msgs is not None and good_later:
         t, x, y, _ = msgs
         gx, gy = cast(tuple, good_later[0])          # (Nones filtered out above)
-        survived = bool(np.any((t > b["t"]) & (np.abs(x - gx) <= p["tol"]) & (np.abs(y - gy) <= p["tol"])))
+        survived = bool(np.any((t > b.t) & (np.abs(x - gx) <= p["tol"]) & (np.abs(y - gy) <= p["tol"])))
     ev["later_goal_published"] = survived
     if crash_exit or undelivered or (tb and not survived):
         if tb:
             exc = tb[-1].strip()
         elif crash_exit:
-            exc = f"exit code {crash_exit[0].get('returncode')}"
+            exc = f"exit code {crash_exit[0].returncode}"
         else:
             exc = "the process had exited when the next line was typed"
         return Finding("crashed", 0.0, "fail",
-                       f"Your goal publisher crashed on the malformed line '{b.get('line')}' ({exc}). "
+                       f"Your goal publisher crashed on the malformed line '{b.line}' ({exc}). "
                        "Do the split and float conversion inside try/except (e.g. catch ValueError) and "
                        "print \"Wrong data format!\".", ev)
     if survived or not good_later:
         return Finding("survived", 1.0, "pass",
-                       f"Your goal publisher handled the malformed line '{b.get('line')}' and kept working.", ev)
+                       f"Your goal publisher handled the malformed line '{b.line}' and kept working.", ev)
     return Finding("unclear", 0.0, "fail",
-                   f"After the malformed line '{b.get('line')}' the next typed goal was never published: make "
+                   f"After the malformed line '{b.line}' the next typed goal was never published: make "
                    "sure a bad line is rejected and the loop keeps reading input.", ev)

@@ -10,7 +10,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from grader.analyze._common import TELEPORT_SERVICES, Frames, events, times, topic
-from grader.contracts.events import Event
+from grader.contracts.events import ActionGoalSent, GoalSent, ServiceCall
 
 
 def goal_xy(obj: Any) -> tuple[float, float] | None:
@@ -62,19 +62,17 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
     if source == "action":
         # goals sent to an action server (``action:`` steps): the same geometry, driven by the
         # server's execute loop instead of a topic-fed controller
-        for e in events(frames, Event.ACTION_GOAL_SENT):
-            xy = goal_xy(e.get("goal"))
+        for sent in events(frames, ActionGoalSent):
+            xy = goal_xy(sent.goal)
             if xy is not None:
-                out.append(SentGoal(e["t"], xy[0], xy[1], "action", extra={"step": e.get("step")}))
+                out.append(SentGoal(sent.t, xy[0], xy[1], "action", extra={"step": sent.step}))
     if source in ("auto", "events"):
-        for e in events(frames, Event.GOAL_SENT):
-            if e.get("topic") not in (None, goal_topic):
+        for e in events(frames, GoalSent):
+            if e.topic not in (None, goal_topic):
                 continue                      # a Float32MultiArray published elsewhere
-            xy = goal_xy(e.get("goal"))
-            if xy is None:
-                xy = goal_xy(e)
+            xy = goal_xy(e.goal)
             if xy is not None:
-                out.append(SentGoal(e["t"], xy[0], xy[1], "events", extra={"step": e.get("step")}))
+                out.append(SentGoal(e.t, xy[0], xy[1], "events", extra={"step": e.step}))
     if not out and source in ("auto", "topic"):
         df = topic(frames, goal_topic)
         if df is not None and "data[0]" in df.columns and "data[1]" in df.columns:
@@ -89,8 +87,7 @@ def goals(frames: Frames, source: str = "auto", goal_topic: str = "/turtle1/goal
         merged.append(g)
     for a, b in zip(merged, merged[1:]):
         a.t_end = b.t
-    placed = sorted(e["t"] for e in events(frames, Event.SERVICE_CALL)
-                    if str(e.get("service", "")).rsplit("/", 1)[-1] in TELEPORT_SERVICES)
+    placed = sorted(c.t for c in events(frames, ServiceCall) if c.service.rsplit("/", 1)[-1] in TELEPORT_SERVICES)
     for g in merged:
         after = [t for t in placed if t > g.t and not t >= g.t_end]     # t_end NaN: the last goal
         if after:

@@ -11,7 +11,7 @@ from typing import cast
 
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze._common import Frames, events, own_exits, sim_node
-from grader.contracts.events import Event
+from grader.contracts.events import Graph, LaunchResolved, NodeStarted, NodeUnavailable
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -39,20 +39,20 @@ def nodes_running(frames: Frames, p: dict) -> Finding:
     expected = [_full(n) for n in p["nodes"]]
     if not expected:
         return Finding.error("The rubric lists no nodes to look for (params: nodes).")
-    snapshots = events(frames, Event.GRAPH)
+    snapshots = events(frames, Graph)
     if not snapshots:
         return Finding.error("The scenario recorded no graph snapshots (scenario problem).")
-    seen = sorted({_full(n) for e in snapshots for n in (e.get("nodes") or [])})
+    seen = sorted({_full(n) for e in snapshots for n in e.nodes})
     stale = [n for n in expected if n in seen and not _seen_running(frames, snapshots, n)]
     declared: list[str] | None = None
     launch = None
     if p["launch_process"]:
-        resolved = [e for e in events(frames, Event.LAUNCH_RESOLVED) if e.get("process") == p["launch_process"]]
+        resolved = [e for e in events(frames, LaunchResolved) if e.process == p["launch_process"]]
         if not resolved:
             return Finding.error(f"No launch file was resolved for process {p['launch_process']!r} "
                                  "(scenario problem).")
-        launch = resolved[-1].get("launch")
-        nodes = resolved[-1].get("nodes") or []
+        launch = resolved[-1].launch
+        nodes = resolved[-1].nodes
         declared = [_full(n["node_name"]) for n in nodes if n.get("node_name")]
         failed = [n.get("error") for n in nodes if n.get("error") and not n.get("node_name")]
         if failed:
@@ -83,14 +83,14 @@ def _makers(frames: Frames, name: str) -> list[str]:
     """The student processes that could have created node ``name``: those started to make it
     (a launch file's node), else those whose node names nobody declared (``ros2 run``) unless
     ``name`` is the reference simulator's or the grader's own."""
-    started = events(frames, Event.NODE_STARTED)
-    declared = [str(e.get("process")) for e in started if _full(e.get("node_name") or "") == name]
+    started = events(frames, NodeStarted)
+    declared = [e.process for e in started if _full(e.node_name or "") == name]
     if declared or name == _full(sim_node(frames)) or name.rsplit("/", 1)[-1].startswith("grader_"):
         return declared
-    return [str(e.get("process")) for e in started if not e.get("node_name")]
+    return [e.process for e in started if not e.node_name]
 
 
-def _seen_running(frames: Frames, snapshots: list[dict], name: str) -> bool:
+def _seen_running(frames: Frames, snapshots: list[Graph], name: str) -> bool:
     """Node ``name`` is in a snapshot taken while a process that could have made it was alive.
 
     The graph lags behind a process that has died, so a snapshot taken after the crash of the
@@ -101,9 +101,9 @@ def _seen_running(frames: Frames, snapshots: list[dict], name: str) -> bool:
     """
     makers = set(_makers(frames, name))
     for e in snapshots:
-        if name not in {_full(n) for n in (e.get("nodes") or [])}:
+        if name not in {_full(n) for n in e.nodes}:
             continue
-        running = e.get("running")
+        running = e.running
         if not makers or running is None or makers & set(running):
             return True
     return False
@@ -113,15 +113,15 @@ def _why_absent(frames: Frames, name: str, seen: list[str]) -> str:
     """What became of the process that should have created node ``name``: it could not be
     started, it exited (crashed, or returned on its own), or it ran and created other nodes."""
     mine = _makers(frames, name)
-    unavailable = [e for e in events(frames, Event.NODE_UNAVAILABLE)
-                   if not e.get("node_name") or _full(e.get("node_name") or "") == name]
+    unavailable = [e for e in events(frames, NodeUnavailable)
+                   if not e.node_name or _full(e.node_name) == name]
     if not mine and unavailable:
-        return f"{unavailable[0].get('process')} could not be started"
-    exits = [e for e in own_exits(frames) if e.get("process") in mine]
+        return f"{unavailable[0].process} could not be started"
+    exits = [e for e in own_exits(frames) if e.process in mine]
     if exits:
-        code = exits[0].get("returncode")
-        return (f"{exits[0].get('process')} crashed with exit code {code}" if code not in (0, None)
-                else f"{exits[0].get('process')} returned on its own before its node was seen running")
+        code = exits[0].returncode
+        return (f"{exits[0].process} crashed with exit code {code}" if code not in (0, None)
+                else f"{exits[0].process} returned on its own before its node was seen running")
     others = [n for n in seen if not n.rsplit("/", 1)[-1].startswith("grader_")]
     return ("its process kept running; the nodes seen are " + ", ".join(others)) if others else \
         "its process kept running without creating a node"
@@ -134,14 +134,14 @@ def _why_absent(frames: Frames, name: str, seen: list[str]) -> str:
 def launch_installed(frames: Frames, p: dict) -> Finding:
     """The launch file is installed into the package's share folder, where ``ros2 launch
     <package> <file>`` looks (setup.py ``data_files``)."""
-    resolved = [e for e in events(frames, Event.LAUNCH_RESOLVED) if e.get("process") == p["launch_process"]]
+    resolved = [e for e in events(frames, LaunchResolved) if e.process == p["launch_process"]]
     if not resolved:
         return Finding.error(f"No launch file was resolved for process {p['launch_process']!r}.")
     e = resolved[-1]
-    ev = {"launch": e.get("launch"), "installed": bool(e.get("installed")), "notes": e.get("notes") or []}
-    if e.get("installed"):
-        return Finding("installed", 1.0, "pass", f"{e.get('launch')} is installed with the package.", ev)
-    if not ev["notes"] and any(c in str(e.get("launch")) for c in "*?["):
-        return Finding.fail(f"The package has no launch file ({e.get('launch')}).", ev, value="no launch file")
-    return Finding.fail(" ".join(cast(list, ev["notes"])) or f"{e.get('launch')} is not installed with the package.", ev,
+    ev = {"launch": e.launch, "installed": e.installed, "notes": list(e.notes)}
+    if e.installed:
+        return Finding("installed", 1.0, "pass", f"{e.launch} is installed with the package.", ev)
+    if not ev["notes"] and any(c in str(e.launch) for c in "*?["):
+        return Finding.fail(f"The package has no launch file ({e.launch}).", ev, value="no launch file")
+    return Finding.fail(" ".join(cast(list, ev["notes"])) or f"{e.launch} is not installed with the package.", ev,
                         value="not installed")

@@ -29,7 +29,7 @@ from grader.analyze._common import (Frames, end_time, events, meta, publishers_o
 from grader.analyze.rate import rate_stats
 from grader.sim import truth_pose_topic
 from grader.sim.record import record_topic
-from grader.contracts.events import Event
+from grader.contracts.events import Graph
 
 DT = 0.016
 
@@ -76,10 +76,9 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
     name = p["pose_topic"]
     allowed = {str(a).strip("/").rsplit("/", 1)[-1] for a in p["allowed"]}
     pubs = publishers_of(frames, name) + publishers_of(frames, truth_pose_topic(name))
-    for e in events(frames, Event.GRAPH):        # the driver's snapshots of the ROS graph
+    for e in events(frames, Graph):        # the driver's snapshots of the ROS graph
         for topic_name in (name, truth_pose_topic(name)):
-            g = (e.get("publishers") or {}).get(topic_name) if isinstance(e.get("publishers"), dict) else None
-            for node in g or []:
+            for node in e.publishers.get(topic_name) or []:
                 if node not in pubs:
                     pubs.append(str(node))
     pubs = list(dict.fromkeys(pubs))

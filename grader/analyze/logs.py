@@ -22,7 +22,7 @@ from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SHARE
 from grader.analyze._common import (EVENTS, Frames, events, missing_topic_feedback, rosout_lines,
                                     sim_node, stdout_lines, times, topic, traceback_mask)
-from grader.contracts.events import Event
+from grader.contracts.events import EventRecord, Graph, StepStart
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -108,9 +108,8 @@ def _subscribers(frames: Frames, name: str) -> set[str]:
     """Student nodes seen subscribing to ``name`` in the driver's graph snapshots."""
     sim = sim_node(frames)
     out = set()
-    for e in events(frames, Event.GRAPH):
-        subs: dict = e["subscribers"] if isinstance(e.get("subscribers"), dict) else {}
-        for node in subs.get(name) or []:
+    for e in events(frames, Graph):
+        for node in e.subscribers.get(name) or []:
             if not str(node).startswith("grader_") and str(node) != sim:
                 out.add(str(node))
     return out
@@ -227,10 +226,10 @@ def _judged(frames: Frames, df: pd.DataFrame, p: dict) -> pd.DataFrame | None:
     it, else receive time; the step's start event likewise), the first ``max_messages`` of them.
     None when the bag has no such step."""
     if p.get("after_step"):
-        starts = [e for e in events(frames, Event.STEP_START) if e.get("step") == p["after_step"]]
+        starts = [e for e in events(frames, StepStart) if e.step == p["after_step"]]
         if not starts:
             return None
-        t0 = float(starts[0]["t"])
+        t0 = starts[0].t
         sent = times(df)
         if "pub_t" in df.columns:
             pt = df["pub_t"].to_numpy(float)
@@ -243,12 +242,12 @@ def _judged(frames: Frames, df: pd.DataFrame, p: dict) -> pd.DataFrame | None:
     return df
 
 
-def _event_sent(frames: Frames, event: dict) -> float | None:
+def _event_sent(frames: Frames, event: EventRecord) -> float | None:
     """The send time of one /grader/events message (None when the bag has none for it)."""
     ev = topic(frames, EVENTS)
     if ev is None or "pub_t" not in ev.columns:
         return None
-    row = np.flatnonzero(times(ev) == event["t"])
+    row = np.flatnonzero(times(ev) == event.t)
     if not len(row):
         return None
     v = float(ev["pub_t"].to_numpy(float)[row[0]])

@@ -253,12 +253,12 @@ def keeps_moving(frames: Frames, p: dict) -> Finding:
     # crash (wall_pen's hits_wall.flip_sign: moving 90 % in one run, 100 % in two, the same
     # crash). It drove the turtle if the commands ended with it (a bystander's crash does not count)
     crashes = [e for e in own_exits(frames)
-               if e.get("returncode") not in (0, None) and ct[-1] <= e["t"] + p["max_gap_s"]]
+               if e.returncode not in (0, None) and ct[-1] <= e.t + p["max_gap_s"]]
     if crashes:
-        first = min(crashes, key=lambda e: e["t"])
-        ev["crashed"] = f"{first.get('process')} (exit code {first.get('returncode')})"
-        problems.append(f"a student process ({first.get('process')}) crashed (exit code "
-                        f"{first.get('returncode')}) while the scenario ran, so nothing drove the turtle "
+        first = min(crashes, key=lambda e: e.t)
+        ev["crashed"] = f"{first.process} (exit code {first.returncode})"
+        problems.append(f"a student process ({first.process}) crashed (exit code "
+                        f"{first.returncode}) while the scenario ran, so nothing drove the turtle "
                         "for the rest of it")
     slow = bool(len(gaps)) and gaps.max() >= p["max_gap_s"]
     if slow:

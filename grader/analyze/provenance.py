@@ -31,7 +31,7 @@ from grader.analyze import Finding
 from grader.analyze._common import Frames, events, service_calls, sim_pose, since_start, times, topic
 from grader.analyze.evidence import SINCE_START
 from grader.scenario.client_gid import GUID_PREFIX_BYTES
-from grader.contracts.events import Event
+from grader.contracts.events import ServiceCall
 
 GRADER, STUDENT, UNKNOWN = "grader", "student code", "unknown"
 #: services of a turtle that put it somewhere without driving it
@@ -71,9 +71,9 @@ def driver_participants(frames: Frames) -> set[tuple[int, ...]] | None:
     """GUID prefixes of the clients the driver called with; None when a driver call has no GID
     (the recording cannot tell the grader's calls from others)."""
     out: set[tuple[int, ...]] = set()
-    for e in events(frames, Event.SERVICE_CALL):
-        gid = e.get("client_gid")
-        if not isinstance(gid, list) or len(gid) < GUID_PREFIX_BYTES:
+    for e in events(frames, ServiceCall):
+        gid = e.client_gid
+        if gid is None or len(gid) < GUID_PREFIX_BYTES:
             return None
         out.add(tuple(int(b) for b in gid[:GUID_PREFIX_BYTES]))
     return out

@@ -16,7 +16,7 @@ import pandas as pd
 from grader.analyze import REQUIRED, Finding, graded, register
 from grader.analyze.evidence import SINCE_START
 from grader.analyze._common import Frames, events, missing_topic_feedback, since_start, times, topic
-from grader.contracts.events import Event
+from grader.contracts.events import ServiceCall, ServiceMissing, ServiceResponse
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -36,20 +36,20 @@ def _calls(frames: Frames, service: str) -> list[dict[str, Any]]:
     call the driver made to the name the student's node serves it under instead
     (``ServiceCall.served_by``) is one too, with that name in ``under``."""
     out: list[dict[str, Any]] = []
-    for e in events(frames, (Event.SERVICE_CALL, Event.SERVICE_RESPONSE)):
-        if service not in (e.get("service"), e.get("asked_for")):
+    for e in events(frames, (ServiceCall, ServiceResponse)):
+        if service not in (e.service, e.asked_for):
             continue
-        if e["event"] == Event.SERVICE_CALL:
-            under = e.get("service") if e.get("asked_for") == service else None
-            out.append({"t": e["t"], "step": e.get("step"), "type": e.get("type"), "under": under,
-                        "request": e.get("request") or {}, "response": None, "answered": False})
+        if isinstance(e, ServiceCall):
+            under = e.service if e.asked_for == service else None
+            out.append({"t": e.t, "step": e.step, "type": e.type, "under": under,
+                        "request": e.request, "response": None, "answered": False})
         elif out and not out[-1]["answered"]:
-            out[-1].update(response=e.get("response"), answered=e.get("response") is not None)
+            out[-1].update(response=e.response, answered=e.response is not None)
     return out
 
 
 def _no_calls(frames: Frames, service: str) -> Finding:
-    missing = [e for e in events(frames, Event.SERVICE_MISSING) if e.get("service") == service]
+    missing = [e for e in events(frames, ServiceMissing) if e.service == service]
     if missing:
         return Finding.fail(f"The service {service} never appeared: create it with "
                             f"create_service(<type>, '{service.lstrip('/')}', callback) and keep spinning.",

@@ -6,7 +6,10 @@ here and from ``grader.analyze`` (``register``, ``Finding``, ``graded``, ``REQUI
 the underscored modules, whose names may change with the built-in analyzers::
 
     from grader.analyze import REQUIRED, Finding, graded, register
-    from grader.analyze.toolkit import missing_topic_feedback, since_start, sim_pose, thin
+    from grader.analyze.toolkit import events, missing_topic_feedback, since_start, sim_pose, thin
+    from grader.contracts.events import StepStart      # the driver's events, one model per kind
+
+    starts = [e.t for e in events(frames, StepStart) if e.step == "goal1"]
 
 The frames an analyzer gets are described in docs/ARCHITECTURE.md ("Bag → DataFrames"): topic
 name → DataFrame indexed by receive time ``t`` (seconds), plus ``"__meta__"`` (one row per topic).

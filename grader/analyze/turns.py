@@ -19,7 +19,7 @@ from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import Frames, events, since_start, thin, times, topic
 from grader.analyze.controller import _GOAL_DEFAULTS, EVIDENCE, pose_and_goals
 from grader.analyze.goals import SentGoal, heading_error
-from grader.contracts.events import Event
+from grader.contracts.events import TurtlesReleased
 
 
 @register("turn_direction", evidence={**EVIDENCE, "value": ("goals turned the short way", "")},
@@ -60,7 +60,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
     cmd = topic(frames, p["cmd_topic"])
-    released = {e.get("step"): e["t"] for e in events(frames, Event.TURTLES_RELEASED) if e.get("ok")}
+    released = {e.step: e.t for e in events(frames, TurtlesReleased) if e.ok}
     moved = provenance.moves(frames, p["pose_topic"])
     counted: list[provenance.Call] = []
     rows: list[dict[str, Any]] = []
@@ -94,7 +94,7 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
             rows.append(row)
             continue
         judged += 1
-        good += _turned_short_way(p, g, req, t, th, cmd, released.get(g.extra.get("step")), row)
+        good += _turned_short_way(p, g, req, t, th, cmd, released.get(str(g.extra.get("step"))), row)
         rows.append(row)
     ev: dict[str, Any] = {"goals": rows, "heading_error": series}
     if counted:

@@ -19,7 +19,7 @@ from grader.analyze._common import events, own_exits, stdout_lines
 from grader.errors import GraderError
 from grader.grading.repeat import exact_lockstep, outcome, repeated_finding, run_folders, settled
 from grader.grading.starvation import recorded_scale, starvation
-from grader.contracts.events import Event
+from grader.contracts.events import Graph, LimitHit, NodeUnavailable, StepStart
 
 if TYPE_CHECKING:
     from grader.analyze import Finding
@@ -49,8 +49,8 @@ def scenario_frames(scenario_dir: Path) -> dict:
                          lockstep=locked)
     meta = load_bag_meta(bag)
     publishers: dict[str, set[str]] = {}
-    for ev in events(frames, Event.GRAPH):
-        for topic, nodes in (ev.get("publishers") or {}).items():
+    for snapshot in events(frames, Graph):
+        for topic, nodes in snapshot.publishers.items():
             publishers.setdefault(topic, set()).update(nodes)
     frames["__meta__"] = pd.DataFrame(
         [{"topic": n, "type": t.type, "count": t.count, "publishers": sorted(publishers.get(n, set()))}
@@ -65,8 +65,8 @@ def scenario_frames(scenario_dir: Path) -> dict:
 
 
 def _unavailable_nodes(frames: dict) -> list[str]:
-    return [f"{e.get('process')}: {str(e.get('error', '')).splitlines()[0] if e.get('error') else 'not available'}"
-            for e in events(frames, Event.NODE_UNAVAILABLE)]
+    return [f"{e.process}: {e.error.splitlines()[0] if e.error else 'not available'}"
+            for e in events(frames, NodeUnavailable)]
 
 
 def _crashed_nodes(frames: dict) -> list[str]:
@@ -75,16 +75,15 @@ def _crashed_nodes(frames: dict) -> list[str]:
     lines = stdout_lines(frames)
     last_line = {process: str(raw).strip() for process, raw in zip(lines["process"], lines["raw"])
                  if str(raw).strip()}
-    limits = [str(e.get("detail") or e.get("limit") or e.get("what") or "") for e in events(frames, Event.LIMIT_HIT)]
-    starts = sorted((e["t"], str(e["step"])) for e in events(frames, Event.STEP_START)     # every event has a t
-                    if e.get("step") is not None)
+    limits = [e.detail or e.limit for e in events(frames, LimitHit)]
+    starts = sorted((s.t, s.step) for s in events(frames, StepStart))
     out = []
     for e in own_exits(frames):
-        name = e.get("process", "?")
+        name = e.process or "?"
         tail = last_line.get(name, "")
-        code = e.get("returncode")
+        code = e.returncode
         # the step it died in: the rubric's scenario description says what that step sends
-        step = [s for t, s in starts if t <= e["t"]]
+        step = [s for t, s in starts if t <= e.t]
         when = f" during step '{step[-1]}'" if step else ""
         what = (f"{name} returned on its own (exit code 0){when} while the scenario ran: does it keep spinning?"
                 if code == 0 else f"{name} crashed (exit code {code}){when}")

@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from grader.analyze._common import (Frames, events, rosout_lines, scenario_end_t
                                     service_calls, sim_pose, stdout_lines, thin, times, topic)
 from grader.analyze.goals import goal_xy
 from grader.report.result import atomic_write
-from grader.contracts.events import Event
+from grader.contracts import events as ev
 from grader.contracts.world import WORLD_SIZE_M
 
 REPLAY_FILE = "replay.js"
@@ -40,26 +40,26 @@ PEN_DEFAULT = (179, 184, 255, 3, 0)      # turtlesim's pen (r, g, b, width, off)
 PLACING = ("teleport_absolute", "spawn")     # the services the grader places a turtle with
 _POSE = re.compile(r"^/([A-Za-z][A-Za-z0-9_]*)/pose$")
 #: grader events the timeline lists, with what each says
-_SAID = {
-    Event.STEP_START: lambda e: f"step {e.get('step')} starts",
-    Event.STEP_END: lambda e: f"step {e.get('step')} ends ({e.get('ended_by')})",
-    Event.GOAL_SENT: lambda e: f"goal {_xy(e.get('goal'))} sent" + (f" on {e['topic']}" if e.get("topic") else ""),
-    Event.MESSAGE_SENT: lambda e: f"grader published on {e.get('topic')}",
-    Event.SERVICE_CALL: lambda e: f"grader calls {e.get('service')} {_short(e.get('request'))}",
-    Event.SERVICE_RESPONSE: lambda e: f"{e.get('service')} answers {_short(e.get('response'))}",
-    Event.SERVICE_MISSING: lambda e: f"no service {e.get('service')}",
-    Event.ACTION_SERVER_MISSING: lambda e: f"no action server {e.get('action')}",
-    Event.ACTION_GOAL_SENT: lambda e: f"goal {_xy(goal_xy(e.get('goal')))} sent to {e.get('action')}",
-    Event.ACTION_GOAL_RESPONSE: lambda e: f"{e.get('action')} {'accepts' if e.get('accepted') else 'rejects'} the goal",
-    Event.ACTION_RESULT: lambda e: f"{e.get('action')} result {_short(e.get('result'))} (status {e.get('status')})",
-    Event.ACTION_CANCEL_SENT: lambda e: "grader cancels the goal",
-    Event.STDIN_LINE: lambda e: f"typed into {e.get('process')}: {e.get('line')}",
-    Event.NODE_STARTED: lambda e: f"{e.get('process')} started",
-    Event.PROCESS_EXIT: lambda e: f"{e.get('process')} exited ({e.get('returncode')})",
-    Event.TURTLES_HELD: lambda e: "grader holds the turtle",
-    Event.TURTLES_RELEASED: lambda e: "grader releases the turtle",
-    Event.REPLAY_START: lambda e: f"grader replays {e.get('count')} messages",
-    Event.LIMIT_HIT: lambda e: f"limit reached: {e.get('limit')}",
+_SAID: dict[type[ev.EventRecord], Callable[[Any], str]] = {
+    ev.StepStart: lambda e: f"step {e.step} starts",
+    ev.StepEnd: lambda e: f"step {e.step} ends ({e.ended_by})",
+    ev.GoalSent: lambda e: f"goal {_xy(e.goal)} sent" + (f" on {e.topic}" if e.topic else ""),
+    ev.MessageSent: lambda e: f"grader published on {e.topic}",
+    ev.ServiceCall: lambda e: f"grader calls {e.service} {_short(e.request)}",
+    ev.ServiceResponse: lambda e: f"{e.service} answers {_short(e.response)}",
+    ev.ServiceMissing: lambda e: f"no service {e.service}",
+    ev.ActionServerMissing: lambda e: f"no action server {e.action}",
+    ev.ActionGoalSent: lambda e: f"goal {_xy(goal_xy(e.goal))} sent to {e.action}",
+    ev.ActionGoalResponse: lambda e: f"{e.action} {'accepts' if e.accepted else 'rejects'} the goal",
+    ev.ActionResult: lambda e: f"{e.action} result {_short(e.result)} (status {e.status})",
+    ev.ActionCancelSent: lambda e: "grader cancels the goal",
+    ev.StdinLine: lambda e: f"typed into {e.process}: {e.line}",
+    ev.NodeStarted: lambda e: f"{e.process} started",
+    ev.ProcessExit: lambda e: f"{e.process} exited ({e.returncode})",
+    ev.TurtlesHeld: lambda e: "grader holds the turtle",
+    ev.TurtlesReleased: lambda e: "grader releases the turtle",
+    ev.ReplayStart: lambda e: f"grader replays {e.count} messages",
+    ev.LimitHit: lambda e: f"limit reached: {e.limit}",
 }
 
 
@@ -142,37 +142,34 @@ def _steps(frames: Frames) -> list[list[Any]]:
     """``[start, end, id, ended_by]`` of each step."""
     open_: dict[str, float] = {}
     rows = []
-    for e in events(frames, (Event.STEP_START, Event.STEP_END)):
-        t = float(_rel(frames, e["t"]))
-        if e["event"] == Event.STEP_START:
-            open_[str(e.get("step"))] = t
+    for e in events(frames, (ev.StepStart, ev.StepEnd)):
+        t = float(_rel(frames, e.t))
+        if isinstance(e, ev.StepStart):
+            open_[e.step] = t
         else:
-            sid = str(e.get("step"))
-            rows.append([open_.pop(sid, t), t, sid, str(e.get("ended_by") or "")])
+            rows.append([open_.pop(e.step, t), t, e.step, e.ended_by])
     return rows
 
 
 def _goals(frames: Frames) -> list[list[Any]]:
     """``[t, x, y, how]`` of every goal the grader handed over (a topic, a service, an action)."""
     rows = []
-    for e in events(frames, (Event.GOAL_SENT, Event.ACTION_GOAL_SENT)):
-        xy: Any = e.get("goal") if e["event"] == Event.GOAL_SENT else goal_xy(e.get("goal"))
-        try:
-            x, y = float(xy[0]), float(xy[1])
-        except (TypeError, ValueError, IndexError, KeyError):
+    for e in events(frames, (ev.GoalSent, ev.ActionGoalSent)):
+        xy = goal_xy(e.goal)
+        if xy is None:
             continue
-        how = e.get("topic") or e.get("action") or "service"
-        rows.append([float(_rel(frames, e["t"])), round(x, 3), round(y, 3), str(how)])
+        how = (e.topic if isinstance(e, ev.GoalSent) else e.action) or "service"
+        rows.append([float(_rel(frames, e.t)), round(xy[0], 3), round(xy[1], 3), how])
     return rows
 
 
 def _placements(frames: Frames) -> list[list[Any]]:
     """``[t, x, y, theta, service]`` of every turtle the grader placed (teleport or spawn)."""
     rows = []
-    for e in events(frames, Event.SERVICE_CALL):
-        service, req = str(e.get("service") or ""), e.get("request") or {}
-        if service.rsplit("/", 1)[-1] in PLACING and isinstance(req, dict) and "x" in req and "y" in req:
-            rows.append([float(_rel(frames, e["t"])), round(float(req["x"]), 3), round(float(req["y"]), 3),
+    for e in events(frames, ev.ServiceCall):
+        service, req = e.service, e.request
+        if service.rsplit("/", 1)[-1] in PLACING and "x" in req and "y" in req:
+            rows.append([float(_rel(frames, e.t)), round(float(req["x"]), 3), round(float(req["y"]), 3),
                          round(float(req.get("theta", 0.0)), 3), service])
     return rows
 
@@ -180,7 +177,7 @@ def _placements(frames: Frames) -> list[list[Any]]:
 def _said(frames: Frames) -> list[list[Any]]:
     rows = []
     for e in events(frames, tuple(_SAID)):
-        rows.append([float(_rel(frames, e["t"])), str(e["event"]), _SAID[Event(e["event"])](e)[:MAX_TEXT]])
+        rows.append([float(_rel(frames, e.t)), e.event, _SAID[type(e)](e)[:MAX_TEXT]])
     return rows[:MAX_LINES]
 
 

@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterator
 
 from grader.executors import make_executor
 from grader.runner import ManagedProcess
-from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event
+from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event, EventRecord, build_event
 from grader.scenario.graph_queries import GRADER_NODE_PREFIX, GraphQueries
 from grader.scenario.messages import import_type
 from grader.sim.clock import HOLD_SERVICE
@@ -85,7 +85,7 @@ class Driver(GraphQueries):
         self.events_pub = self.node.create_publisher(String, EVENTS_TOPIC, latched)
         self.stdout_pub = self.node.create_publisher(String, STDOUT_TOPIC, latched)
         self.processes = processes
-        self.events: list[dict[str, Any]] = []
+        self.events: list[EventRecord] = []
         self.lock = threading.Lock()
         self.pose: Any = None                      # latest pose of the first watched topic
         self.pose_topic: str | None = None
@@ -163,10 +163,13 @@ class Driver(GraphQueries):
                     break
 
     def event(self, event: Event, **fields: Any) -> None:
-        record = {"event": str(event), "wall": time.time(), **fields}
+        """Emit one event: its model (grader.contracts.events) is built from the fields as JSON
+        has them, so an undeclared field fails here, in the scenario child, not in a reader."""
+        plain = json.loads(json.dumps(fields, default=str))
+        record = build_event(event, time.time(), plain)
         with self.lock:
             self.events.append(record)
-        self._emit(self.events_pub, EVENTS_TOPIC, json.dumps(record, default=str))
+        self._emit(self.events_pub, EVENTS_TOPIC, json.dumps({"event": str(event), "wall": record.wall, **plain}))
 
     def _emit(self, pub: Any, topic: str, text: str) -> None:
         msg = self.String(data=text)

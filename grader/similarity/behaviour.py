@@ -34,6 +34,9 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from grader.analyze._common import end_time, events, rosout_lines, stdout_lines, times
+from grader.contracts.events import Graph, GoalSent, ScenarioStart, StepEnd, StepStart
+
 FINGERPRINT_FILE = "fingerprint.json"
 FINGERPRINT_SCHEMA = 2          # 2: generic traceback lines left out
 PATH_POINTS = 40            # points of a resampled path
@@ -68,29 +71,21 @@ def template(line: str) -> str:
     return re.sub(r"\s+", " ", NUMBER.sub("#", str(line))).strip()[:160]
 
 
-def _events(frames: Mapping[str, Any], kind: str) -> list[dict]:
-    from grader.analyze._common import events
-
-    return events(frames, kind)
-
-
 def _student_nodes(frames: Mapping[str, Any]) -> tuple[set[str], dict[str, set[str]], set[str]]:
     """(student node names, topic -> student publishers, student services) from graph events."""
-    from grader.contracts.events import Event
-
-    start = _events(frames, Event.SCENARIO_START)
-    grader = set(GRADER_NODES) | {str(e.get("sim_node")) for e in start if e.get("sim_node")}
+    start = events(frames, ScenarioStart)
+    grader = set(GRADER_NODES) | {e.sim_node for e in start if e.sim_node}
     nodes: set[str] = set()
     pubs: dict[str, set[str]] = {}
     services: set[str] = set()
-    for ev in _events(frames, Event.GRAPH):
-        mine = {str(n).rsplit("/", 1)[-1] for n in ev.get("nodes") or ()} - grader
+    for ev in events(frames, Graph):
+        mine = {str(n).rsplit("/", 1)[-1] for n in ev.nodes} - grader
         nodes |= {n for n in mine if not n.startswith("_")}
-        for topic, who in (ev.get("publishers") or {}).items():
+        for topic, who in ev.publishers.items():
             students = {str(n).rsplit("/", 1)[-1] for n in who} - grader
             if students and not topic.startswith(IGNORED_TOPICS):
                 pubs.setdefault(topic, set()).update(students)
-        for svc, who in (ev.get("services") or {}).items() if isinstance(ev.get("services"), dict) else ():
+        for svc, who in (ev.servers or {}).items():
             if {str(n).rsplit("/", 1)[-1] for n in who} & nodes:
                 if not any(p in svc for p in ("parameter", "type_description", "_action/")):
                     services.add(svc)
@@ -99,12 +94,9 @@ def _student_nodes(frames: Mapping[str, Any]) -> tuple[set[str], dict[str, set[s
 
 def _windows(frames: Mapping[str, Any]) -> list[tuple[str, float, float]]:
     """(step id, time its goal was sent or it started, end) of each step; the whole run if none."""
-    from grader.analyze._common import end_time
-    from grader.contracts.events import Event
-
-    starts = {e.get("step"): e["t"] for e in _events(frames, Event.STEP_START) if e.get("step")}
-    goals = {e.get("step"): e["t"] for e in _events(frames, Event.GOAL_SENT) if e.get("step")}
-    ends = {e.get("step"): e["t"] for e in _events(frames, Event.STEP_END) if e.get("step")}
+    starts = {e.step: e.t for e in events(frames, StepStart) if e.step}
+    goals = {e.step: e.t for e in events(frames, GoalSent) if e.step}
+    ends = {e.step: e.t for e in events(frames, StepEnd) if e.step}
     end = end_time(frames)
     out = []
     for step, t0 in sorted(starts.items(), key=lambda kv: kv[1]):
@@ -142,8 +134,6 @@ def _pose_topics(frames: Mapping[str, Any]) -> list[str]:
 
 def fingerprint_frames(frames: Mapping[str, Any], scenario: str) -> list[Feature]:
     """The behaviour features of one scenario's recording (see the module docstring)."""
-    from grader.analyze._common import rosout_lines, stdout_lines, times
-
     feats: list[Feature] = []
     nodes, pubs, services = _student_nodes(frames)
     windows = _windows(frames)
