@@ -29,6 +29,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 from grader.errors import GraderError
+from grader.cache import default_cache_dir
+from grader.cache.store import end_batch
+from grader.grading.batch import grade_batch
+from grader.grading.schedule import Slots, default_jobs
+from grader.grading.shards import in_shard, write_shard_note
+from grader.grading.starvation import REGRADE_TIME_SCALE
+from grader.grading.timescale import machine_time_scale
+from grader.labs import rubric_for_lab
+from grader.rubric.load import load_rubric as load, display_path
+from grader.rubric.schema import Rubric
+from grader.similarity.cli import after_grading
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -47,14 +58,11 @@ PathLike = str | os.PathLike[str]
 def load_rubric(path: PathLike, *, check_files: bool = True) -> Rubric:
     """Load and validate a rubric (its own analyzer files imported, every problem listed as
     ``file:line: field: message`` in a :class:`grader.rubric.load.RubricError`)."""
-    from grader.rubric.load import load_rubric as load
-
     return load(path, check_files=check_files)
 
 
 def _rubric(rubric: PathLike | Rubric) -> Rubric:
     from grader.analyze.plugins import load_rubric_files
-    from grader.rubric.schema import Rubric
 
     if isinstance(rubric, Rubric):
         load_rubric_files(rubric)          # a Rubric built without load_rubric: its analyzer files
@@ -84,8 +92,6 @@ def due_override(rubric: Rubric, due: str | None, timezone: str | None) -> dict[
     """``due``/``timezone`` (``grader grade --due/--timezone``) checked against the rubric's late
     policy: the override :func:`grade` passes on, or None."""
     from pydantic import ValidationError
-
-    from grader.rubric.load import display_path
 
     if due is None:
         if timezone:
@@ -131,10 +137,7 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     grading starts, ``on_done(id, graded or None, error or None)`` each finished submission,
     ``progress`` status lines of a single submission.
     """
-    from grader.grading.batch import grade_batch
     from grader.grading.outputs import write_batch_outputs
-    from grader.grading.schedule import Slots, default_jobs
-    from grader.grading.shards import in_shard, write_shard_note
     from grader.intake.batch import WORK_DIR, read_intake
     from grader.report.result import atomic_write
     from grader.scores.roster import parse_mapping, read_roster
@@ -182,8 +185,6 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
         write_batch_outputs(out, loaded)
     batch.interrupted = batch.interrupted or any("interrupted" in m for m in batch.failures.values())
     if similarity is not None and not batch.interrupted and not shard:
-        from grader.similarity.cli import after_grading
-
         after_grading(out, loaded, similarity)
     return batch
 
@@ -212,18 +213,12 @@ def check(workspace: PathLike = ".", *, lab: str | None = None, rubric: PathLike
     to ``out`` (default ``WORKSPACE/.grader-check``). ``graded.result`` holds each item's status.
     """
     from grader.grading.pipeline import grade_submission
-    from grader.grading.schedule import Slots, default_jobs
-    from grader.grading.starvation import REGRADE_TIME_SCALE
-    from grader.grading.timescale import machine_time_scale
-    from grader.labs import rubric_for_lab
 
     if rubric is None and lab is None:
         raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
     loaded = _rubric(rubric if rubric is not None else rubric_for_lab(str(lab)))
     ws = Path(workspace).resolve()
     where = (Path(out) if out is not None else ws / ".grader-check").resolve()
-    from grader.cache import default_cache_dir
-    from grader.cache.store import end_batch
 
     graded = grade_submission(ws, loaded, where, cache_dir=Path(cache_dir) if cache_dir else None,
                               public_only=True, sid="check", progress=progress,

@@ -13,7 +13,12 @@ from pathlib import Path
 from grader import __version__
 from grader import rclpy_fix
 from grader.rosenv import ros_info
-from grader.sandbox import allotment
+from grader.sandbox import allotment, protections, sandbox_mode
+from grader.errors import GraderError
+from grader.runner import ProcessSpec, RosGraph, python_argv
+from grader.sandbox.scenario import require_complete
+from grader.sandbox.selftest import sandbox_selftest
+from grader.scenario.model import Limits
 
 INTERFACE_PACKAGES = ("turtlesim", "std_msgs", "geometry_msgs", "std_srvs", "action_msgs",
                       "rcl_interfaces", "service_msgs")
@@ -35,9 +40,6 @@ def _interface_location(pkg: str) -> str | None:
 
 def live_selftest(timeout: float) -> tuple[bool, str]:
     """Start a talker and a listener as separate processes in an isolated graph."""
-    from grader.runner import ProcessSpec, RosGraph, python_argv
-    from grader.scenario.model import Limits
-
     with tempfile.TemporaryDirectory(prefix="grader-doctor-") as tmp, RosGraph(Path(tmp)) as graph:
         t0 = time.monotonic()
         graph.start(ProcessSpec("talker", python_argv("grader.selftest", "talk")))
@@ -84,11 +86,6 @@ def _sandbox_report(timeout: float) -> bool:
     """The protections of student code (each probed for real), then a sandboxed node in a real
     scenario. Missing protections are warnings (the grader falls back), not failures, unless
     GRADER_SANDBOX=require."""
-    from grader.errors import GraderError
-    from grader.sandbox import protections, sandbox_mode
-    from grader.sandbox.scenario import require_complete
-    from grader.sandbox.selftest import sandbox_selftest
-
     mode = sandbox_mode()
     print(f"sandbox for student code (GRADER_SANDBOX={mode}):")
     for row in protections(enabled=mode != "off"):

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from grader.errors import GraderError
+from grader.rubric.load import load_rubric
+from grader.rubric.stage import referenced_paths, stage_rubrics
 
 PACKAGE = Path(__file__).resolve().parent
 CHECKOUT = PACKAGE.parent
@@ -56,8 +58,6 @@ def requirements_dir() -> Path:
 
 def known_labs() -> tuple[list[Lab], list[str]]:
     """Every loadable rubric as a Lab, and one line per rubric that does not load."""
-    from grader.rubric.load import load_rubric
-
     labs, broken = [], []
     for path in sorted(rubrics_dir().glob("*.yaml")):
         try:
@@ -86,9 +86,6 @@ def stage_package_data(checkout: Path, dest: Path) -> list[Path]:
     ``dest`` is emptied first, so a rubric removed from ``rubrics/`` leaves the next wheel too.
     Returns every source file the copy came from (for the sdist).
     """
-    from grader.rubric.stage import referenced_paths, stage_rubrics
-    from grader.rubric.load import load_rubric
-
     checkout, dest = Path(checkout).resolve(), Path(dest)
     if dest.exists():
         shutil.rmtree(dest)

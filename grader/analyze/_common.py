@@ -19,6 +19,9 @@ import pandas as pd
 from grader.bag.timebase import to_scenario_time
 from grader.contracts.events import (EVENTS_TOPIC, STDOUT_TOPIC, EventRecord, Graph, ProcessExit, ScenarioEnd,
                                     ScenarioStart, TurtlesHeld, TurtlesReleased, parse_event)
+from grader.sim import truth_pose_topic
+from grader.sim.physics import DT
+from grader.sim.record import record_topic
 
 META = "__meta__"
 EVENTS = EVENTS_TOPIC
@@ -86,9 +89,6 @@ def sim_pose(frames: Frames, pose_topic: str) -> pd.DataFrame | None:
     taken from DDS: :mod:`grader.sim.record` says why only that is proof of origin). In bags
     recorded before the record existed: the simulator's live copy ``/grader/sim/turtle1/pose``,
     else the public topic (which any node can publish on)."""
-    from grader.sim import truth_pose_topic
-    from grader.sim.record import record_topic
-
     record = frames.get(record_topic(pose_topic))
     if isinstance(record, pd.DataFrame):       # the bag holds the record: nothing else counts
         return record if len(record) else None
@@ -105,9 +105,6 @@ def sim_tick_times(frames: Frames, pose_topic: str, df: pd.DataFrame) -> np.ndar
     record (lossless: every pose it published, one per tick; a topic recorded over DDS may miss
     one). A simulator starved of CPU for more than its catch-up drops ticks, and its world falls
     behind the wall clock: a rate judged on the wall clock then measures the machine."""
-    from grader.sim.physics import DT
-    from grader.sim.record import record_topic
-
     if not isinstance(frames.get(record_topic(pose_topic)), pd.DataFrame) or not len(df):
         return None
     return float(df.index[0]) + np.arange(len(df)) * DT
@@ -255,6 +252,9 @@ def events(frames: Frames, kind: type[EventRecord] | tuple[type[EventRecord], ..
     if kind is None:
         return list(every)
     models = kind if isinstance(kind, tuple) else (kind,)
+    if not all(isinstance(m, type) and issubclass(m, EventRecord) for m in models):
+        raise TypeError(f"events(frames, {kind!r}): ask for a model of grader.contracts.events (e.g. StepStart), "
+                        "not an event's name")
     return [e for e in every if type(e) in models]
 
 

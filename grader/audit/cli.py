@@ -8,12 +8,14 @@ import sys
 from pathlib import Path
 
 from grader.errors import GraderError
+from grader.audit.mutate import OPERATORS
+from grader.audit.report import text_summary
+from grader.audit.run import choose, find_reference, run_audit
+from grader.grading.cli import _positive, _time_scale_option
+from grader.rubric.load import load_rubric, display_path
 
 
 def register_audit(rsub: argparse._SubParsersAction) -> None:
-    from grader.audit.mutate import OPERATORS
-    from grader.grading.cli import _positive, _time_scale_option
-
     a = rsub.add_parser(
         "audit", help="mutation testing: grade mutants of the reference solution, list those that keep full marks",
         description="Mutate the rubric's reference solution (flip a sign, scale a constant, swap arguments, rename a "
@@ -47,8 +49,6 @@ def register_audit(rsub: argparse._SubParsersAction) -> None:
 def _graded_mutants_options(parser: argparse.ArgumentParser, name: str) -> None:
     """What `audit` and `collateral` both take: the rubric, where to write, the reference, and
     how the mutants are graded."""
-    from grader.grading.cli import _positive
-
     parser.add_argument("rubric", type=Path)
     parser.add_argument("-o", "--out", type=Path, default=None,
                         help=f"output folder (default: {name}-<lab> in the current folder)")
@@ -64,8 +64,6 @@ def _graded_mutants_options(parser: argparse.ArgumentParser, name: str) -> None:
 
 
 def _operators(text: str) -> list[str]:
-    from grader.audit.mutate import OPERATORS
-
     names = [n.strip() for n in text.split(",") if n.strip()]
     unknown = [n for n in names if n not in OPERATORS]
     if unknown or not names:
@@ -75,10 +73,6 @@ def _operators(text: str) -> list[str]:
 
 
 def run_audit_cli(args: argparse.Namespace) -> int:
-    from grader.audit.report import text_summary
-    from grader.audit.run import choose, find_reference, run_audit
-    from grader.rubric.load import load_rubric
-
     if args.list:
         rubric = load_rubric(args.rubric)
         ref = find_reference(rubric, args.reference)
@@ -87,7 +81,6 @@ def run_audit_cli(args: argparse.Namespace) -> int:
         for m in chosen:
             mark = "  (equivalent)" if m.id in recorded else ""
             print(f"{m.id:30} {m.file}:{m.line}  {m.description}{mark}")
-        from grader.rubric.load import display_path
 
         print(f"{len(chosen)} of {made} mutants of {display_path(ref)}" + (f"; not mutated: {', '.join(given)}" if given else ""))
         return 0
@@ -115,7 +108,6 @@ def run_audit_cli(args: argparse.Namespace) -> int:
 
 def run_collateral_cli(args: argparse.Namespace) -> int:
     from grader.audit.collateral import run_collateral, text_summary
-    from grader.rubric.load import load_rubric
 
     out = args.out or Path(f"collateral-{load_rubric(args.rubric).lab}")
 

@@ -37,6 +37,11 @@ from grader.audit.outcome import AuditReport, Outcome
 from grader.audit.report import write_report
 from grader.errors import GraderError
 from grader.grading.timescale import machine_time_scale
+from grader.grading.batch import grade_batch
+from grader.grading.schedule import Slots
+from grader.rubric.load import display_path, load_rubric
+from grader.scenario.model import Scenario
+from grader.workspace.source import find_packages
 
 if TYPE_CHECKING:
     from grader.grading.graded import GradedSubmission
@@ -95,10 +100,7 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     write ``audit.json`` and ``audit.md`` into ``out``. ``regrade``: grade the recordings
     already in ``out`` again with the rubric as it is now (offline: after changing items,
     parameters or analyzers; a mutant whose scenario changed must be run again)."""
-    from grader.grading.batch import grade_batch
     from grader.grading.pipeline import grade_submission
-    from grader.grading.schedule import Slots
-    from grader.rubric.load import display_path, load_rubric
 
     time_scale = machine_time_scale(time_scale)
 
@@ -183,8 +185,6 @@ def _with_untouched_support(rubric: Any, reference: Path, chosen: list[Mutant]) 
     ``support``: they are built once (grader.workspace.package_cache) instead of once per
     mutant (an interface package costs ~15 s of CPU to build). Grading is the same: a
     submission's byte-identical copy of a support package takes the support build."""
-    from grader.workspace.source import find_packages
-
     touched = {m.file for m in chosen}
     extra = {}
     for pkg in find_packages(reference):
@@ -199,7 +199,6 @@ def _regrade_all(rubric: Any, graded: Path, ids: list[str], say: Callable[[str],
     that is not the rubric's any more."""
     from grader.grading.analysis import SCENARIOS_DIR
     from grader.grading.pipeline import regrade_submission
-    from grader.scenario.model import Scenario
 
     stale = []
     for sid in ids:

@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from grader.bag import recorder
+from grader.bag.recorder import add_arguments as recorder_arguments
+
 
 def _record(args: argparse.Namespace) -> int:
-    from grader.bag import recorder
-
     return recorder.run(args)
 
 
@@ -37,7 +38,6 @@ def _replay(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: Any) -> None:
-    from grader.bag.recorder import add_arguments as recorder_arguments
     from grader.bag.replay import add_arguments as replay_arguments
 
     rec = subparsers.add_parser(

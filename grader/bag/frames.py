@@ -20,6 +20,8 @@ from grader.bag.msgdefs import (DefinitionNotFound, DefinitionSource, from_rosba
 from grader.bag.reader import Bag, TopicData, open_bag
 from grader.bag.timebase import CLOCK_TOPIC, TIMEBASE, bag_lockstep, bag_time_scale, time_map
 from grader.errors import GraderError
+from grader.sim.canvas import TURTLE_BODY, TURTLE_HEAD, read_png
+from grader.sim.physics import DEFAULT_BACKGROUND, METER
 
 
 @dataclass
@@ -201,9 +203,6 @@ def canvas_frame(png: Path | str) -> pd.DataFrame:
     pixel centres), ``r``, ``g``, ``b``. Background and turtle-marker pixels are left out, so the
     frame holds the pen trails (what "the canvas shows blue right of x = 5.5" is judged on)."""
     import numpy as np
-
-    from grader.sim.canvas import TURTLE_BODY, TURTLE_HEAD, read_png
-    from grader.sim.physics import DEFAULT_BACKGROUND, METER
 
     rgb = read_png(png)[..., :3].astype(np.int32)
     height = rgb.shape[0]

@@ -10,15 +10,14 @@ import re
 from pathlib import Path
 
 from grader.errors import GraderError
+from grader.cache import default_cache_dir
+from grader.cache.store import MAX_SIZE_ENV, hit_rate, human, info, max_size, KINDS, parse_size, prune
 
 _AGE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([smhdw])\s*$")
 _AGE_S = {"s": 1, "m": 60, "h": 3600, "d": 86400, "w": 7 * 86400}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from grader.cache import default_cache_dir
-    from grader.cache.store import MAX_SIZE_ENV
-
     p = sub.add_parser("cache", help="see and prune the build and recording cache",
                        description="The cache holds build areas, the support packages' builds and scenario "
                                    f"recordings (default {default_cache_dir()}). Batches keep it under a cap "
@@ -69,14 +68,10 @@ def _when(t: float | None) -> str:
 
 
 def _folder(args: argparse.Namespace) -> Path:
-    from grader.cache import default_cache_dir
-
     return Path(args.cache_dir or default_cache_dir())
 
 
 def run_info(args: argparse.Namespace) -> int:
-    from grader.cache.store import hit_rate, human, info, max_size
-
     cache = _folder(args)
     doc = info(cache)
     doc["cap_bytes"] = max_size()
@@ -104,8 +99,6 @@ def run_info(args: argparse.Namespace) -> int:
 
 
 def run_prune(args: argparse.Namespace) -> int:
-    from grader.cache.store import KINDS, human, parse_size, prune
-
     size = parse_size(args.max_size) if args.max_size is not None else None
     if not (args.all or args.older_than is not None or args.unused_since is not None or size is not None):
         raise GraderError("say what to prune: --older-than AGE, --unused-since DATE, --max-size SIZE or --all "

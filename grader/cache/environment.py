@@ -36,6 +36,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from grader.rosenv import child_env
+
 _VERSION = re.compile(rb"<version>\s*([^<\s]+)\s*</version>")
 _CMAKE_VERSION = re.compile(r'set\(PACKAGE_VERSION\s+"([^"]+)"\)')
 DEFAULT_RMW = "rmw_fastrtps_cpp"
@@ -127,8 +129,6 @@ def _first_line(argv: list[str], path: str) -> str:
 @functools.lru_cache(maxsize=None)
 def build_tools() -> dict[str, Any]:
     """``runtime()`` plus the versions of CMake, the compilers and Ninja a build runs."""
-    from grader.rosenv import child_env
-
     path = child_env().get("PATH", "")
     tools = {"cmake": _first_line(["cmake", "--version"], path),
              "cc": _first_line([os.environ.get("CC") or "cc", "--version"], path),

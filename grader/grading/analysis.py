@@ -14,12 +14,19 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence, cast
 
-from grader.analyze import timing
+from grader.analyze import timing, Finding
 from grader.analyze._common import events, own_exits, stdout_lines
 from grader.errors import GraderError
 from grader.grading.repeat import exact_lockstep, outcome, repeated_finding, run_folders, settled
 from grader.grading.starvation import recorded_scale, starvation
 from grader.contracts.events import Graph, LimitHit, NodeUnavailable, StepStart
+from grader import analyze
+from grader.analyze.contract import check_contract
+from grader.analyze.plugins import load_rubric_files
+from grader.bag.frames import load_bag_meta, load_frames, canvas_frame
+from grader.rubric.contract import merge_mismatches
+from grader.rubric.score import worst_finding
+from grader.similarity.behaviour import write_fingerprint
 
 if TYPE_CHECKING:
     from grader.analyze import Finding
@@ -32,8 +39,6 @@ SCENARIOS_DIR = "scenarios"
 def scenario_frames(scenario_dir: Path) -> dict:
     """Frames of one scenario's bag plus ``__meta__`` (topic, type, count, publishers)."""
     import pandas as pd
-
-    from grader.bag.frames import load_bag_meta, load_frames
 
     bag = scenario_dir / "bag"
     if not bag.exists():
@@ -57,7 +62,6 @@ def scenario_frames(scenario_dir: Path) -> dict:
          for n, t in meta.topics.items()], columns=["topic", "type", "count", "publishers"])
     canvas = scenario_dir / "canvas.png"
     if canvas.exists():
-        from grader.bag.frames import canvas_frame
         frames["__canvas__"] = canvas_frame(canvas)
     if record is not None:
         frames["__meta__"].attrs["scenario"] = record
@@ -105,8 +109,6 @@ def analyze_item(item: Item, frames: dict) -> Finding:
     Otherwise an item about timing that lost points on a recording the grading machine starved
     is an error saying so (``starved_timing``).
     """
-    from grader import analyze
-
     finding = analyze.run(cast(str, item.analyzer), frames, dict(item.params))
     if finding.status not in ("fail", "error", "partial"):
         return finding      # only a lost point needs the events and output parsed for a reason
@@ -157,8 +159,6 @@ def combine_findings(item: Item, per_scenario: list, scenarios: Sequence[str] = 
     its "could not check" error does not hide the verdict of the others. Without that, whether the
     flag showed up would depend on how long the simulator ran before the empty scenario ended.
     """
-    from grader.rubric.score import worst_finding
-
     each = [{"scenario": sc, "by": (f.decided or {}).get("by", "one run"), "runs": (f.decided or {}).get("runs", 1),
              "stable": (f.decided or {}).get("stable", True), "status": f.status}
             | ({"repeat_by": f.decided["repeat_by"]} if "repeat_by" in (f.decided or {}) else {})
@@ -187,11 +187,6 @@ def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
     ``unusable``: scenario -> why its recording must not be graded (changed since grading, not
     finalised): its items become errors saying so. ``on_frames(scenario folder, frames)``: called
     once per recording read, while its frames are in memory (the report's replay data)."""
-    from grader.analyze import Finding
-    from grader.analyze.contract import check_contract
-    from grader.rubric.contract import merge_mismatches
-    from grader.analyze.plugins import load_rubric_files
-
     load_rubric_files(rubric)       # its own analyzer files (done by load_rubric already; idempotent)
 
     frames_cache: dict[str, dict | Exception] = {}
@@ -248,8 +243,6 @@ def analyze_bags(rubric: Rubric, items: list[Item], sub_out: Path,
 def _fingerprint(sub_out: Path, frames_cache: dict[str, Any], problems: list[str]) -> None:
     """Each read scenario's behaviour fingerprint (grader.similarity) next to its bag, while its
     frames are in memory: a class is then compared without reading its bags again."""
-    from grader.similarity.behaviour import write_fingerprint
-
     for sc, frames in frames_cache.items():
         if isinstance(frames, Exception):
             continue

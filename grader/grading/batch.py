@@ -26,6 +26,9 @@ from typing import Any, Callable
 from grader.errors import GraderError
 from grader.grading.schedule import Slots
 from grader.grading.starvation import REGRADE_TIME_SCALE
+from grader.cache import default_cache_dir
+from grader.cache.store import end_batch
+from grader.scenario import cancel_all
 
 
 def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
@@ -43,8 +46,6 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
     if the batch is interrupted. ``cache_max_size``: the cache's cap (``5G``; default
     ``$GRADER_CACHE_MAX_SIZE`` or 5 GB).
     """
-    from grader.cache import default_cache_dir
-    from grader.cache.store import end_batch
     from grader.grading.outputs import write_batch_outputs
     from grader.grading.pipeline import grade_submission, submission_id
 
@@ -82,7 +83,6 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
                 except GraderError as exc:      # the class view waits; grading goes on
                     print(f"grader: warning: grades.csv/index.html not updated: {exc}", file=sys.stderr)
         except KeyboardInterrupt:
-            from grader.scenario import cancel_all
             for f in futures:
                 f.cancel()
             cancel_all()          # running scenarios finalize their bags and stop

@@ -10,6 +10,12 @@ from typing import TYPE_CHECKING, Any
 
 from grader.errors import GraderError
 from grader.contracts.speed import DEFAULT_TIME_SCALE, MIN_CPUS_FOR_DEFAULT
+from grader import api
+from grader.cache.store import parse_size
+from grader.grading.provenance import by_other_grader
+from grader.labs import rubric_for_lab
+from grader.sim.cli import MAX_TIME_SCALE
+from grader.similarity.cli import add_grade_options, grade_settings
 
 if TYPE_CHECKING:
     from grader.grading.graded import GradedSubmission
@@ -45,7 +51,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="run every scenario, even when an identical one was recorded before")
     _cache_cap_option(g)
     _time_scale_option(g)
-    from grader.similarity.cli import add_grade_options
 
     add_grade_options(g)
     g.set_defaults(func=run_grade)
@@ -81,8 +86,6 @@ def _cache_cap_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _size(text: str) -> str:
-    from grader.cache.store import parse_size
-
     try:
         parse_size(text)
     except GraderError as exc:
@@ -115,8 +118,6 @@ def _time_scale_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _time_scale(text: str) -> float:
-    from grader.sim.cli import MAX_TIME_SCALE
-
     try:
         value = float(text)
     except ValueError:
@@ -182,10 +183,6 @@ class Progress:
 
 
 def run_grade(args: argparse.Namespace) -> int:
-    from grader import api
-
-    from grader.similarity.cli import grade_settings
-
     similarity = grade_settings(args)      # a wrong --known/--boilerplate is said before any grading
     progress: Progress | None = None
 
@@ -230,9 +227,7 @@ def run_grade(args: argparse.Namespace) -> int:
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from grader import api
     from grader.grading.outputs import print_check_table, print_contract
-    from grader.labs import rubric_for_lab
 
     if args.rubric is None and args.lab is None:
         raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
@@ -253,9 +248,6 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_regrade(args: argparse.Namespace) -> int:
-    from grader import api
-    from grader.grading.provenance import by_other_grader
-
     other_made: list[str] = []
 
     def done(g: GradedSubmission) -> None:

@@ -6,8 +6,17 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from grader import __version__
+from grader import __version__, analyze
 from grader.report.replay import replays
+from grader.grading.provenance import by_other_grader, notes, scenario_recordings
+from grader.grading.repeat import scenario_of
+from grader.grading.timescale import describe, describe_lockstep
+from grader.report.batch import load_results, write_batch
+from grader.report.html import write_html
+from grader.report.readable import item_params, measured_sentence
+from grader.report.result import write_result
+from grader.rosenv import ros_info
+from grader.sandbox.scenario import recorded_summary
 
 if TYPE_CHECKING:
     from grader.grading.graded import GradedSubmission
@@ -15,8 +24,6 @@ if TYPE_CHECKING:
 
 
 def versions() -> dict[str, str]:
-    from grader.rosenv import ros_info
-
     info = ros_info()
     return {"grader": __version__, "ros": f"{info['distro']} ({info['mode']})", "rclpy": info["rclpy"],
             "rmw": info["rmw"], "python": info["python"]}
@@ -24,8 +31,6 @@ def versions() -> dict[str, str]:
 
 def _canvases(sub_out: Path) -> dict[str, str]:
     """Each scenario's canvas (of its first run when it ran more than once)."""
-    from grader.grading.repeat import scenario_of
-
     return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))
             if scenario_of(p.parent.name) == p.parent.name}
 
@@ -33,8 +38,6 @@ def _canvases(sub_out: Path) -> dict[str, str]:
 def effective_params(rubric: Rubric) -> dict[str, dict]:
     """item id -> the analyzer's parameters as run (defaults merged with the rubric's), for the
     report's thresholds when a result does not record its own."""
-    from grader import analyze
-
     out = {}
     for item in rubric.items:
         if item.analyzer:
@@ -47,11 +50,6 @@ def effective_params(rubric: Rubric) -> dict[str, dict]:
 
 def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public_only: bool, inputs: dict[str, str] | None = None) -> None:
     """result.json (+ build, errors, timings, previous grading) and report.html for one submission."""
-    from grader.grading.provenance import by_other_grader, notes, scenario_recordings
-    from grader.report.html import write_html
-    from grader.report.result import write_result
-    from grader.sandbox.scenario import recorded_summary
-
     ver = versions()
     # which protections student code ran under, and each limit it reached (from the scenario
     # records, so a regrade reports the grading run): a line each in errors and the report
@@ -101,8 +99,6 @@ def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public
 def write_batch_outputs(out: Path, rubric: Rubric) -> None:
     """grades.csv and index.html rebuilt from every OUT/*/result.json on disk (so parallel,
     resumed and regraded submissions all count)."""
-    from grader.report.batch import load_results, write_batch
-
     if load_results(out, rubric):
         write_batch(out, rubric)
 
@@ -121,7 +117,6 @@ def print_check_table(graded: GradedSubmission, rubric: Rubric) -> bool:
         print()
     ok = True
     marks = {"pass": "PASS", "partial": "PART", "fail": "FAIL", "error": "ERR "}
-    from grader.report.readable import item_params, measured_sentence
 
     params = effective_params(rubric)
     for item in rows:
@@ -173,8 +168,6 @@ def early_end_notes(ended_early: dict[str, list[dict]]) -> list[str]:
 def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:
     """How the scenarios ran under --time-scale: the fast ones in one line, each fallback with
     its reason."""
-    from grader.grading.timescale import describe, describe_lockstep
-
     locked = {sc: ts for sc, ts in time_scales.items() if ts.get("clock") == "lockstep"}
     time_scales = {sc: ts for sc, ts in time_scales.items() if sc not in locked}
     fast = sorted(sc for sc, ts in time_scales.items() if float(ts.get("used", 1)) > 1)

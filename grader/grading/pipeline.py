@@ -23,6 +23,23 @@ from grader.grading.repeat import run_until_settled
 from grader.grading.timescale import expected_rates, machine_time_scale
 from grader.report.replay import write_replay
 from grader.scenario import children_cpu_s
+from grader.bag.frames import load_bag_meta
+from grader.cache.locks import Holds
+from grader.cache.store import submission_cache_use
+from grader.grading.outputs import write_submission_outputs
+from grader.grading.provenance import scenario_recordings
+from grader.grading.reuse import record_or_reuse
+from grader.grading.schedule import Slots
+from grader.intake.apply import apply_intake
+from grader.intake.model import public_record, write_record
+from grader.report.result import previous_summary
+from grader.report.seal import input_digests, mac_ok, changed_inputs
+from grader.rubric.score import score
+from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
+from grader.similarity.files import snapshot
+from grader.workspace import build_workspace
+from grader.workspace.build import default_cache_dir
+from grader.workspace.source import is_archive
 
 if TYPE_CHECKING:
     from grader.grading.schedule import Slots
@@ -42,8 +59,6 @@ def submission_id(path: Path) -> str:
 
 def discover_submissions(root: Path) -> list[Path]:
     """A folder of submissions (one folder or archive each), or a single submission."""
-    from grader.workspace.source import is_archive
-
     root = Path(root)
     if not root.exists():
         raise GraderError(f"{root} does not exist.")
@@ -96,16 +111,6 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
     the machine's default (``grader.grading.timescale.machine_time_scale``).
     ``intake``: how it arrived (grader.intake: ids, student, time), kept in ``intake.json``; with
     the rubric's late policy (its due date replaced by ``due_override``) it sets the penalty."""
-    from grader.cache.locks import Holds
-    from grader.cache.store import submission_cache_use
-    from grader.grading.provenance import scenario_recordings
-    from grader.grading.schedule import Slots
-    from grader.intake.apply import apply_intake
-    from grader.intake.model import public_record
-    from grader.rubric.score import score
-    from grader.scores.store import apply_saved_manual_scores
-    from grader.workspace.build import default_cache_dir
-
     time_scale = machine_time_scale(time_scale)
     slots = slots or Slots(1)
     sid = sid or submission_id(Path(path))
@@ -148,9 +153,6 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
 def _fresh_folder(out: Path, intake: dict | None, due_override: dict | None) -> Path:
     """The submission's output folder, emptied (the TA's merged manual scores kept), with its
     intake record."""
-    from grader.intake.model import write_record
-    from grader.scores.store import manual_scores_kept
-
     with manual_scores_kept(out):          # a re-grade keeps the TA's merged manual scores
         if out.exists():
             shutil.rmtree(out)
@@ -164,9 +166,6 @@ def _build(path: Path, rubric: Rubric, out: Path, cache_dir: Path | None, slots:
            timings: dict[str, float]) -> tuple[Any, list[str]]:
     """Build the workspace in a slot (None when it could not be built at all), its log and the
     source snapshot in ``out``; the problems to report."""
-    from grader.similarity.files import snapshot
-    from grader.workspace import build_workspace
-
     t0 = time.monotonic()
     build = None
     errors: list[str] = []
@@ -242,8 +241,6 @@ def _run_one(sid: str, sc_id: str, scenario: Scenario, build: Any, out: Path, sl
              time_scale: float = 1.0, rates: tuple = (), settles: Callable[[list[Path]], bool] | None = None) -> dict:
     """One scenario; a repeated one (``repeat: N``) run by run until its median is settled, each
     run recorded or reused by ``grader.grading.reuse.record_or_reuse``."""
-    from grader.grading.reuse import record_or_reuse
-
     cpu0 = children_cpu_s()
     record = run_until_settled(
         lambda k, folder: record_or_reuse(sid, sc_id, scenario, build, folder, slots, recordings, time_scale, rates,
@@ -255,18 +252,10 @@ def _run_one(sid: str, sc_id: str, scenario: Scenario, build: Any, out: Path, sl
 
 def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = False) -> GradedSubmission:
     """Recompute a submission's grade from its recorded bags only (no build, no ROS)."""
-    from grader.rubric.score import score
-    from grader.intake.apply import apply_intake
-    from grader.intake.model import public_record
-    from grader.scores.store import apply_saved_manual_scores
-
     sub_out = Path(sub_out)
     if not (sub_out / SCENARIOS_DIR).is_dir():
         raise GraderError(f"{sub_out} has no {SCENARIOS_DIR}/ folder; point at OUT/<submission> "
                           "written by `grader grade`.")
-    from grader.grading.provenance import scenario_recordings
-    from grader.report.result import previous_summary
-    from grader.report.seal import input_digests, mac_ok
 
     items = selected_items(rubric, public_only)
     old: dict = {}
@@ -297,9 +286,6 @@ def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = Fal
 def recordings_to_refuse(sub_out: Path, old: dict) -> tuple[dict[str, str], list[str]]:
     """Scenarios whose recordings a regrade must not grade (changed since they were graded, or
     a bag that was not finalised cleanly), with why; and notes about the seal itself."""
-    from grader.bag.frames import load_bag_meta
-    from grader.report.seal import changed_inputs, mac_ok
-
     refuse: dict[str, str] = {}
     notes: list[str] = []
     if old.get("seal") is None:
@@ -330,6 +316,4 @@ def recordings_to_refuse(sub_out: Path, old: dict) -> tuple[dict[str, str], list
 
 def write_outputs(graded: GradedSubmission, rubric: Rubric, *, public_only: bool,
                   inputs: dict[str, str] | None = None) -> None:
-    from grader.grading.outputs import write_submission_outputs
-
     write_submission_outputs(graded, rubric, public_only=public_only, inputs=inputs)

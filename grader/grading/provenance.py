@@ -17,6 +17,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from grader.grading.reuse import made_by
+
 
 def scenario_recordings(sub_out: Path) -> dict[str, dict[str, Any]]:
     """``{scenario: {"key", "made_by", "reused_from"?}}`` from each ``scenario.json`` of a
@@ -43,7 +45,6 @@ def by_other_grader(recordings: dict[str, dict[str, Any]],
                     current: dict[str, str] | None = None) -> dict[str, str]:
     """``{scenario: why}`` for every recording whose maker is not ``current`` (this grader)."""
     if current is None:
-        from grader.grading.reuse import made_by
         current = made_by()
     out: dict[str, str] = {}
     for sc, entry in sorted(recordings.items()):

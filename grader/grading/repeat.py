@@ -33,6 +33,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
+from grader.rubric.score import _RANK
+
 RUN_SUFFIX = ".run"
 _RUN = re.compile(r"^(?P<id>[A-Za-z0-9_-]+)\.run(?P<k>[2-9][0-9]*)$")
 
@@ -123,8 +125,6 @@ def repeated_finding(findings: Sequence[Any], planned: int, lockstep: bool = Fal
     error < pass), or the lowest (``by="worst"``), with ``decided`` saying how it was decided
     (``repeat_by``: the scenario's field, ``median`` or ``worst``). One finding: itself,
     ``decided`` = one run (``lockstep``: one exact lockstep run, which a repetition repeats)."""
-    from grader.rubric.score import _RANK
-
     if len(findings) == 1 and lockstep:
         return replace(findings[0], decided={"by": "one lockstep run", "runs": 1, "stable": True})
     if len(findings) == 1 and planned <= 1:

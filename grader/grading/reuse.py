@@ -44,6 +44,8 @@ from grader.grading.scenario_packages import packages_run, workspace_packages
 from grader.grading.starvation import record_unstarved
 from grader.grading.timescale import ScaledRecording
 from grader.scenario.model import Scenario
+from grader.sandbox import summary
+from grader.scenario import resolve
 
 #: files of a scenario folder that make up its recording
 RECORDING = ("bag", "logs", "canvas.png", "scenario.json", "run.json", "scenario.log")
@@ -145,8 +147,6 @@ def recording_settings(time_scale: float = 1.0, rates: tuple = (), run: int = 1)
     recording made with fewer of them is not reused where more are active), the time scale and
     the rates the watchdog of a faster run expects (the rubric's ``publish_rate`` items), and
     which run of a repeated scenario it is (run ``run`` > 1 is a recording of its own)."""
-    from grader.sandbox import summary
-
     info = summary()
     scaled = f";time_scale={time_scale:g};rates={sorted(map(repr, rates))}" if time_scale > 1 else ""
     again = f";run={run}" if run > 1 else ""
@@ -172,8 +172,6 @@ def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder
     under ``recordings`` (None: ``--no-reuse``), or run within one of ``slots`` (and made again
     while the machine starves it, ``grader.grading.starvation``); returns its record. Run ``run``
     > 1 of a repeated scenario is a recording of its own (its own key)."""
-    from grader.scenario import resolve
-
     def make() -> dict[str, Any]:
         with slots.taken():
             return record_unstarved(ScaledRecording(resolve(sc_id, scenario, build), folder, time_scale,

@@ -17,6 +17,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from grader.errors import GraderError
+from grader.rubric.load import load_rubric
+from grader.similarity.cli import add_grade_options, after_grading, grade_settings
 
 if TYPE_CHECKING:
     from grader.rubric.schema import Rubric
@@ -82,7 +84,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("parts", type=Path, nargs="+", help="the shard outputs OUT_1 ... OUT_N")
     m.add_argument("-o", "--out", type=Path, required=True)
     m.add_argument("--rubric", type=Path, required=True, help="the rubric every shard was graded with")
-    from grader.similarity.cli import add_grade_options
 
     add_grade_options(m)
     m.set_defaults(func=run_merge)
@@ -90,8 +91,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run_merge(args: argparse.Namespace) -> int:
     from grader.grading.outputs import write_batch_outputs
-    from grader.rubric.load import load_rubric
-    from grader.similarity.cli import after_grading, grade_settings
 
     rubric = load_rubric(args.rubric)
     similarity = grade_settings(args)

@@ -37,6 +37,7 @@ from grader.sandbox import allotment
 from grader.contracts.speed import default_time_scale
 from grader.workspace.executables import executable_paths, is_python_script
 from grader.scenario.runspec import RateExpectation, ScenarioRun
+from grader.scenario import run_scenario
 
 #: calls (and attributes) that read or wait on the wall clock; a node using any of them is not
 #: run faster than real time
@@ -191,8 +192,6 @@ def run_at_scale(run: ScenarioRun, folder: Path, time_scale: float, build: Any,
                  rates: tuple[RateExpectation, ...] = ()) -> dict[str, Any]:
     """Run the scenario at ``time_scale`` when the scan allows it, else (or when the run says it
     would not grade like 1x) at 1x; the record's ``time_scale`` says which and why."""
-    from grader.scenario import run_scenario
-
     if run.scenario.lockstep:
         return run_lockstep(run, folder, build)
     if time_scale <= 1:
@@ -266,8 +265,6 @@ def run_lockstep(run: ScenarioRun, folder: Path, build: Any) -> dict[str, Any]:
     allows it (the same rule as a time scale: nodes paced by ROS time only), else, or when the
     lockstep run could not go on, on the wall clock; the record's ``lockstep`` says which and why
     (``--time-scale`` does not apply: lockstep runs as fast as the nodes allow)."""
-    from grader.scenario import run_scenario
-
     reason = pacing_reason(build, run, lockstep=True)
     attempt: dict[str, Any] = {}
     if reason is None:

@@ -15,6 +15,7 @@ from typing import Any, Mapping
 
 from grader.intake.late import LatePenalty, SubmissionTime, assess
 from grader.intake.model import read_record
+from grader.scores.store import load_late_override
 
 #: a TA's late penalty for a submission graded without a late policy
 BY_HAND = "set by hand (grader scores merge)"
@@ -47,8 +48,6 @@ def days_left(record: Mapping[str, Any]) -> tuple[int | None, list[str]]:
 def apply_intake(sub_out: Path, rubric, result, record: Mapping[str, Any] | None = None):
     """``result`` with the late policy's verdict (``Result.late``), and notes for the problems
     list. ``record``: the arrival record (default: read from ``sub_out``)."""
-    from grader.scores.store import load_late_override
-
     record = record if record is not None else read_record(sub_out)
     policy = policy_for(rubric, record)
     override = load_late_override(sub_out)

@@ -12,11 +12,10 @@ from pathlib import Path
 from grader.intake.model import Arrival
 from grader.intake.times import NO_TIME, archive_time, folder_time
 from grader.workspace.source import is_archive
+from grader.grading.pipeline import submission_id, discover_submissions
 
 
 def _submission_id(path: Path) -> str:
-    from grader.grading.pipeline import submission_id
-
     return submission_id(path)
 
 
@@ -50,8 +49,6 @@ def read_classroom(root: Path, prefix: str) -> tuple[list[Arrival], list[str]]:
 def read_folder(root: Path) -> tuple[list[Arrival], list[str]]:
     """One folder or archive per student (named for the student). A file at the top that is not
     an archive is listed, never taken for a submission."""
-    from grader.grading.pipeline import discover_submissions
-
     paths = discover_submissions(root)
     if paths == [root]:
         arrival = Arrival("single", _submission_id(root), root.name, [root.name], path=root, time=_time(root))

@@ -28,6 +28,7 @@ from grader.errors import GraderError
 from grader.intake.late import SubmissionTime
 from grader.intake.model import Arrival
 from grader.workspace.source import is_archive
+from grader.intake.canvas import extract_download
 
 METADATA = "submission_metadata.yml"
 TIME_SOURCE = "Gradescope's submission time (created_at in submission_metadata.yml)"
@@ -102,7 +103,6 @@ def read_gradescope(root: Path, work: Path) -> tuple[list[Arrival], list[str]]:
     metadata and metadata without folders."""
     notes: list[str] = []
     if root.is_file():
-        from grader.intake.canvas import extract_download
         root = extract_download(root, work / "export", notes)
     meta_path = find_metadata(root)
     if meta_path is None:

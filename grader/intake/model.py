@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
 from grader.intake.late import SubmissionTime
+from grader.errors import GraderError
+from grader.report.result import atomic_write
 
 if TYPE_CHECKING:
     from grader.scores.roster import Student
@@ -60,8 +62,6 @@ class Arrival:
 
 def write_record(sub_out: Path, record: Mapping[str, Any], due_override: Mapping[str, Any] | None = None) -> None:
     """``OUT/<id>/intake.json``: the arrival record (and a ``--due`` that replaced the rubric's)."""
-    from grader.report.result import atomic_write
-
     doc = dict(record)
     if due_override:
         doc["due_override"] = dict(due_override)
@@ -70,8 +70,6 @@ def write_record(sub_out: Path, record: Mapping[str, Any], due_override: Mapping
 
 def read_record(sub_out: Path) -> dict[str, Any] | None:
     """The arrival record of a graded submission, or None (graded without intake)."""
-    from grader.errors import GraderError
-
     path = Path(sub_out) / INTAKE_FILE
     if not path.exists():
         return None

@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from grader.lms.classroom import points, step_output
+from grader.lms.gradescope import default_root, prepare_image, run
+from grader.lms.gradescope_bundle import BASE_IMAGE, write_bundle
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     g = sub.add_parser("gradescope", help="write a Gradescope autograder zip for a rubric",
@@ -49,8 +53,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_bundle(args: argparse.Namespace) -> int:
-    from grader.lms.gradescope_bundle import BASE_IMAGE, write_bundle
-
     info = write_bundle(args.rubric, args.out, wheel=args.wheel, sandbox=args.sandbox)
     size = info["zip"].stat().st_size / 2**20
     print(f"wrote {info['zip']} ({size:.1f} MiB): lab {info['lab']}, {info['wheel']}, {info['rubric']}")
@@ -68,8 +70,6 @@ def run_classroom_result(args: argparse.Namespace) -> int:
     import os
     import sys
 
-    from grader.lms.classroom import points, step_output
-
     line, runner = step_output(args.result)
     target = os.environ.get("GITHUB_OUTPUT")
     if target:
@@ -83,8 +83,6 @@ def run_classroom_result(args: argparse.Namespace) -> int:
 
 
 def run_setup(args: argparse.Namespace) -> int:
-    from grader.lms.gradescope import default_root, prepare_image
-
     info = prepare_image(args.root or default_root(), args.rubric)
     if info["support"]:
         how = "already built" if info["cached"] else "built"
@@ -99,8 +97,6 @@ def run_setup(args: argparse.Namespace) -> int:
 
 
 def run_autograder(args: argparse.Namespace) -> int:
-    from grader.lms.gradescope import default_root, run
-
     root = args.root or default_root()
     doc = run(root, args.rubric, cache_dir=args.cache_dir)
     print(f"{root / 'results' / 'results.json'}: {doc['score']:g} points, {len(doc['tests'])} tests")

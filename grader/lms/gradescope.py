@@ -39,6 +39,10 @@ from typing import Any, Mapping
 
 from grader.errors import GraderError
 from grader.grading.starvation import REGRADE_TIME_SCALE
+from grader.rubric.load import load_rubric
+from grader.sandbox import protections
+from grader.workspace.build import build_support
+from grader.workspace.source import is_archive
 
 SCHEMA = Path(__file__).resolve().parent / "gradescope.schema.json"
 #: the folder under the autograder root where grader keeps its own outputs (result.json, bags)
@@ -147,8 +151,6 @@ def not_graded_document(rubric, reason: str, *, execution_time: float) -> dict[s
 def find_submission(folder: Path) -> Path:
     """What to grade in Gradescope's submission folder: the folder itself (workspace, packages,
     a repository), or the one archive a student uploaded without unpacking."""
-    from grader.workspace.source import is_archive
-
     if not folder.is_dir() or not any(p.is_file() for p in folder.rglob("*")):
         raise GraderError("the submission is empty: upload your workspace's src/ folder or your "
                           "package folders (a .zip of them works too).")
@@ -171,10 +173,6 @@ def prepare_image(root: Path, rubric_path: Path, *, cache_dir: Path | None = Non
     """At image build: compile the rubric's support packages into the image's build cache (so no
     submission compiles them again) and say which sandbox protections the image gives student
     code. Raises GraderError when a support package does not build (the instructor's files)."""
-    from grader.rubric.load import load_rubric
-    from grader.sandbox import protections
-    from grader.workspace.build import build_support
-
     rubric = load_rubric(rubric_path)
     cache = Path(cache_dir or Path(root) / CACHE_DIR)
     cache.mkdir(parents=True, exist_ok=True)
@@ -190,7 +188,6 @@ def run(root: Path, rubric_path: Path, *, cache_dir: Path | None = None) -> dict
     """Grade ``root/submission`` and write ``root/results/results.json``; returns the document.
     ``cache_dir`` defaults to the image's ``root/grader-cache`` (support packages pre-built)."""
     from grader.grading.pipeline import grade_submission
-    from grader.rubric.load import load_rubric
 
     t0 = time.monotonic()
     root = Path(root)

@@ -28,6 +28,10 @@ from pathlib import Path
 
 from grader import __version__
 from grader.errors import GraderError
+from grader.labs import CHECKOUT, in_checkout
+from grader.lms.gradescope import CACHE_DIR
+from grader.rubric.load import load_rubric
+from grader.rubric.stage import stage_rubrics
 
 BASE_IMAGE = "Ubuntu 22.04"
 PIP_VERSION = "25.1.1"      # the image's own pip (22.0, Ubuntu's python3.11-venv) predates the wheels' metadata
@@ -100,8 +104,6 @@ exec "$ROOT/{venv}/bin/grader" gradescope-run --root "$ROOT" --rubric "$ROOT/sou
 
 
 def checkout_root() -> Path | None:
-    from grader.labs import CHECKOUT, in_checkout
-
     return CHECKOUT if in_checkout() else None
 
 
@@ -131,11 +133,6 @@ def _add(zf: zipfile.ZipFile, path: Path, arcname: str) -> None:
 
 def write_bundle(rubric_path: Path, out: Path, *, wheel: Path | None = None, sandbox: str = "auto") -> dict:
     """Write the autograder zip; returns a summary (files, lab, items) for the CLI."""
-    from grader.rubric.load import load_rubric
-    from grader.rubric.stage import stage_rubrics
-
-    from grader.lms.gradescope import CACHE_DIR
-
     rubric = load_rubric(rubric_path)
     if sandbox not in ("auto", "require"):
         raise GraderError(f"--sandbox {sandbox}: use auto or require.")

@@ -14,6 +14,7 @@ from grader.report.index import read_docs, write_index
 from grader.report.result import read_result, write_grades_csv
 from grader.rubric.schema import Rubric
 from grader.rubric.result import Result
+from grader.similarity.summary import read_summary
 
 
 def load_results(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> dict[str, Result]:
@@ -35,8 +36,6 @@ def load_results(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) 
 
 def write_batch(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -> tuple[Path, Path]:
     """(Re)write ``out_dir/grades.csv`` and ``out_dir/index.html`` (the class view); returns both."""
-    from grader.similarity.summary import read_summary
-
     results = load_results(out_dir, rubric)
     docs = read_docs(out_dir, list(results))
     return (write_grades_csv(out_dir, results, rubric=rubric, intake=intake_docs(docs)),

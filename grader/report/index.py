@@ -20,6 +20,7 @@ from typing import Any, Mapping, Sequence
 from grader.report.result import atomic_write, check_submission_id
 from grader.report.style import CSS, INDEX_JS
 from grader.rubric.result import ItemResult, Result
+from grader.similarity.page import class_section
 
 NUMERIC = {"auto", "total", "time", "delta", "late"}      # right-aligned columns of the submissions table
 CATEGORIES = (("pass", "passed"), ("partial", "partly"), ("fail", "failed"), ("error", "not checked"))
@@ -305,8 +306,6 @@ def _sub_table(subs: Sequence[Submission]) -> str:
 
 
 def _similar(summary: Mapping[str, Any] | None) -> str:
-    from grader.similarity.page import class_section
-
     return class_section(summary)
 
 

@@ -20,6 +20,7 @@ from grader.errors import GraderError
 from grader.rubric.schema import Rubric, Section, SectionSpec
 from grader.rubric.result import ItemResult, Notice, Result
 from grader.contracts.jsonable import jsonable
+from grader.rubric.contract import Mismatch
 
 RESULT_SCHEMA = 1
 SUBMISSION_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@+-]{0,127}$")
@@ -131,7 +132,6 @@ def result_from_dict(doc: Mapping[str, Any]) -> Result:
     if isinstance(doc.get("late"), Mapping):
         from grader.intake.late import LatePenalty
         late = LatePenalty.from_dict(doc["late"])
-    from grader.rubric.contract import Mismatch
 
     return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
                   contract=tuple(Mismatch.from_dict(m) for m in doc.get("contract") or () if isinstance(m, Mapping)),

@@ -12,6 +12,7 @@ from typing import Any, Collection, Mapping
 from grader.rubric.intake_fields import intake_problems
 from grader.rubric.schema import POINTS_EPS, Rubric
 from grader.contracts.text import suggest
+from grader.audit.mutate import OPERATORS
 
 
 def rubric_problems(rubric: Rubric, analyzers: Mapping[str, Any] | Collection[str] | None,
@@ -89,8 +90,6 @@ def rubric_problems(rubric: Rubric, analyzers: Mapping[str, Any] | Collection[st
     return out
 
 def _equivalents(rubric: Rubric) -> list[tuple[str, str]]:
-    from grader.audit.mutate import OPERATORS
-
     out: list[tuple[str, str]] = []
     first: dict[str, int] = {}
     for index, entry in enumerate(rubric.equivalent_mutants):

@@ -22,12 +22,16 @@ from pathlib import Path
 from typing import Any
 
 from grader.errors import GraderError
+from grader.audit.cli import register_audit
+from grader.labs import CHECKOUT
+from grader.rubric import contract as c
+from grader.rubric.load import load_rubric
+from grader.rubric.schema import Rubric
+from grader.scenario import model as m
 
 
 # -------------------------------------------------------------------------------- JSON Schema
 def json_schema() -> dict[str, Any]:
-    from grader.rubric.schema import Rubric
-
     schema = Rubric.model_json_schema(by_alias=True)
     defs = schema["$defs"]
     name = {"type": "string", "pattern": r"^[A-Za-z][A-Za-z0-9_-]*$"}
@@ -163,8 +167,6 @@ def _fields_table(cls: Any, skip: tuple[str, ...] = ()) -> str:
 
 def scenario_reference() -> str:
     """Every step action and every ``until`` condition, from the scenario model."""
-    from grader.scenario import model as m
-
     out = ["#### Step actions (one per step)\n"]
     for key, cls in (("goal", m.Goal), ("publish", m.Publish), ("service", m.ServiceCall),
                      ("action", m.ActionGoal), ("replay", m.Replay), ("start", m.Start), ("stop", m.Stop)):
@@ -189,10 +191,6 @@ def scenario_reference() -> str:
 
 def contract_reference() -> str:
     """The contract's kinds and their keys, then the contract of every rubric in ``rubrics/``."""
-    from grader.labs import CHECKOUT
-    from grader.rubric import contract as c
-    from grader.rubric.load import load_rubric
-
     out = ["#### Kinds of names\n"]
     for kind, cls in (("packages", c.PackageEntry), ("executables", c.ExecutableEntry), ("nodes", c.NodeEntry),
                       ("topics", c.TopicEntry), ("services", c.ServiceEntry), ("actions", c.ActionEntry),
@@ -247,7 +245,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     c = rsub.add_parser("check", help="validate a rubric and list what it grades")
     c.add_argument("rubric", type=Path)
     c.set_defaults(func=_run_check)
-    from grader.audit.cli import register_audit
 
     register_audit(rsub)
 
@@ -262,8 +259,6 @@ def _run_schema(args: argparse.Namespace) -> int:
 
 
 def _run_guide(args: argparse.Namespace) -> int:
-    from grader.labs import CHECKOUT
-
     readme = args.readme or CHECKOUT / "rubrics" / "README.md"
     changed = refresh(readme, check=args.check)
     if args.check and changed:
@@ -274,8 +269,6 @@ def _run_guide(args: argparse.Namespace) -> int:
 
 
 def _run_check(args: argparse.Namespace) -> int:
-    from grader.rubric.load import load_rubric
-
     rubric = load_rubric(args.rubric)
     print(f"{rubric.lab}: {rubric.title}")
     print(f"  {len(rubric.items)} items, {rubric.auto_max:g} automatic + {rubric.manual_max:g} manual points; "

@@ -10,6 +10,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from grader.sandbox.probe import protections
+from grader.scenario import run_scenario
+from grader.scenario.model import Scenario
+from grader.scenario.runspec import LaunchedProcess, ScenarioRun
+
 LISTENER = r"""
 import json, os, sys, time
 # an empty directory shows nothing (an installed grader package is covered by an empty tmpfs)
@@ -39,12 +44,6 @@ sys.exit(0 if len(got) >= 10 else 1)
 
 
 def sandbox_selftest(timeout_s: float = 30.0) -> tuple[bool, str]:
-    from grader.scenario import run_scenario
-    from grader.scenario.model import Scenario
-    from grader.scenario.runspec import LaunchedProcess, ScenarioRun
-
-    from grader.sandbox.probe import protections
-
     fs_on = next(p.active for p in protections() if p.name == "filesystem")
     package = Path(__file__).resolve().parents[1]
     hidden = [str(p) for p in (package, package.parent / "rubrics") if p.exists()]

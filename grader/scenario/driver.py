@@ -26,6 +26,9 @@ from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event, EventReco
 from grader.scenario.graph_queries import GRADER_NODE_PREFIX, GraphQueries
 from grader.scenario.messages import import_type
 from grader.sim.clock import HOLD_SERVICE
+from grader.scenario.lockstep import Stepper
+from grader.scenario.simtime import ScenarioClock
+from grader.sim import HOLD_TURTLES_SERVICE
 
 
 
@@ -52,8 +55,6 @@ class Driver(GraphQueries):
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from std_msgs.msg import String
 
-        from grader.scenario.simtime import ScenarioClock
-
         self.rclpy = rclpy
         self.sim_node = sim_node
         self.ctx = rclpy.Context()
@@ -64,8 +65,6 @@ class Driver(GraphQueries):
         # its service clients are made here, before the executor spins, and send while it is paused
         stepper = None
         if lockstep is not None:
-            from grader.scenario.lockstep import Stepper
-
             stepper = Stepper(self.ctx, sim_node, lockstep, lockstep_exclude)
         self.clock = ScenarioClock(time_scale, self.node,
                                    f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
@@ -357,8 +356,6 @@ class Driver(GraphQueries):
         discovered in time."""
         if self._hold_client is None:
             from std_srvs.srv import SetBool
-
-            from grader.sim import HOLD_TURTLES_SERVICE
 
             self._hold_client = self.node.create_client(SetBool, f"/{self.sim_node}/{HOLD_TURTLES_SERVICE}")
 

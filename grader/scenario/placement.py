@@ -21,6 +21,7 @@ from typing import Any, Callable, cast
 
 from grader.scenario import model as m
 from grader.scenario.runtime import Runtime, StepState
+from grader.sim import truth_pose_topic
 
 #: how a placement calls the simulator's teleport service (the step handler of ``ServiceCall``)
 ServiceCall = Callable[[Runtime, m.Step, m.ServiceCall, StepState], dict[str, Any]]
@@ -158,8 +159,6 @@ def handoff_topic(place: m.Placement) -> str:
 
 def placement_topic(place: m.Placement) -> str:
     """The simulator's own pose topic of the placed turtle (not the public one a student may echo)."""
-    from grader.sim import truth_pose_topic
-
     return truth_pose_topic(f"/{place.turtle}/pose")
 
 

@@ -39,6 +39,8 @@ from grader.scenario.lockstep import LockstepFailed
 from grader.scenario.runspec import ScenarioRun
 from grader.scenario.watchdog import RateWatchdog
 from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
+from grader.rosenv import simulator_env, add_interface_paths
+from grader.sim import truth_pose_topic, sim_argv
 
 RECORDER_READY_S = 10.0
 SIM_READY_S = 15.0
@@ -296,8 +298,6 @@ def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[st
     while other submissions were built) with no pose at all, and its pose integrity check
     became "could not check" instead of "pass" (a test reproduces it with a recorder that
     discovers the simulator late)."""
-    from grader.sim import truth_pose_topic
-
     if recorder is None:
         return
     pose = driver.pose_topic or "/turtle1/pose"
@@ -317,9 +317,6 @@ def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dic
                        scale: float | None) -> ManagedProcess | None:
     """The reference simulator (with the clock on simulated time), or without one on simulated
     time ``grader_clock``; returns the simulator's process (None without a simulator)."""
-    from grader.rosenv import simulator_env
-    from grader.sim import sim_argv
-
     if run.scenario.sim:
         canvas = out / "canvas.png"
         record["canvas"] = str(canvas)
@@ -372,7 +369,6 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m grader.scenario.run RUN.json OUT_DIR", file=sys.stderr)
         return 2
     run = ScenarioRun.model_validate_json(Path(argv[0]).read_text())
-    from grader.rosenv import add_interface_paths
 
     add_interface_paths()     # a grader process: the students' types from the grader's own build of them
     import faulthandler

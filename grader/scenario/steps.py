@@ -23,6 +23,7 @@ from grader.scenario.placement import (SPAWN_SERVICE, SPAWN_TYPE, TELEPORT_TYPE,
                                       placement_topic, teleport_service)
 from grader.scenario.predicates import CONDITIONS, GRAPH_CONDITIONS, GRAPH_SETTLE_S
 from grader.scenario.runtime import Runtime, StepState
+from grader.scenario.client_gid import client_gid
 
 
 # ----------------------------------------------------------------------------------- actions
@@ -106,8 +107,6 @@ def _client_id(client: Any) -> dict[str, Any]:
     """The ``client_gid`` of a ``service_call`` event: whose call a service event is, read off
     the event itself (see :mod:`grader.scenario.client_gid`); ``client_gid_error`` when the rmw
     could not say."""
-    from grader.scenario.client_gid import client_gid
-
     try:
         return {"client_gid": client_gid(client)}
     except (OSError, AttributeError) as exc:

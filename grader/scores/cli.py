@@ -8,6 +8,10 @@ import sys
 from pathlib import Path
 
 from grader.errors import GraderError
+from grader.intake.model import INTAKE_FILE
+from grader.scores.export import export_gradebook
+from grader.scores.merge import merge_manual_scores
+from grader.scores.roster import parse_mapping, read_roster
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -53,8 +57,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_merge(args: argparse.Namespace) -> int:
-    from grader.scores.merge import merge_manual_scores
-
     report = merge_manual_scores(args.out, args.csv, dry_run=args.dry_run)
     for change in report.changes:
         print(change.describe())
@@ -77,15 +79,10 @@ def run_merge(args: argparse.Namespace) -> int:
 def _has_intake(out: Path) -> bool:
     """The batch came from an LMS download (grader grade --roster): submissions find their roster
     rows by the ids they kept, so the roster needs no submission column."""
-    from grader.intake.model import INTAKE_FILE
-
     return any(out.glob(f"*/{INTAKE_FILE}"))
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from grader.scores.export import export_gradebook
-    from grader.scores.roster import parse_mapping, read_roster
-
     if args.map and not args.roster:
         raise GraderError("--map describes the roster's columns: give the roster with --roster")
     roster = read_roster(args.roster, parse_mapping(args.map), require_submission=not _has_intake(args.out)) \

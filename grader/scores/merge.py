@@ -28,6 +28,7 @@ from grader.scores import transaction
 from grader.scores.sheet import LATE, SheetRow, read_sheet
 from grader.scores.store import (MANUAL_SCORES, ManualScore, apply_manual_scores, load_late_override,
                                  load_manual_scores, manual_scores_text)
+from grader.analyze.plugins import load_recorded_files
 
 #: order of the moves: the record of the TA's scores first, the batch overview last
 _ORDER = {MANUAL_SCORES: 0, "result.json": 1, "report.html": 2, "grades.csv": 3, "index.html": 4}
@@ -184,7 +185,6 @@ def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
     if (sub_out / "result.json").read_bytes() == path.read_bytes() and (sub_out / "report.html").exists():
         return
     canvases = {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
-    from grader.analyze.plugins import load_recorded_files
 
     load_recorded_files(g.doc.get("analyzer_files") or [])      # the lab's own figures and labels
     write_html(stage, g.sid, result, versions=versions, canvas_png=canvases or None,

@@ -25,6 +25,7 @@ from typing import Any, Iterator, Mapping
 
 from grader.errors import GraderError
 from grader.rubric.result import PENDING, ItemResult, Result
+from grader.report.result import atomic_write
 
 MANUAL_SCORES = "manual_scores.json"
 STORE_SCHEMA = 1
@@ -133,8 +134,6 @@ def manual_scores_text(lab: str, submission: str, scores: Mapping[str, ManualSco
 def manual_scores_kept(sub_out: str | os.PathLike[str]) -> Iterator[None]:
     """Keep ``manual_scores.json`` while the block recreates the submission's folder
     (``grader grade`` starts each submission from an empty folder)."""
-    from grader.report.result import atomic_write
-
     path = Path(sub_out) / MANUAL_SCORES
     text = path.read_text(encoding="utf-8") if path.exists() else None
     try:

@@ -36,6 +36,8 @@ import numpy as np
 
 from grader.analyze._common import end_time, events, rosout_lines, stdout_lines, times
 from grader.contracts.events import Graph, GoalSent, ScenarioStart, StepEnd, StepStart
+from grader.analyze.evidence import TIME
+from grader.report.result import atomic_write
 
 FINGERPRINT_FILE = "fingerprint.json"
 FINGERPRINT_SCHEMA = 2          # 2: generic traceback lines left out
@@ -198,8 +200,6 @@ def fingerprint_frames(frames: Mapping[str, Any], scenario: str) -> list[Feature
 
 def write_fingerprint(scenario_dir: Path, frames: Mapping[str, Any]) -> Path:
     """Fingerprint one scenario's frames into ``scenario_dir/fingerprint.json``."""
-    from grader.report.result import atomic_write
-
     feats = fingerprint_frames(frames, Path(scenario_dir).name)
     path = Path(scenario_dir) / FINGERPRINT_FILE
     doc = {"schema": FINGERPRINT_SCHEMA, "scenario": Path(scenario_dir).name,
@@ -238,8 +238,6 @@ def result_features(doc: Mapping[str, Any], item_scenarios: Mapping[str, list[st
     """Features of a result.json: failing items with their values, and every item's measured
     numbers (``labels``: item id -> its analyzer's evidence table; unlabelled keys, thresholds and
     times are left out)."""
-    from grader.analyze.evidence import TIME
-
     feats = []
     for item in doc.get("items") or ():
         iid, status = str(item.get("id")), str(item.get("status"))

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from grader.errors import GraderError
+from grader.rubric.load import load_rubric
 
 
 def add_options(p: argparse.ArgumentParser) -> None:
@@ -122,7 +123,6 @@ def print_summary(summary: dict, out: Path) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from grader.rubric.load import load_rubric
     from grader.similarity.run import run_similarity
 
     if not args.out.is_dir():

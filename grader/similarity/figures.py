@@ -11,6 +11,7 @@ from matplotlib.collections import LineCollection
 
 from grader.report.figures import _LOCK, Plot, RenderedFigure
 from grader.report.figures._mpl import BLUE, MUTED, OUTSIDE, STYLE, VERMILION, new_figure, rc_context, to_svg
+from grader.similarity.behaviour import CMD_GRID_S
 
 MAX_FIGURES = 2         # a page's figures cost ~0.1 s each (matplotlib), and a class may list 50 pairs
 
@@ -47,8 +48,6 @@ def _path_plot(key: str, label: str, a: str, b: str, values: Mapping[str, Any], 
 
 
 def _series_plot(key: str, label: str, a: str, b: str, values: Mapping[str, Any], shared: Mapping[str, Any]) -> Plot:
-    from grader.similarity.behaviour import CMD_GRID_S
-
     title = f"Both series: {label}"
     fig, ax = new_figure(title, (6.4, 3.4), legend_width=2.0)
     grouped = shared.get("group") == "commands"

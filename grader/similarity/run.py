@@ -21,9 +21,16 @@ from typing import Any
 
 from grader.errors import GraderError
 from grader.similarity import behaviour, code
-from grader.similarity.compare import analyse
+from grader.similarity.compare import analyse, TOLERANCE, UNIFORM_SHARE
 from grader.similarity.files import SOURCE_DIR
 from grader.similarity.summary import KNOWN_PREFIX, OUT_DIR, PAIRS_CSV, SUMMARY, read_summary
+from grader import analyze
+from grader.grading.analysis import scenario_frames
+from grader.grading.outputs import write_batch_outputs
+from grader.grading.repeat import scenario_of
+from grader.report.result import atomic_write
+from grader.similarity.page import render_pair
+from grader.workspace.source import extract_archive, is_archive
 
 MAX_FEATURES = 40            # shared features kept per listed pair (most telling first)
 
@@ -87,8 +94,6 @@ def _scenario_features(sub_out: Path) -> list[behaviour.Feature]:
     for sc_dir in _first_runs(sub_out):
         stored = behaviour.read_fingerprint(sc_dir)
         if stored is None and (sc_dir / "bag").exists():
-            from grader.grading.analysis import scenario_frames
-
             try:
                 behaviour.write_fingerprint(sc_dir, scenario_frames(sc_dir))
             except Exception:  # noqa: BLE001 - an unreadable bag: that scenario has no features
@@ -99,14 +104,10 @@ def _scenario_features(sub_out: Path) -> list[behaviour.Feature]:
 
 
 def _first_runs(sub_out: Path) -> list[Path]:
-    from grader.grading.repeat import scenario_of
-
     return sorted(p for p in (Path(sub_out) / "scenarios").glob("*") if p.is_dir() and scenario_of(p.name) == p.name)
 
 
 def _labels(rubric) -> tuple[dict[str, list[str]], dict[str, dict]]:
-    from grader import analyze
-
     scenarios = {i.id: list(i.scenario) for i in rubric.items}
     labels = {}
     for item in rubric.items:
@@ -133,8 +134,6 @@ def _passing(docs: dict[str, dict], item_scenarios: dict[str, list[str]]) -> dic
 
 def _known_sets(root: Path, boilerplate, work: Path) -> list[code.SourceSet]:
     """Each folder or archive under ``root`` as one known solution."""
-    from grader.workspace.source import extract_archive, is_archive
-
     root = Path(root)
     if not root.is_dir():
         raise GraderError(f"--known {root}: not a folder (give a folder of workspaces or archives)")
@@ -249,8 +248,6 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
 
 
 def _tolerances() -> dict[str, float]:
-    from grader.similarity.compare import TOLERANCE, UNIFORM_SHARE
-
     return {**TOLERANCE, "uniform_share": UNIFORM_SHARE}
 
 
@@ -289,9 +286,6 @@ def pairs_csv(summary: dict[str, Any]) -> str:
 
 def write(out: Path, summary: dict[str, Any]) -> Path:
     """similarity.json, pairs.csv and the listed pairs' pages under OUT/similarity/."""
-    from grader.report.result import atomic_write
-    from grader.similarity.page import render_pair
-
     folder = Path(out) / OUT_DIR
     folder.mkdir(parents=True, exist_ok=True)
     for old in folder.glob("pair-*.html"):
@@ -309,8 +303,6 @@ def write(out: Path, summary: dict[str, Any]) -> Path:
 
 def run_similarity(out: Path, rubric, settings: Settings | None = None, jobs: int = 2) -> dict[str, Any]:
     """Compute, write OUT/similarity/ and rewrite the class view with it; the summary."""
-    from grader.grading.outputs import write_batch_outputs
-
     summary = compute(Path(out), rubric, settings or Settings(), jobs=jobs)
     write(Path(out), summary)
     write_batch_outputs(Path(out), rubric)

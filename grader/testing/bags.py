@@ -27,6 +27,8 @@ from typing import Any, Callable, Iterator
 
 import pytest
 
+from grader.runner import ProcessSpec, RosGraph
+
 ROOT = Path(__file__).resolve().parents[2]
 FIXTURE_BAGS = ROOT / "fixtures" / "bags"
 
@@ -121,8 +123,6 @@ def replay_argv(bag: Path | str, *, topics: list[str] | None = None, rate: float
 @pytest.fixture
 def replay_bag(tmp_path: Path) -> Iterator[Callable[..., Replay]]:
     """Start ``grader replay`` for a bag (fixture name or path) in a graph; stopped afterwards."""
-    from grader.runner import ProcessSpec, RosGraph
-
     own: list[Any] = []
     started: list[Any] = []
 

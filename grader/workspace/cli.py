@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from grader.workspace.build import build_workspace, default_cache_dir
+from grader.workspace.build import build_workspace, default_cache_dir, _to_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,7 +27,6 @@ def run(args: argparse.Namespace) -> int:
     result = build_workspace(args.path, cache_dir=args.cache_dir,
                              support={k: Path(v) for k, v in support.items()}, force=args.force)
     if args.json:
-        from grader.workspace.build import _to_json
         print(json.dumps(_to_json(result), indent=1))
         return 0 if result.ok else 1
     state = "cache hit" if result.cached else f"built in {result.duration_s:.1f}s"

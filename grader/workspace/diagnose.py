@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping
 
+from grader.sandbox.oneshot import run_jailed_capture
+
 DETAIL_LINES = 6
 SETUP_PY_TIMEOUT_S = 60
 ROS_NAME = re.compile(r"^[a-z][a-z0-9_]*$")       # REP 144; rosdep keys (python3-numpy) differ
@@ -349,8 +351,6 @@ def _setup_py(pkg_dir: Path, log: str, env: Mapping[str, str]) -> Diagnosis | No
 def _run_setup_py(pkg_dir: Path, env: Mapping[str, str]) -> str:
     """stderr of ``setup.py --name``: colcon ran it the same way but kept no per-package copy.
     Student code: run in a jail that sees the package read-only (grader.sandbox)."""
-    from grader.sandbox.oneshot import run_jailed_capture
-
     run, _out, err = run_jailed_capture([sys.executable, "setup.py", "--name"], env=env, cwd=pkg_dir,
                                         ro=[pkg_dir], timeout_s=SETUP_PY_TIMEOUT_S, memory_mb=1024,
                                         pids=256, name="setup-py")

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from grader.errors import GraderError
+from grader.rosenv import PY_SITE
 
 KINDS = ("msg", "srv", "action")
 PACKAGE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")          # REP 144
@@ -74,8 +75,6 @@ def definitions(install: Path, package: str) -> dict[str, list[Path]]:
     when it is no interface package: rosidl generated no Python for it). Only regular files
     inside ``install`` count: a student's build could have made them links to the grader's files
     (rosidl's error messages would then quote them)."""
-    from grader.rosenv import PY_SITE
-
     inside = install.resolve()
     site = install / PY_SITE / package
     found: dict[str, list[Path]] = {}

@@ -63,6 +63,11 @@ def test_an_older_recording_reads_with_the_defaults_that_say_what_it_meant() -> 
     assert line.delivered
 
 
+def test_asking_for_an_event_by_its_name_is_refused() -> None:
+    with pytest.raises(TypeError, match="not an event's name"):
+        events(_frames({"event": "step_start", "step": "a"}), "step_start")  # type: ignore[call-overload]
+
+
 def test_events_of_several_kinds_keep_the_bags_order() -> None:
     frames = _frames({"event": "turtles_held", "step": "a", "ok": True}, {"event": "step_start", "step": "b"},
                      {"event": "turtles_released", "step": "a", "ok": True, "held_s": 0.5})

@@ -79,3 +79,51 @@ def test_the_scan_finds_a_circle_made_by_a_function_local_import(tmp_path: Path)
     assert _cycles(graph) == [["grader.a", "grader.b"]]
     (tmp_path / "x.py").write_text("def f():\n    from grader.grading.pipeline import grade_submission\n")
     assert _imports(tmp_path / "x.py", {"grader.grading.pipeline"}) == {"grader.grading.pipeline"}
+
+
+def _load_time_imports(path: Path, known: set[str]) -> set[str]:
+    """What importing ``path`` loads at once: its imports outside functions and ``TYPE_CHECKING``,
+    each with the packages Python imports first (``grader.a.b`` loads ``grader.a``)."""
+    out: set[str] = set()
+
+    def visit(node: ast.AST) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                continue
+            if isinstance(child, ast.If) and "TYPE_CHECKING" in ast.unparse(child.test):
+                continue
+            if isinstance(child, (ast.Import, ast.ImportFrom)):
+                out.update(_imports_of(child, known))
+            visit(child)
+
+    visit(ast.parse(path.read_text()))
+    return {p for name in out for p in _packages(name) if p in known}
+
+
+def _imports_of(node: ast.Import | ast.ImportFrom, known: set[str]) -> set[str]:
+    if isinstance(node, ast.Import):
+        return {a.name for a in node.names if a.name in known}
+    if not (node.module and node.level == 0 and node.module.startswith("grader")):
+        return set()
+    subs = {f"{node.module}.{a.name}" for a in node.names} & known
+    return subs | ({node.module} & known)
+
+
+def _packages(name: str) -> list[str]:
+    parts = name.split(".")
+    return [".".join(parts[:i]) for i in range(1, len(parts) + 1)]
+
+
+def test_no_circle_at_import_time_through_a_package() -> None:
+    """Importing a module loads its packages first: ``grader/launch/__init__.py`` importing
+    ``grader.scenario.model`` while ``grader/scenario/__init__.py`` imports ``grader.launch`` fails
+    with "partially initialized module" although no two modules import each other. Moving an
+    import out of a function (issue 38) must not close such a circle."""
+    files = {_module_name(p): p for p in GRADER.rglob("*.py")}
+    known = set(files)
+    # a module's own packages are loaded before it: an import of one of them adds no arrow
+    graph = {name: _load_time_imports(path, known) - set(_packages(name)) for name, path in files.items()}
+    assert _cycles(graph) == []
+    made_up = {"grader.launch": {"grader.scenario.model", "grader.scenario"},
+               "grader.scenario": {"grader.launch"}, "grader.scenario.model": set()}
+    assert _cycles(made_up) == [["grader.launch", "grader.scenario"]]

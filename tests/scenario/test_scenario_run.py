@@ -204,8 +204,9 @@ def test_the_turtle_is_held_at_the_scenarios_end(tmp_path: Path) -> None:
     canvas a grade reads (a canvas item got 2.5, 5 and 2.5 points for the same code)."""
     import numpy as np
 
-    from grader.analyze._common import events as ev
+    from grader.analyze._common import events
     from grader.bag.frames import load_frames
+    from grader.contracts.events import ScenarioEnd, TurtlesHeld
 
     scenario = Scenario.model_validate({"steps": [
         {"id": "drive", "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
@@ -214,7 +215,7 @@ def test_the_turtle_is_held_at_the_scenarios_end(tmp_path: Path) -> None:
     record = run_scenario(resolve("end", scenario, None), tmp_path / "end")
     assert record["errors"] == [], record
     frames = load_frames(tmp_path / "end" / "bag")
-    t_end = ev(frames, "scenario_end")[0]["t"]
+    t_end = events(frames, ScenarioEnd)[0].t
     truth = frames["/grader/sim_record/turtle1/pose"]
     t = truth.index.to_numpy(float)
     x = truth["x"].to_numpy(float)
@@ -223,8 +224,8 @@ def test_the_turtle_is_held_at_the_scenarios_end(tmp_path: Path) -> None:
     assert after.sum() >= 3, "the simulator recorded poses after the scenario's end"
     assert np.ptp(x[after]) == 0.0 and (truth["linear_velocity"].to_numpy(float)[after] == 0).all(), \
         f"the turtle went on {np.ptp(x[after]):.3f} m after the scenario's end"
-    held = ev(frames, "turtles_held")
-    assert [(e["step"], e["ok"]) for e in held] == [("scenario_end", True)]
+    held = events(frames, TurtlesHeld)
+    assert [(e.step, e.ok) for e in held] == [("scenario_end", True)]
 
 
 @pytest.mark.ros

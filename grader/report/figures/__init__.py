@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 from grader.rubric.result import ItemResult
+from grader.analyze.plugins import load_builtin_and_installed
 
 __all__ = ["FigureContext", "Plot", "RenderedFigure", "figure", "figures_for", "registered"]
 
@@ -115,7 +116,6 @@ def _load_all() -> None:
         if not mod.name.startswith("_"):
             importlib.import_module(f"{__name__}.{mod.name}")
     _loaded = True
-    from grader.analyze.plugins import load_builtin_and_installed
 
     load_builtin_and_installed()
 
