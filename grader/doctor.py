@@ -18,7 +18,7 @@ from grader.errors import GraderError
 from grader.runner import ProcessSpec, RosGraph, python_argv
 from grader.sandbox.scenario import require_complete
 from grader.sandbox.selftest import sandbox_selftest
-from grader.scenario.model import Limits
+from grader.contracts.process import Limits
 
 INTERFACE_PACKAGES = ("turtlesim", "std_msgs", "geometry_msgs", "std_srvs", "action_msgs",
                       "rcl_interfaces", "service_msgs")

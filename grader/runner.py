@@ -32,7 +32,7 @@ from grader.sandbox.capture import CappedLog
 from grader.sandbox.jail import Prepared, prepare
 from grader.sandbox.scenario import ChildConfig, child_config
 from grader.sandbox.watch import LimitWatch
-from grader.scenario.model import Limits, StdinLine
+from grader.contracts.process import Limits, StdinLine
 
 _PR_SET_PDEATHSIG = 1
 try:  # loaded once here: after fork only async-signal-safe work should happen

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from grader.analyze._common import Frames, events, meta, norm_type, sim_node
-from grader.rubric.contract import (Contract, ExecutableEntry, LaunchEntry, Mismatch, NodeEntry, PackageEntry,
-                                    TopicEntry, node_name)
+from grader.contracts.contract import (Contract, ExecutableEntry, LaunchEntry, Mismatch, NodeEntry, PackageEntry,
+                                       TopicEntry, node_name)
 from grader.contracts.events import Graph, Packages
 
 #: topics every node has, and the grader's own

@@ -39,7 +39,7 @@ def goal_xy(obj: Any) -> tuple[float, float] | None:
 @dataclass
 class SentGoal:
     """A goal as a recording shows it sent (``t``, where), until the next one (``t_end``); the
-    rubric's goal (what a scenario sends) is ``grader.scenario.fields.Goal``."""
+    rubric's goal (what a scenario sends) is ``grader.contracts.fields.Goal``."""
 
     t: float
     x: float

@@ -74,9 +74,8 @@ from typing import Any, Iterable
 
 from grader.audit import aspects
 from grader.audit.operators import MAKERS, Edit, Source, parents_of, scope_of, unmutable
+from grader.contracts.mutants import OPERATORS
 
-OPERATORS: tuple[str, ...] = ("flip_sign", "scale_constant", "swap_args", "rename_topic", "drop_call",
-                              "remove_angle_wrap", "change_timer_period")
 
 #: every operator ``mutants`` takes: the audit's (``OPERATORS``, its default) and the one-aspect
 #: operators of the collateral-loss audit (``grader.audit.aspects``)

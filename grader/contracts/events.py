@@ -259,28 +259,27 @@ class ProcessEvent(EventRecord):
     process: str = ""
 
 
-class NodeStarted(ProcessEvent):
-    KIND = Event.NODE_STARTED
-    #: the rubric process it belongs to
+class NodeEvent(ProcessEvent):
+    """A student process of a rubric process (``of``) and what starts it: the rubric's package,
+    executable, module or launch file, and the node name a launch file gives it."""
+
     of: str | None = None
     package: str | None = None
     executable: str | None = None
     module: str | None = None
     launch: str | None = None
     node_name: str | None = None
+
+
+class NodeStarted(NodeEvent):
+    KIND = Event.NODE_STARTED
     argv: list[str] = []
 
 
-class NodeUnavailable(ProcessEvent):
+class NodeUnavailable(NodeEvent):
     KIND = Event.NODE_UNAVAILABLE
-    of: str | None = None
-    package: str | None = None
-    executable: str | None = None
-    module: str | None = None
-    launch: str | None = None
     #: why it could not be started
     error: str | None = None
-    node_name: str | None = None
 
 
 class NodeStopped(ProcessEvent):

@@ -20,7 +20,7 @@ from grader.errors import GraderError
 from grader.rubric.schema import Rubric, Section, SectionSpec
 from grader.rubric.result import ItemResult, Notice, Result
 from grader.contracts.jsonable import jsonable
-from grader.rubric.contract import Mismatch
+from grader.contracts.contract import Mismatch
 
 RESULT_SCHEMA = 1
 SUBMISSION_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@+-]{0,127}$")

@@ -12,7 +12,7 @@ from typing import Any, Collection, Mapping
 from grader.rubric.intake_fields import intake_problems
 from grader.rubric.schema import POINTS_EPS, Rubric
 from grader.contracts.text import suggest
-from grader.audit.mutate import OPERATORS
+from grader.contracts.mutants import OPERATORS
 
 
 def rubric_problems(rubric: Rubric, analyzers: Mapping[str, Any] | Collection[str] | None,

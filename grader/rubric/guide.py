@@ -24,7 +24,7 @@ from typing import Any
 from grader.errors import GraderError
 from grader.audit.cli import register_audit
 from grader.labs import CHECKOUT
-from grader.rubric import contract as c
+from grader.contracts import contract as c
 from grader.rubric.load import load_rubric
 from grader.rubric.schema import Rubric
 from grader.scenario import model as m

@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from grader.scenario.fields import ExecutableName, Model, PackageName
+from grader.contracts.fields import ExecutableName, Model, PackageName
 from grader.contracts.text import pattern_text
 
 #: ``my_node.py`` or ``my_node.py:main`` (the function the console script calls; default main)

@@ -13,7 +13,7 @@ from grader.rubric.schema import Section, SectionSpec
 
 if TYPE_CHECKING:
     from grader.intake.late import LatePenalty
-    from grader.rubric.contract import Mismatch
+    from grader.contracts.contract import Mismatch
 
 #: status of a manual item nobody graded yet
 PENDING = "pending"

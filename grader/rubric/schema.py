@@ -22,8 +22,9 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BeforeValidator, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from grader.rubric.intake_fields import LatePolicy, LooseFiles
-from grader.rubric.contract import Contract, item_roles, resolve_references, scenario_roles
-from grader.scenario.fields import Model, PackageName, with_rules
+from grader.contracts.contract import Contract
+from grader.rubric.contract import item_roles, resolve_references, scenario_roles
+from grader.contracts.fields import Model, PackageName, with_rules
 from grader.scenario.model import Scenario
 from grader.contracts.text import pattern_text
 

@@ -17,7 +17,7 @@ from dataclasses import replace
 from typing import Any, Iterable, Mapping, Protocol
 
 from grader.errors import GraderError
-from grader.rubric.contract import Mismatch
+from grader.contracts.contract import Mismatch
 from grader.rubric.result import PENDING, ItemResult, Result
 from grader.rubric.schema import Item, Rubric
 from grader.contracts.status import STATUSES

@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import BeforeValidator, Field, field_validator, model_validator
 
-from grader.scenario.fields import (ActionType, Goal, LocalId, Model, NonNegativeFloat, PositiveFloat,
+from grader.contracts.fields import (ActionType, Goal, LocalId, Model, NonNegativeFloat, PositiveFloat,
                                     PositiveInt, RosName)
 
 

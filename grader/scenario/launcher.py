@@ -18,7 +18,8 @@ from typing import Any, Sequence
 
 from grader.runner import UNTRUSTED, UNTRUSTED_NPROC, ManagedProcess, ProcessSpec, RosGraph
 from grader.contracts.events import Event
-from grader.scenario.model import Limits, Process
+from grader.contracts.process import Limits
+from grader.scenario.model import Process
 from grader.scenario.runspec import LaunchedProcess, ScenarioRun
 
 #: a ROS node exits within a second of Ctrl-C; one blocked in input() ignores it (rclpy handles

@@ -13,7 +13,7 @@ is also why ``grader rubric schema`` can hand editors a JSON Schema generated fr
 pydantic is used because it gives typed, frozen models, strict validation with located errors,
 JSON round-trips and JSON Schema from one declaration.
 
-The field types and base model live in ``grader.scenario.fields``, the ``until:`` conditions in
+The field types and base model live in ``grader.contracts.fields``, the ``until:`` conditions in
 ``grader.scenario.conditions``; both are re-exported here, so ``model`` names the whole language.
 
 A little over the project's ~400 lines: one class per step and process kind of the rubric
@@ -34,10 +34,11 @@ from grader.contracts.world import WORLD_SIZE_M
 from grader.scenario.conditions import (  # noqa: F401
     ActionDone, Advertised, Condition, GoalReached, Messages, Output, ProcessExit, ReplayDone, ServiceDone,
     Subscribed)
-from grader.scenario.fields import (  # noqa: F401
+from grader.contracts.fields import (  # noqa: F401
     GOAL_TYPES, RESERVED_PROCESSES, ActionType, EntryPoint, EnvName, ExecutableName, Goal,
     LaunchFile, LaxPath, LocalId, Model, MsgType, NonNegativeFloat, PackageName, ParamValue,
     PositiveFloat, PositiveInt, RosName, SrvType, with_rules)
+from grader.contracts.process import Limits, StdinLine  # noqa: F401  (the scenario's processes are made of them)
 
 
 
@@ -52,33 +53,6 @@ class Placement(Model):
     spawn: bool = Field(False, description="when the turtle does not exist (the simulator has published no "
                         "pose of it), spawn it there (turtlesim's /spawn) instead: the items of the steps "
                         "that need it are graded even when the student's code did not make it")
-
-
-class StdinLine(Model):
-    """A line typed into a process ``delay`` seconds after the previous one (or after the prompt)."""
-
-    line: str = Field(description="the text typed (Enter is added)")
-    delay: NonNegativeFloat = Field(0.5, description="s after the previous line (the first: after the "
-                                    "node is up and its topics are recorded)")
-
-    @model_validator(mode="before")
-    @classmethod
-    def _plain(cls, value: Any) -> Any:
-        return {"line": value} if isinstance(value, str) else value
-
-
-class Limits(Model):
-    """Resource limits of a process or a scenario; None leaves the grader's default.
-
-    ``memory_mb`` of a process bounds its address space (rclpy + Fast DDS need about 1 GiB);
-    ``memory_mb`` of a scenario bounds the memory of all its student processes together (the
-    sandbox's cgroup; default 2048).
-    """
-
-    wall_s: PositiveFloat | None = Field(None, description="wall-clock seconds")
-    cpu_s: PositiveInt | None = Field(None, description="CPU seconds")
-    memory_mb: PositiveInt | None = Field(None, description="MiB: a process's address space; a scenario's "
-                                          "student processes together")
 
 
 class Process(Model):

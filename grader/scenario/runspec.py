@@ -14,7 +14,7 @@ from typing import Annotated
 
 from pydantic import Field
 
-from grader.scenario.fields import Model, NonNegativeFloat, PositiveFloat, RosName
+from grader.contracts.fields import Model, NonNegativeFloat, PositiveFloat, RosName
 from grader.scenario.model import Scenario
 
 

@@ -13,7 +13,7 @@ import pytest
 from analyze_synth import T0, events_frame, rosout_frame, stdout_frame, string_frame, with_meta
 from grader.analyze import get
 from grader.analyze.contract import check_contract
-from grader.rubric.contract import Contract
+from grader.contracts.contract import Contract
 
 CONTRACT = Contract.model_validate({
     "packages": {"pkg": "turtle_goal"},

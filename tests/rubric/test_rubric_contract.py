@@ -11,7 +11,7 @@ import pytest
 from grader.analyze import Finding
 from grader.report.result import result_from_dict, result_to_dict
 from grader.rubric import load_rubric, score
-from grader.rubric.contract import Mismatch
+from grader.contracts.contract import Mismatch
 
 REPO = Path(__file__).resolve().parents[2]
 F = "rubrics/x.yaml"
