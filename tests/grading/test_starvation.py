@@ -128,7 +128,7 @@ def test_a_run_on_simulated_time_the_machine_starves_goes_again_at_1x(tmp_path: 
     it sooner (make test: Lab 3's no_wrap controller scenario, starved at 4x in its recording and
     its re-run, had an ``error`` item). Such a run is recorded at 1x, and the record says why; a
     run the student's own loop starved, or one not starved, stays at 4x."""
-    import grader.scenario
+    from grader.grading import timescale
     from grader.grading.timescale import run_at_scale, too_busy_for
     from grader.scenario import resolve
     from grader.scenario.model import Scenario
@@ -147,7 +147,7 @@ def test_a_run_on_simulated_time_the_machine_starves_goes_again_at_1x(tmp_path: 
         (folder / "scenario.json").write_text(json.dumps(record))
         return record
 
-    monkeypatch.setattr(grader.scenario, "run_scenario", fake_run)
+    monkeypatch.setattr(timescale, "run_scenario", fake_run)      # where the batch calls it
     run = resolve("sc", Scenario.model_validate({"steps": [{"id": "s", "wait": 1.0}]}), None)
     record = run_at_scale(run, tmp_path / "sc", 4.0, None)
     assert scales == [4.0, 1.0]
@@ -159,7 +159,7 @@ def test_a_run_on_simulated_time_the_machine_starves_goes_again_at_1x(tmp_path: 
 def test_after_one_run_too_busy_for_4x_the_retries_run_at_1x(tmp_path: Path, monkeypatch) -> None:
     """The starvation retries of a scenario the machine was too busy to run at 4x go at 1x at
     once (not 4x, starved, then 1x, every attempt), and every record says why it is at 1x."""
-    import grader.scenario
+    from grader.grading import timescale
     from grader.grading.timescale import ScaledRecording
     from grader.scenario import resolve
     from grader.scenario.model import Scenario
@@ -175,7 +175,7 @@ def test_after_one_run_too_busy_for_4x_the_retries_run_at_1x(tmp_path: Path, mon
         (folder / "scenario.json").write_text(json.dumps(record))
         return record
 
-    monkeypatch.setattr(grader.scenario, "run_scenario", fake_run)
+    monkeypatch.setattr(timescale, "run_scenario", fake_run)      # where the batch calls it
     folder = tmp_path / "sc"
     run = resolve("sc", Scenario.model_validate({"steps": [{"id": "s", "wait": 1.0}]}), None)
     record = record_unstarved(ScaledRecording(run, folder, 4.0, None), folder, pause=lambda s: None)
