@@ -11,6 +11,7 @@ import collections
 import json
 import math
 import re
+import threading
 from typing import Any, Iterable, Mapping, TypeVar, overload
 
 import numpy as np
@@ -198,6 +199,7 @@ def end_time(frames: Frames) -> float:
 
 # --------------------------------------------------------------------------- grader events
 _PARSED: collections.OrderedDict[int, tuple[pd.DataFrame, list[EventRecord]]] = collections.OrderedDict()
+_PARSED_LOCK = threading.Lock()
 _PARSED_KEPT = 16          # the events topics of the last few bags: every analyzer of a scenario reads them
 
 
@@ -214,14 +216,16 @@ def _loads(s: Any) -> dict[str, Any]:
 def _parsed(df: pd.DataFrame) -> list[EventRecord]:
     """Every event of the bag's events topic as its model, parsed once per DataFrame (the
     analyzers of a scenario each ask; the models are frozen, so sharing them is safe)."""
-    hit = _PARSED.get(id(df))
-    if hit is not None and hit[0] is df:
-        _PARSED.move_to_end(id(df))
-        return hit[1]
+    with _PARSED_LOCK:                    # analyses of several scenarios may run in threads
+        hit = _PARSED.get(id(df))
+        if hit is not None and hit[0] is df:
+            _PARSED.move_to_end(id(df))
+            return hit[1]
     out = [parse_event(d, float(t)) for t, s in zip(times(df), df["data"]) if (d := _loads(s))]
-    _PARSED[id(df)] = (df, out)
-    while len(_PARSED) > _PARSED_KEPT:
-        _PARSED.popitem(last=False)
+    with _PARSED_LOCK:
+        _PARSED[id(df)] = (df, out)
+        while len(_PARSED) > _PARSED_KEPT:
+            _PARSED.popitem(last=False)
     return out
 
 
