@@ -19,12 +19,13 @@ import argparse
 import json
 import typing
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from grader.errors import GraderError
 from grader.audit.cli import register_audit
 from grader.labs import CHECKOUT
 from grader.contracts import contract as c
+from grader.contracts.params import AnalyzerParams, bounds, type_words
 from grader.rubric.load import load_rubric
 from grader.rubric.schema import Rubric
 from grader.scenario import model as m
@@ -96,8 +97,6 @@ def _with_references(node: Any) -> Any:
 def analyzer_reference() -> str:
     """Every registered analyzer: what it checks, its parameters with defaults and meaning."""
     from grader import analyze
-    from grader.analyze import REQUIRED
-
     from grader.analyze.plugins import loaded_files
 
     # a lab's own analyzers (a rubric's ``analyzers:`` file) are documented with that lab, and are
@@ -121,15 +120,36 @@ def analyzer_reference() -> str:
         if timing:
             out.append(f"Depends on timing ({timing}): on a recording the grading machine starved, a lost "
                        "point is an `error`, not a `fail` ([docs/busy-machines.md](../docs/busy-machines.md)).\n")
-        out.append("| parameter | default | meaning |\n|---|---|---|")
-        for key, default in analyze.defaults(name).items():
-            label = labels.get(key)
-            meaning = (f"{label[0]}" + (f" ({label[1]})" if label[1] and label[1] not in ("share", "time")
-                                         else " (0..1)" if label[1] == "share" else "")) if label else ""
-            shown = "**required**" if default is REQUIRED else f"`{json.dumps(default)}`"
-            out.append(f"| `{key}` | {shown} | {meaning} |")
+        model = analyze.params_model(name)
+        out += _model_table(model) if model is not None else _defaults_table(name, labels)
         out.append("")
     return "\n".join(out)
+
+
+def _model_table(model: type[AnalyzerParams]) -> list[str]:
+    """The rows of an analyzer's parameters from its model: type and bounds, default, meaning."""
+    rows = ["| parameter | type | default | meaning |", "|---|---|---|---|"]
+    for key, info in model.model_fields.items():
+        shape = ", ".join(w for w in (type_words(info), bounds(info)) if w)
+        shown = "**required**" if info.is_required() else f"`{json.dumps(info.get_default())}`"
+        rows.append(f"| `{key}` | {shape} | {shown} | {info.description or ''} |")
+    return rows
+
+
+def _defaults_table(name: str, labels: Mapping[str, Any]) -> list[str]:
+    """The rows of a plug-in's parameters declared as a plain dict (no types: the evidence's
+    labels say what a name means, when they know it)."""
+    from grader import analyze
+    from grader.analyze import REQUIRED
+
+    rows = ["| parameter | default | meaning |", "|---|---|---|"]
+    for key, default in analyze.defaults(name).items():
+        label = labels.get(key)
+        meaning = (f"{label[0]}" + (f" ({label[1]})" if label[1] and label[1] not in ("share", "time")
+                                     else " (0..1)" if label[1] == "share" else "")) if label else ""
+        shown = "**required**" if default is REQUIRED else f"`{json.dumps(default)}`"
+        rows.append(f"| `{key}` | {shown} | {meaning} |")
+    return rows
 
 
 def _schema_type(prop: dict[str, Any]) -> str:
