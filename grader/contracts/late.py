@@ -8,7 +8,9 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
 from datetime import datetime
-from typing import Any, Mapping
+from typing import Mapping
+
+from grader.contracts.values import JsonValue
 
 
 @dataclass(frozen=True)
@@ -21,12 +23,12 @@ class SubmissionTime:
     source: str
     lms_late: bool | None = None
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, JsonValue]:
         return {"at": self.at.isoformat() if self.at else None, "source": self.source,
                 "lms_late": self.lms_late}
 
     @classmethod
-    def from_dict(cls, doc: Mapping[str, Any]) -> "SubmissionTime":
+    def from_dict(cls, doc: Mapping[str, JsonValue]) -> "SubmissionTime":
         at = doc.get("at")
         return cls(datetime.fromisoformat(at) if at else None, str(doc.get("source") or ""),
                    doc.get("lms_late"))
@@ -62,11 +64,11 @@ class LatePenalty:
         base = max_score if self.of == "max" else score
         return round(min(score, base * self.percent / 100.0), 2)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, JsonValue]:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, doc: Mapping[str, Any]) -> "LatePenalty":
+    def from_dict(cls, doc: Mapping[str, JsonValue]) -> "LatePenalty":
         names = {f.name for f in fields(cls)}
         return cls(**{k: v for k, v in doc.items() if k in names})
 

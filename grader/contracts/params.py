@@ -19,6 +19,7 @@ from typing import Any, Mapping
 import annotated_types
 from pydantic import BaseModel, ConfigDict, ValidationError
 from pydantic.fields import FieldInfo
+from pydantic_core import ErrorDetails
 
 __all__ = ["AnalyzerParams", "bounds", "default_values", "problems", "type_words"]
 
@@ -43,7 +44,7 @@ def bounds(info: FieldInfo) -> str:
     return ", ".join(words)
 
 
-def _number(value: Any) -> str:
+def _number(value: object) -> str:
     return f"{value:g}" if isinstance(value, float) and math.isfinite(value) else str(value)
 
 
@@ -55,7 +56,7 @@ def type_words(info: FieldInfo) -> str:
 _SIMPLE = {bool: "true/false", int: "integer", float: "number", str: "text", type(None): "null"}
 
 
-def _words(annotation: Any) -> str:
+def _words(annotation: object) -> str:
     if annotation in _SIMPLE:
         return _SIMPLE[annotation]
     args = [a for a in getattr(annotation, "__args__", ()) if a is not Ellipsis]
@@ -71,13 +72,13 @@ def _words(annotation: Any) -> str:
     return "any value" if annotation is Any else getattr(annotation, "__name__", str(annotation))
 
 
-def default_values(model: type[AnalyzerParams]) -> dict[str, Any]:
+def default_values(model: type[AnalyzerParams]) -> dict[str, object]:
     """``{name: default}`` as the model declares them; a required field is missing here."""
     return {name: info.get_default(call_default_factory=True)
             for name, info in model.model_fields.items() if not info.is_required()}
 
 
-def problems(model: type[AnalyzerParams], given: Mapping[str, Any]) -> list[tuple[str, str]]:
+def problems(model: type[AnalyzerParams], given: Mapping[str, object]) -> list[tuple[str, str]]:
     """``(parameter, what is wrong)`` for each value of ``given`` the model refuses (a missing
     required parameter or an unknown name is the caller's to say: it knows the item)."""
     try:
@@ -88,7 +89,7 @@ def problems(model: type[AnalyzerParams], given: Mapping[str, Any]) -> list[tupl
     return []
 
 
-def _problem(model: type[AnalyzerParams], error: Any) -> tuple[str, str]:
+def _problem(model: type[AnalyzerParams], error: ErrorDetails) -> tuple[str, str]:
     where = [str(part) for part in error["loc"]]
     name = where[0] if where else ""
     info = model.model_fields.get(name)
