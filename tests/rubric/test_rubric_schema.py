@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from pydantic import ValidationError
+
 from grader.errors import GraderError
 from grader.rubric import RubricError, load_rubric
 
@@ -358,7 +360,7 @@ def test_the_values_an_analyzer_runs_with_are_the_models(write_rubric):
     assert model is not None
     given = model.model_validate({"tol_reached": 1, "steps": ["go"]})
     assert given.tol_reached == 1.0 and isinstance(given.tol_reached, float) and given.steps == ("go",)
-    with pytest.raises(Exception):
+    with pytest.raises(ValidationError):
         given.tol_reached = 2.0                                    # frozen: no analysis changes it
     assert analyze.effective_params("goals_reached", {"tol_reached": 1})["tol_reached"] == 1
     assert analyze.effective_params("goals_reached", {})["tol_final"] == model.model_fields["tol_final"].default
