@@ -129,7 +129,8 @@ def _model_table(model: type[AnalyzerParams]) -> list[str]:
     for key, info in model.model_fields.items():
         shape = ", ".join(w for w in (type_words(info), bounds(info)) if w)
         shown = "**required**" if info.is_required() else f"`{json.dumps(info.get_default())}`"
-        rows.append(f"| `{key}` | {shape} | {shown} | {info.description or ''} |")
+        cells = (shape, shown, info.description or "")
+        rows.append(f"| `{key}` | " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return rows
 
 
