@@ -47,7 +47,9 @@ if TYPE_CHECKING:
     from grader.analyze import Finding
     from grader.grading.graded import GradedSubmission
     from grader.intake.batch import IntakeBatch
+    from grader.intake.model import Arrival
     from grader.rubric.schema import Rubric
+    from grader.scores.roster import Roster
     from grader.similarity.run import Settings as SimilaritySettings
 
 __all__ = ["BatchResult", "PathLike", "analyze", "check", "grade", "load_rubric", "read_frames", "regrade"]
@@ -137,23 +139,50 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     grading starts, ``on_done(id, graded or None, error or None)`` each finished submission,
     ``progress`` status lines of a single submission.
     """
-    from grader.grading.outputs import write_batch_outputs
-    from grader.intake.batch import WORK_DIR, read_intake
-    from grader.report.result import atomic_write
-    from grader.scores.roster import parse_mapping, read_roster
-
     loaded = _rubric(rubric)
     out = Path(out)
     override = due_override(loaded, due, timezone)
+    students = _read_students(roster, roster_map)
+    found = _take_in(submissions, loaded, out, students, classroom_prefix, intake, on_intake)
+    batch, subs = _select(found, loaded, out, submissions, only, shard)
+    todo = [s for s in subs if not (resume and graded_and_measured(out / s.id))]
+    if on_start is not None:
+        on_start(len(subs), len(subs) - len(todo))
+    _run_batch(batch, todo, loaded, out, jobs=jobs, cache_dir=cache_dir, reuse=reuse, time_scale=time_scale,
+               override=override, cache_max_size=cache_max_size, on_done=on_done, progress=progress)
+    if similarity is not None and not batch.interrupted and not shard:
+        after_grading(out, loaded, similarity)
+    return batch
+
+
+def _read_students(roster: PathLike | None, roster_map: Sequence[str]) -> Roster | None:
+    """Read ``roster`` (``--map`` needs it) before :func:`grade` writes anything, so a bad one changes nothing."""
+    from grader.scores.roster import parse_mapping, read_roster
+
     if roster_map and not roster:
         raise GraderError("--map describes the roster's columns: give the roster with --roster")
-    students = read_roster(Path(roster), parse_mapping(list(roster_map)), require_submission=False) if roster else None
+    return read_roster(Path(roster), parse_mapping(list(roster_map)), require_submission=False) if roster else None
+
+
+def _take_in(submissions: PathLike, loaded: Rubric, out: Path, students: Roster | None,
+             classroom_prefix: str | None, intake: str, on_intake: Callable[[IntakeBatch], None] | None
+             ) -> IntakeBatch:
+    """Find what ``submissions`` holds and write ``out/intake.csv``, so the intake is on disk before grading."""
+    from grader.intake.batch import WORK_DIR, read_intake
+    from grader.report.result import atomic_write
+
     out.mkdir(parents=True, exist_ok=True)
     found = read_intake(Path(submissions), loaded, work=out / WORK_DIR, roster=students,
                         classroom_prefix=classroom_prefix, kind=intake)
     if on_intake is not None:
         on_intake(found)
     atomic_write(out / "intake.csv", found.csv_text())
+    return found
+
+
+def _select(found: IntakeBatch, loaded: Rubric, out: Path, submissions: PathLike, only: Sequence[str] | None,
+            shard: tuple[int, int] | None) -> tuple[BatchResult, list[Arrival]]:
+    """The submissions this run grades (``only``, ``shard``) and the BatchResult that reports on them."""
     subs = found.gradable
     batch = BatchResult(out, refused={a.original[0]: a.refused or "" for a in found.refused})
     if only:
@@ -164,9 +193,16 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     if shard:
         subs = [s for s in subs if in_shard(s.id, *shard)]
         write_shard_note(out, loaded, *shard)
-    todo = [s for s in subs if not (resume and graded_and_measured(out / s.id))]
-    if on_start is not None:
-        on_start(len(subs), len(subs) - len(todo))
+    return batch, subs
+
+
+def _run_batch(batch: BatchResult, todo: list[Arrival], loaded: Rubric, out: Path, *, jobs: int | None,
+               cache_dir: PathLike | None, reuse: bool, time_scale: float | None,
+               override: dict[str, str | None] | None, cache_max_size: str | None,
+               on_done: Callable[[str, GradedSubmission | None, str | None], None] | None,
+               progress: Callable[[str], None] | None) -> None:
+    """Grade ``todo`` into ``batch``, writing the batch files even when interrupted, so finished ones are kept."""
+    from grader.grading.outputs import write_batch_outputs
 
     def done(sid: str, graded: GradedSubmission | None, error: str | None) -> None:
         if graded is not None:          # graded again at the end of the batch (starved): replaced
@@ -184,9 +220,6 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     finally:
         write_batch_outputs(out, loaded)
     batch.interrupted = batch.interrupted or any("interrupted" in m for m in batch.failures.values())
-    if similarity is not None and not batch.interrupted and not shard:
-        after_grading(out, loaded, similarity)
-    return batch
 
 
 def graded_and_measured(sub_out: Path) -> bool:

@@ -21,7 +21,7 @@ SUBSYSTEMS = (
     "grader.grading.cli",
     "grader.grading.shards",
     "grader.cache.cli",
-    "grader.rubric.guide",
+    "grader.audit.cli",
     "grader.scores.cli",
     "grader.lms.cli",
     "grader.similarity.cli",

@@ -29,12 +29,13 @@ after the first spawn takes a kill or a reset, and those are counted.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 import pandas as pd
+from pydantic import Field
 
-from grader.analyze import REQUIRED, Finding, provenance, register
+from grader.analyze import AnalyzerParams, Finding, provenance, register
 from grader.analyze.toolkit import Frames, events, since_start, sim_pose, thin, times, topic
 from grader.analyze.evidence import SHARE
 from grader.report.figures import FigureContext, Plot, figure
@@ -120,34 +121,37 @@ def _series(frames: Frames, rows: pd.DataFrame, t0: float) -> dict[str, list[flo
 
 
 # ---------------------------------------------------------------------------------- analyzers
+class ChaseSpawnedParams(AnalyzerParams):
+    service: str = Field("/spawn", description="the simulator's spawn service")
+    name: str = Field("turtle2", description="the turtle the lab asks for")
+    max_calls: int = Field(1, ge=1, description="calls of the service the lab allows")
+    extra_calls_credit: float = Field(0.5, ge=0, le=1, description="share: credit when the turtle was spawned "
+                                                                   "but with more calls")
+
+
 @register("chase_spawned", evidence={**EVIDENCE, "value": ("spawned", "")},
-          expect="one call of {service} by your node that creates {name}", defaults={
-    "service": "/spawn",
-    "name": "turtle2",               # the turtle the lab asks for
-    "max_calls": 1,                  # calls of the service the lab allows
-    "extra_calls_credit": 0.5,       # credit when the turtle was spawned but with more calls
-})
-def chase_spawned(frames: Frames, p: dict) -> Finding:
+          expect="one call of {service} by your node that creates {name}", params=ChaseSpawnedParams)
+def chase_spawned(frames: Frames, p: ChaseSpawnedParams) -> Finding:
     """Student code called the spawn service and the simulator created the turtle ``name``."""
-    calls = _spawn_calls(frames, p["service"])
+    calls = _spawn_calls(frames, p.service)
     mine = [c for c in calls if c["by"] != provenance.GRADER]
     ev: dict[str, Any] = {"calls": [{k: v for k, v in c.items() if k != "gid"} for c in mine[:10]],
-                          "name": p["name"]}
-    made = [c for c in mine if c["response_name"] == p["name"]
-            or (c["response_name"] is None and c["request_name"] == p["name"])]
+                          "name": p.name}
+    made = [c for c in mine if c["response_name"] == p.name
+            or (c["response_name"] is None and c["request_name"] == p.name)]
     ev["spawned"] = sorted({c["response_name"] for c in mine if c["response_name"]})
     # a placement with ``spawn: true`` made the turtle when the node had not: say so, the steps
     # after it were graded with the grader's turtle
-    graders = [c for c in calls if c["by"] == provenance.GRADER and c["response_name"] == p["name"]]
+    graders = [c for c in calls if c["by"] == provenance.GRADER and c["response_name"] == p.name]
     ev["spawned_by_grader"] = bool(graders)
-    instead = (f" The grader spawned {p['name']} itself {float(since_start(frames, graders[0]['t'])):.1f} s after the "
+    instead = (f" The grader spawned {p.name} itself {float(since_start(frames, graders[0]['t'])):.1f} s after the "
                "start, so that the items after it could be graded." if graders else "")
     if not mine:
         # "never called" would not be true of a node that called before its client had found
         # the service: the request is lost (bench_flake: wait_for_service(timeout_sec=-10.0),
         # which checks once, got turtle2 in one run of three)
-        return Finding.fail(f"The simulator's {p['service']} got no request from your node: call it once when "
-                            f"the node starts, with name '{p['name']}' (turtlesim/srv/Spawn), after "
+        return Finding.fail(f"The simulator's {p.service} got no request from your node: call it once when "
+                            f"the node starts, with name '{p.name}' (turtlesim/srv/Spawn), after "
                             "wait_for_service(timeout_sec=...) with a positive timeout has returned True (a "
                             "request sent before the client has found the service is lost)." + instead, ev,
                             value="no call")
@@ -156,18 +160,18 @@ def chase_spawned(frames: Frames, p: dict) -> Finding:
         said = (f"the simulator spawned {', '.join(other)}" if other
                 else "the simulator spawned nothing (see its log: a name already taken or not a valid name)")
         asked = ", ".join(repr(c["request_name"]) for c in mine[:3])
-        return Finding.fail(f"Your node called {p['service']} {len(mine)} time(s) with name {asked}, and {said}; "
-                            f"this lab asks for a turtle named '{p['name']}'." + instead, ev,
+        return Finding.fail(f"Your node called {p.service} {len(mine)} time(s) with name {asked}, and {said}; "
+                            f"this lab asks for a turtle named '{p.name}'." + instead, ev,
                             value=", ".join(other) or "nothing")
-    extra = len(mine) - int(p["max_calls"])
+    extra = len(mine) - p.max_calls
     ev["extra_calls"] = max(0, extra)
     first = made[0]
     when = float(since_start(frames, first["t"]))
     if extra > 0:
-        return Finding(f"{p['name']} ({len(mine)} calls)", float(p["extra_calls_credit"]), "partial",
-                       f"{p['name']} was spawned {when:.1f} s after the start, but your node called {p['service']} "
+        return Finding(f"{p.name} ({len(mine)} calls)", p.extra_calls_credit, "partial",
+                       f"{p.name} was spawned {when:.1f} s after the start, but your node called {p.service} "
                        f"{len(mine)} times: call it once, when the node starts (not in a timer or a callback).", ev)
-    return Finding(p["name"], 1.0, "pass", f"Your node spawned {p['name']} ({when:.1f} s after the start).", ev)
+    return Finding(p.name, 1.0, "pass", f"Your node spawned {p.name} ({when:.1f} s after the start).", ev)
 
 
 def _spawn_calls(frames: Frames, service: str) -> list[dict[str, Any]]:
@@ -203,32 +207,37 @@ def _present(df: pd.DataFrame, i: int, part: str) -> bool:
     return col not in df.columns or int(df[col].iloc[i] or 0) > 0
 
 
-_CHASE = {"chaser_pose": "/turtle2/pose", "target_pose": "/turtle1/pose"}
+#: the turtles' pose topics, which chase_catches, chase_follows and chase_short_way all take
+ChaserPose = Annotated[str, Field(description="the chaser's (turtle2's) pose topic")]
+TargetPose = Annotated[str, Field(description="the target's (turtle1's) pose topic")]
 #: what a chaser that catches and keeps up does (the lab text's law)
 _STEER = ("Steer toward turtle1: angular.z = K_w * e with e = atan2(dy, dx) - theta wrapped into [-pi, pi] and "
           "K_w > 0, and a speed that grows with the distance, linear.x = K_v * d.")
 
 
+class ChaseCatchesParams(AnalyzerParams):
+    steps: tuple[str, ...] = Field(description="the steps that each move turtle1 (and place turtle2)")
+    chaser_pose: ChaserPose = "/turtle2/pose"
+    target_pose: TargetPose = "/turtle1/pose"
+    catch_m: float = Field(1.0, gt=0, description="m: caught: the turtles' centres this close")
+    time_limit_s: float = Field(10.0, gt=0, description="s: time allowed to catch, after the release")
+    still_m: float = Field(0.2, ge=0, description="m: turtle1 may drift this far while nobody drives it")
+
+
 @register("chase_catches", timing="catching the turtle within the scenario's time", evidence={**EVIDENCE, "value": ("moves caught", "")},
           expect="turtle2 within {catch_m:g} m of turtle1 at most {time_limit_s:g} s after every move of turtle1",
-          defaults={
-    "steps": REQUIRED,          # the steps that each move turtle1 (and place turtle2)
-    **_CHASE,
-    "catch_m": 1.0,             # caught: the turtles' centres this close (m)
-    "time_limit_s": 10.0,       # after the release (s)
-    "still_m": 0.2,             # turtle1 may drift this far while nobody drives it (m)
-})
-def chase_catches(frames: Frames, p: dict) -> Finding:
+          params=ChaseCatchesParams)
+def chase_catches(frames: Frames, p: ChaseCatchesParams) -> Finding:
     """After each move of turtle1, turtle2 comes within ``catch_m`` within ``time_limit_s``."""
-    if not p["steps"]:
+    if not p.steps:
         return Finding.error("chase_catches needs the ids of the steps that move turtle1 (steps: [...]).")
-    pairs = _pairs(frames, p["chaser_pose"], p["target_pose"])
+    pairs = _pairs(frames, p.chaser_pose, p.target_pose)
     if pairs is None:
-        return _no_chaser(frames, p["chaser_pose"])
-    moved = _student_moves(frames, (p["chaser_pose"], p["target_pose"]))
+        return _no_chaser(frames, p.chaser_pose)
+    moved = _student_moves(frames, (p.chaser_pose, p.target_pose))
     rows: list[dict[str, Any]] = []
     series = []
-    for k, step in enumerate(p["steps"], 1):
+    for k, step in enumerate(p.steps, 1):
         start, t0, end = _step_times(frames, step)
         row: dict[str, Any] = {"step": step, "ok": False}
         rows.append(row)
@@ -252,11 +261,11 @@ def chase_catches(frames: Frames, p: dict) -> Finding:
         if during:
             row.update(why=provenance.moved_text(frames, during), teleported=len(during))
             continue
-        hit = np.nonzero(w["d"].to_numpy(float) <= p["catch_m"])[0]
+        hit = np.nonzero(w["d"].to_numpy(float) <= p.catch_m)[0]
         upto = w if not len(hit) else w.iloc[: hit[0] + 1]
         drift = float(np.hypot(upto["x1"] - x1, upto["y1"] - y1).max())
         row["turtle1_moved_m"] = round(drift, 3)
-        if drift > p["still_m"]:
+        if drift > p.still_m:
             row["why"] = (f"turtle1 moved {drift:.2f} m though the grader did not drive it: your node must drive "
                           f"turtle2 only")
             continue
@@ -266,9 +275,9 @@ def chase_catches(frames: Frames, p: dict) -> Finding:
             continue
         caught = float(w["t"].iloc[hit[0]]) - t0
         row["caught_s"] = round(caught, 3)
-        row["ok"] = caught <= p["time_limit_s"]
+        row["ok"] = caught <= p.time_limit_s
         if not row["ok"]:
-            row["why"] = f"caught after {caught:.1f} s, more than {p['time_limit_s']:g} s"
+            row["why"] = f"caught after {caught:.1f} s, more than {p.time_limit_s:g} s"
     good = sum(bool(r["ok"]) for r in rows)
     ev = {"moves": rows, "caught": good, "distance": series}
     if moved:
@@ -276,106 +285,116 @@ def chase_catches(frames: Frames, p: dict) -> Finding:
     value = f"{good}/{len(rows)} moves"
     if good == len(rows):
         slowest = max(r["caught_s"] for r in rows)
-        return Finding(value, 1.0, "pass", f"turtle2 caught turtle1 after every move (within {p['catch_m']:g} m, "
-                       f"{slowest:.1f} s at the slowest; {p['time_limit_s']:g} s allowed).", ev)
+        return Finding(value, 1.0, "pass", f"turtle2 caught turtle1 after every move (within {p.catch_m:g} m, "
+                       f"{slowest:.1f} s at the slowest; {p.time_limit_s:g} s allowed).", ev)
     bad = [r for r in rows if not r["ok"]]
     first = bad[0]
     where = f" at ({first['turtle1'][0]:g}, {first['turtle1'][1]:g})" if "turtle1" in first else ""
     if any("drive turtle2 only" in str(r.get("why")) for r in bad):
-        advice = (f" Publish your commands on /{provenance.turtle_of(p['chaser_pose'])}/cmd_vel; "
-                  f"{provenance.turtle_of(p['target_pose'])} belongs to the grader.")
+        advice = (f" Publish your commands on /{provenance.turtle_of(p.chaser_pose)}/cmd_vel; "
+                  f"{provenance.turtle_of(p.target_pose)} belongs to the grader.")
     elif all(r.get("teleported") for r in bad):
         advice = " Only velocity commands may move a turtle."
     else:
         advice = " " + _STEER
     return Finding(value, good / len(rows), "partial" if good else "fail",
-                   f"turtle2 caught turtle1 within {p['catch_m']:g} m and {p['time_limit_s']:g} s after {good} of "
+                   f"turtle2 caught turtle1 within {p.catch_m:g} m and {p.time_limit_s:g} s after {good} of "
                    f"{len(rows)} moves; after move {rows.index(first) + 1} (turtle1{where}) {first['why']}." + advice,
                    ev)
 
 
+class ChaseFollowsParams(AnalyzerParams):
+    step: str = Field(description="the step during which the grader drives turtle1")
+    chaser_pose: ChaserPose = "/turtle2/pose"
+    target_pose: TargetPose = "/turtle1/pose"
+    follow_m: float = Field(2.0, gt=0, description="m: distance to stay within")
+    catch_up_s: float = Field(5.0, ge=0, description="s: time after the step starts that is not judged")
+    min_share: float = Field(0.85, ge=0, le=1, description="share: of the judged poses within follow_m "
+                                                           "(chase.yaml: why)")
+    min_drive_m: float = Field(1.0, ge=0, description="m: turtle1 must have been driven this far for the check "
+                                                      "to mean anything")
+
+
 @register("chase_follows", evidence={**EVIDENCE, "value": ("time within reach", "")},
           expect="turtle2 within {follow_m:g} m of turtle1 for {min_share:.0%} of the drive after {catch_up_s:g} s",
-          defaults={
-    "step": REQUIRED,           # the step during which the grader drives turtle1
-    **_CHASE,
-    "follow_m": 2.0,            # distance to stay within (m)
-    "catch_up_s": 5.0,          # time after the step starts that is not judged (s)
-    "min_share": 0.85,          # share of the judged poses within follow_m (chase.yaml: why)
-    "min_drive_m": 1.0,         # turtle1 must have been driven this far for the check to mean anything (m)
-})
-def chase_follows(frames: Frames, p: dict) -> Finding:
+          params=ChaseFollowsParams)
+def chase_follows(frames: Frames, p: ChaseFollowsParams) -> Finding:
     """While the grader drives turtle1, turtle2 keeps within ``follow_m`` of it."""
-    pairs = _pairs(frames, p["chaser_pose"], p["target_pose"])
+    pairs = _pairs(frames, p.chaser_pose, p.target_pose)
     if pairs is None:
-        return _no_chaser(frames, p["chaser_pose"])
-    start, _, end = _step_times(frames, p["step"])
+        return _no_chaser(frames, p.chaser_pose)
+    start, _, end = _step_times(frames, p.step)
     if start is None:
-        return Finding.error(f"The step {p['step']!r} that drives turtle1 did not run; nothing to judge.")
+        return Finding.error(f"The step {p.step!r} that drives turtle1 did not run; nothing to judge.")
     end = end if end is not None else float(pairs["t"].iloc[-1])
     w = pairs[(pairs["t"] >= start) & (pairs["t"] <= end)]
-    judged = w[w["t"] >= start + p["catch_up_s"]]
+    judged = w[w["t"] >= start + p.catch_up_s]
     ev: dict[str, Any] = {"distance": [_series(frames, w, start)]}
     if len(judged) < 10:
-        return Finding.error(f"Too few poses of both turtles during {p['step']!r} to judge the chase.", ev)
+        return Finding.error(f"Too few poses of both turtles during {p.step!r} to judge the chase.", ev)
     driven = float(np.hypot(np.diff(w["x1"]), np.diff(w["y1"])).sum())
     ev["driven_m"] = round(driven, 3)
-    if driven < p["min_drive_m"]:
-        return Finding.error(f"turtle1 moved only {driven:.2f} m during {p['step']!r}: the grader's drive did not "
+    if driven < p.min_drive_m:
+        return Finding.error(f"turtle1 moved only {driven:.2f} m during {p.step!r}: the grader's drive did not "
                              "happen, so following could not be judged.", ev)
-    moved = provenance.within(_student_moves(frames, (p["chaser_pose"], p["target_pose"])), start, end)
+    moved = provenance.within(_student_moves(frames, (p.chaser_pose, p.target_pose)), start, end)
     if moved:
         ev["student_moves"] = [c.plain(frames) for c in moved[:10]]
         return provenance.moved_finding(frames, moved, "following turtle1")
     d = judged["d"].to_numpy(float)
-    share = float(np.mean(d <= p["follow_m"]))
+    share = float(np.mean(d <= p.follow_m))
     chased = float(np.hypot(np.diff(w["x2"]), np.diff(w["y2"])).sum())
     ev.update(share=round(share, 4), max_m=round(float(d.max()), 3), mean_m=round(float(d.mean()), 3),
               chased_m=round(chased, 3),
               judged_s=round(float(judged["t"].iloc[-1] - judged["t"].iloc[0]), 2))
-    value = f"{share:.0%} within {p['follow_m']:g} m"
-    if share >= p["min_share"]:
+    value = f"{share:.0%} within {p.follow_m:g} m"
+    if share >= p.min_share:
         return Finding(value, 1.0, "pass", f"While turtle1 drove {driven:.1f} m, turtle2 stayed within "
-                       f"{p['follow_m']:g} m of it {share:.0%} of the time after {p['catch_up_s']:g} s "
+                       f"{p.follow_m:g} m of it {share:.0%} of the time after {p.catch_up_s:g} s "
                        f"(at most {d.max():.2f} m away).", ev)
-    if chased < p["min_drive_m"]:
+    if chased < p.min_drive_m:
         return Finding(value, 0.0, "fail", f"turtle2 moved only {chased:.2f} m while turtle1 drove {driven:.1f} m: "
-                       f"no command reached it: publish your commands on /{provenance.turtle_of(p['chaser_pose'])}/cmd_vel.",
+                       f"no command reached it: publish your commands on /{provenance.turtle_of(p.chaser_pose)}/cmd_vel.",
                        ev)
-    return Finding(value, 0.0, "fail", f"While turtle1 drove {driven:.1f} m, turtle2 was within {p['follow_m']:g} m "
-                   f"of it only {share:.0%} of the time after {p['catch_up_s']:g} s (needs {p['min_share']:.0%}; up to "
+    return Finding(value, 0.0, "fail", f"While turtle1 drove {driven:.1f} m, turtle2 was within {p.follow_m:g} m "
+                   f"of it only {share:.0%} of the time after {p.catch_up_s:g} s (needs {p.min_share:.0%}; up to "
                    f"{d.max():.2f} m away, {d.mean():.2f} m on average). " + _STEER, ev)
+
+
+class ChaseShortWayParams(AnalyzerParams):
+    steps: tuple[str, ...] = Field(description="the steps that each move turtle1 and place turtle2")
+    chaser_pose: ChaserPose = "/turtle2/pose"
+    target_pose: TargetPose = "/turtle1/pose"
+    cmd_topic: str = Field("/turtle2/cmd_vel", description="the chaser's command topic")
+    min_turn_deg: float = Field(90.0, ge=0, le=180, description="deg: moves needing at least this turn are judged")
+    wrap_turn_deg: float = Field(10.0, ge=0, le=180, description="deg: ... and those where wrapping changes the "
+                                                                 "turn, from this turn on")
+    ambiguous_deg: float = Field(10.0, ge=0, le=180, description="deg: within this of 180° either way is the "
+                                                                 "short way")
 
 
 @register("chase_short_way", evidence={**EVIDENCE, "value": ("turned the short way", "")},
           expect="turtle2 turning toward turtle1 the short way (at most 180°) after every move that needs a turn of "
                  "{min_turn_deg:g}° or more, or where an unwrapped heading error would turn the long way",
-          defaults={
-    "steps": REQUIRED,          # the steps that each move turtle1 and place turtle2
-    **_CHASE,
-    "cmd_topic": "/turtle2/cmd_vel",
-    "min_turn_deg": 90.0,       # moves needing at least this turn are judged (deg)
-    "wrap_turn_deg": 10.0,      # ... and those where wrapping changes the turn, from this turn on (deg)
-    "ambiguous_deg": 10.0,      # within this of 180° either way is the short way (deg)
-})
-def chase_short_way(frames: Frames, p: dict) -> Finding:
+          params=ChaseShortWayParams)
+def chase_short_way(frames: Frames, p: ChaseShortWayParams) -> Finding:
     """Did turtle2 start turning toward turtle1 the short way? Judged, as ``turn_direction`` judges
     a goal, from the sign of angular.z of the last command the node sent before the release: the
     turtles are held still from the placement until the node has answered the new poses, so that
     command was computed from the placement, the same in every run."""
-    pairs = _pairs(frames, p["chaser_pose"], p["target_pose"])
+    pairs = _pairs(frames, p.chaser_pose, p.target_pose)
     if pairs is None:
-        return _no_chaser(frames, p["chaser_pose"])
-    cmd = topic(frames, p["cmd_topic"])
+        return _no_chaser(frames, p.chaser_pose)
+    cmd = topic(frames, p.cmd_topic)
     if cmd is not None and "angular.z" in cmd.columns:
         ct = cmd["pub_t"].to_numpy(float) if "pub_t" in cmd.columns else times(cmd)
         ct = np.where(np.isfinite(ct), ct, times(cmd))
         w = cmd["angular.z"].to_numpy(float)
     else:
         ct, w = np.array([]), np.array([])
-    moved = _student_moves(frames, (p["chaser_pose"], p["target_pose"]))
+    moved = _student_moves(frames, (p.chaser_pose, p.target_pose))
     rows: list[dict[str, Any]] = []
-    for step in p["steps"]:
+    for step in p.steps:
         start, released, end = _step_times(frames, step)
         if start is None or released is None:
             continue
@@ -393,8 +412,8 @@ def chase_short_way(frames: Frames, p: dict) -> Finding:
                                "turtle2_start": [round(float(r[c]), 3) for c in ("x2", "y2", "th2")],
                                "required_turn_deg": round(math.degrees(req), 1),
                                "naive_turn_deg": round(math.degrees(naive), 1)}
-        if not (abs(req) >= math.radians(p["min_turn_deg"])
-                or (wrap_matters and abs(req) >= math.radians(p["wrap_turn_deg"]))):
+        if not (abs(req) >= math.radians(p.min_turn_deg)
+                or (wrap_matters and abs(req) >= math.radians(p.wrap_turn_deg))):
             continue
         rows.append(row)
         during = provenance.within(moved, start, end if end is not None else math.inf)
@@ -406,17 +425,17 @@ def chase_short_way(frames: Frames, p: dict) -> Finding:
         after = np.nonzero(turning & (ct > released) & (ct <= (end if end is not None else math.inf)))[0]
         pick = before[-1] if len(before) else after[0] if len(after) else None
         if pick is None:
-            row.update(ok=False, why=f"turtle2 got no turning command on {p['cmd_topic']}")
+            row.update(ok=False, why=f"turtle2 got no turning command on {p.cmd_topic}")
             continue
         row["angular_z"] = round(float(w[pick]), 4)
-        ambiguous = abs(req) >= math.pi - math.radians(p["ambiguous_deg"])
+        ambiguous = abs(req) >= math.pi - math.radians(p.ambiguous_deg)
         row["ok"] = bool(ambiguous or np.sign(w[pick]) == np.sign(req))
         if not row["ok"]:
             side = "left" if req > 0 else "right"
             row["why"] = (f"turtle1 was {abs(math.degrees(req)):.0f}° to the {side}, and the node turned the other "
                           f"way (angular.z = {w[pick]:.2f})")
     if not rows:
-        return Finding.error(f"No move in steps {p['steps']} needed a large turn or a wrapped heading error; "
+        return Finding.error(f"No move in steps {list(p.steps)} needed a large turn or a wrapped heading error; "
                              "nothing to judge (rubric problem).")
     good = sum(bool(r["ok"]) for r in rows)
     ev = {"moves": rows}
@@ -425,7 +444,7 @@ def chase_short_way(frames: Frames, p: dict) -> Finding:
         return Finding(value, 1.0, "pass", f"turtle2 turned toward turtle1 the short way at each of the {len(rows)} "
                        "moves that test it.", ev)
     first = next(r for r in rows if not r["ok"])
-    advice = (f"Publish the commands on {p['cmd_topic']}." if "no turning command" in first["why"] else
+    advice = (f"Publish the commands on {p.cmd_topic}." if "no turning command" in first["why"] else
               "angular.z must have the sign of the heading error atan2(dy, dx) - theta wrapped into [-pi, pi] "
               "(atan2(sin e, cos e)): positive turns left.")
     return Finding(value, good / len(rows), "partial" if good else "fail",

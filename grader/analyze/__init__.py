@@ -12,9 +12,12 @@ to edit), the modules an installed distribution names under the entry point grou
 ``grader.analyzers``, and Python files next to a rubric that names them (``analyzers:
 [my_lab_checks.py]``). A name defined twice is an error naming both places.
 
-``@register("name", defaults={...})`` records an analyzer and the parameters it accepts. The
-registered callable merges the caller's ``params`` over those defaults and rejects unknown keys
-(a misspelt rubric parameter must not silently fall back to a default). ``get(name)`` returns the
+``@register("name", params=Params)`` records an analyzer and the parameters it accepts: a
+``grader.contracts.params.AnalyzerParams`` model (types, bounds, defaults, one line of meaning
+each, which the rubric guide prints). The registered callable validates the caller's ``params``
+against it, rejects unknown keys (a misspelt rubric parameter must not silently fall back to a
+default) and calls the analyzer with the model. (A plug-in may declare ``defaults={...}``
+instead, a plain dict: names are checked, values are not, and the analyzer gets a dict.) ``get(name)`` returns the
 registered callable, ``names()`` lists them, ``defaults(name)`` shows the accepted parameters (the
 rubric loader can validate YAML against it), and ``run(name, frames, params)`` never raises: an
 analyzer crash becomes a ``Finding`` with status ``"error"``.
@@ -38,15 +41,16 @@ from typing import Any, Callable, Mapping
 import pandas as pd
 
 from grader.analyze.plugins import load_builtin_and_installed
-from grader.analyze.registry import (_DEFAULTS, _EXPECT, _JUDGES, _LABELS, _ORIGIN, _REGISTRY, _TIMING,
-                                     DuplicateAnalyzer, _defining, forget)
+from grader.analyze.registry import (_DEFAULTS, _EXPECT, _JUDGES, _LABELS, _ORIGIN, _PARAMS, _REGISTRY,
+                                     _TIMING, DuplicateAnalyzer, _defining, forget)
 from grader.errors import GraderError
 from grader.contracts.jsonable import jsonable
+from grader.contracts.params import AnalyzerParams, default_values, problems
 from grader.contracts.status import STATUSES
 
 __all__ = ["Finding", "register", "get", "names", "forget", "defaults", "required", "run", "jsonable", "STATUSES",
            "evidence_labels", "expected_text", "REQUIRED", "DuplicateAnalyzer", "origin", "graded",
-           "builtin_names"]
+           "builtin_names", "params_model", "effective_params", "AnalyzerParams"]
 
 
 class _Required:
@@ -63,7 +67,7 @@ REQUIRED = _Required()
 
 
 Frames = Mapping[str, pd.DataFrame]
-AnalyzerFn = Callable[[Frames, dict], "Finding"]
+AnalyzerFn = Callable[[Frames, Any], "Finding"]
 
 @dataclass
 class Finding:
@@ -121,16 +125,20 @@ def graded(fraction: float, *, pass_at: float = 1.0 - 1e-9) -> str:
 
 
 def register(name: str, defaults: Mapping[str, Any] | None = None, *,
+             params: type[AnalyzerParams] | None = None,
              evidence: Mapping[str, Any] | None = None,
              expect: str | None = None, timing: str | None = None,
              judges: tuple[str, ...] = ()) -> Callable[[AnalyzerFn], AnalyzerFn]:
-    """Register an analyzer under ``name`` with the parameters it accepts and their defaults,
-    the labels and units of its evidence and what it expects, in words (both for the report).
-    ``timing``: what wall or simulated timing its verdict depends on, in words ("the publish
-    rate"), for an analyzer whose verdict a CPU-starved recording can change. ``judges``: the
-    aspects of the code it is about ("node names", "ros names", "logging"); the collateral-loss
-    audit expects a mistake in an aspect to cost only the items of analyzers that judge it."""
-    dflt = dict(defaults or {})
+    """Register an analyzer under ``name`` with the parameters it accepts (``params``, a model;
+    or ``defaults``, a plain dict of names and defaults), the labels and units of its evidence
+    and what it expects, in words (both for the report). ``timing``: what wall or simulated
+    timing its verdict depends on, in words ("the publish rate"), for an analyzer whose verdict
+    a CPU-starved recording can change. ``judges``: the aspects of the code it is about ("node
+    names", "ros names", "logging"); the collateral-loss audit expects a mistake in an aspect to
+    cost only the items of analyzers that judge it."""
+    if params is not None and defaults is not None:
+        raise ValueError(f"analyzer {name!r}: declare params= or defaults=, not both")
+    dflt = _declared_defaults(params) if params is not None else dict(defaults or {})
 
     def deco(fn: AnalyzerFn) -> AnalyzerFn:
         origin = _defining[-1] if _defining else fn.__module__
@@ -139,19 +147,11 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
                                     f"{origin}; rename one of them")
 
         @functools.wraps(fn)
-        def wrapper(frames: Frames, params: Mapping[str, Any] | None = None) -> Finding:
-            given = dict(params or {})
-            unknown = sorted(set(given) - set(dflt))
-            if unknown:
-                raise GraderError(
-                    f"analyzer {name!r}: unknown parameter(s) {', '.join(unknown)}; "
-                    f"accepted: {', '.join(sorted(dflt)) or '(none)'}"
-                )
-            missing = sorted(k for k, v in dflt.items() if v is REQUIRED and k not in given)
-            if missing:
-                raise GraderError(f"analyzer {name!r} needs the parameter(s) {', '.join(missing)}")
-            merged = {**copy.deepcopy(dflt), **given}   # analyzers may not mutate shared defaults
-            finding = fn(frames, copy.deepcopy(merged))
+        def wrapper(frames: Frames, given_params: Mapping[str, Any] | None = None) -> Finding:
+            given = dict(given_params or {})
+            merged = _checked(name, dflt, params, given)
+            finding = fn(frames, params.model_validate(given) if params is not None  # type: ignore[arg-type]
+                         else copy.deepcopy(merged))        # analyzers may not mutate shared defaults
             finding.params = jsonable(merged)            # every threshold that decided it
             if isinstance(finding, Finding) and "scenario_start" not in finding.evidence:
                 from grader.analyze._common import scenario_start
@@ -166,6 +166,8 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
         _REGISTRY[name] = wrapper
         _ORIGIN[name] = origin
         _DEFAULTS[name] = dict(dflt)
+        if params is not None:
+            _PARAMS[name] = params
         _LABELS[name] = dict(evidence or {})
         if expect:
             _EXPECT[name] = expect
@@ -175,6 +177,29 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
         return wrapper
 
     return deco
+
+
+def _declared_defaults(model: type[AnalyzerParams]) -> dict[str, Any]:
+    """A model's fields as ``{name: default}``, REQUIRED for those without one."""
+    declared = default_values(model)
+    return {key: declared.get(key, REQUIRED) for key in model.model_fields}
+
+
+def _checked(name: str, dflt: Mapping[str, Any], model: type[AnalyzerParams] | None,
+             given: Mapping[str, Any]) -> dict[str, Any]:
+    """``given`` over the defaults, as the rubric wrote them; GraderError for an unknown or
+    missing parameter, or (with a model) a value it refuses."""
+    unknown = sorted(set(given) - set(dflt))
+    if unknown:
+        raise GraderError(f"analyzer {name!r}: unknown parameter(s) {', '.join(unknown)}; "
+                          f"accepted: {', '.join(sorted(dflt)) or '(none)'}")
+    missing = sorted(k for k, v in dflt.items() if v is REQUIRED and k not in given)
+    if missing:
+        raise GraderError(f"analyzer {name!r} needs the parameter(s) {', '.join(missing)}")
+    wrong = problems(model, given) if model is not None else []
+    if wrong:
+        raise GraderError(f"analyzer {name!r}: " + "; ".join(f"{key}: {why}" for key, why in wrong))
+    return {**copy.deepcopy(dict(dflt)), **given}
 
 
 def _load_all() -> None:
@@ -249,6 +274,19 @@ def judges(name: str | None) -> tuple[str, ...]:
     if name:
         _load_all()
     return _JUDGES.get(name or "", ())
+
+
+def params_model(name: str) -> type[AnalyzerParams] | None:
+    """Analyzer ``name``'s parameter model (None for a plug-in that declared a plain dict)."""
+    get(name)
+    return _PARAMS.get(name)
+
+
+def effective_params(name: str, given: Mapping[str, Any]) -> dict[str, Any]:
+    """The values analyzer ``name`` runs with for a rubric's ``given`` parameters: the given
+    over the declared defaults, as written (what a finding's ``params`` records)."""
+    get(name)
+    return {**copy.deepcopy(_DEFAULTS[name]), **dict(given)}
 
 
 def required(name: str) -> list[str]:

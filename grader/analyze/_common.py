@@ -12,7 +12,7 @@ import json
 import math
 import re
 import threading
-from typing import Any, Iterable, Mapping, TypeVar, overload
+from typing import Any, Mapping, TypeVar, overload
 
 import numpy as np
 import pandas as pd
@@ -23,6 +23,7 @@ from grader.contracts.events import (EVENTS_TOPIC, STDOUT_TOPIC, EventRecord, Gr
 from grader.sim import truth_pose_topic
 from grader.sim.physics import DT
 from grader.sim.record import record_topic
+from grader.analyze._lines import split_ros_console as split_ros_console, traceback_mask as traceback_mask  # re-exported
 
 META = "__meta__"
 EVENTS = EVENTS_TOPIC
@@ -327,23 +328,6 @@ def scenario_end_time(frames: Frames) -> float:
 
 
 # --------------------------------------------------------------------------- student output lines
-_ROS_PREFIX = re.compile(
-    r"^\s*\[(DEBUG|INFO|WARN|WARNING|ERROR|FATAL)\]\s*\[(\d+(?:\.\d+)?)\]\s*\[([^\]]*)\]:\s?(.*)$"
-)
-
-
-def split_ros_console(line: str) -> tuple[str | None, float | None, str]:
-    """'[INFO] [1718.25] [simple_subscriber]: 0.5' -> ('simple_subscriber', 1718.25, '0.5')."""
-    m = _ROS_PREFIX.match(line)
-    if not m:
-        return None, None, line
-    try:
-        ts = float(m.group(2))
-    except ValueError:
-        ts = None
-    return m.group(3), ts, m.group(4)
-
-
 def rosout_lines(frames: Frames) -> pd.DataFrame:
     """/rosout as (time, logger, level, text). Time = the log stamp when present (when the node
     called the logger), else the receive time."""
@@ -388,26 +372,6 @@ def stdout_lines(frames: Frames) -> pd.DataFrame:
     stamp = out["stamp"].to_numpy(float)
     out["time"] = np.where(np.isfinite(stamp), to_scenario_time(frames, stamp), out["time"].to_numpy(float))
     return out[cols]
-
-
-def traceback_mask(texts: Iterable[str]) -> np.ndarray:
-    """True for the lines of a Python traceback ("Traceback (most recent call last):", its
-    indented frames and the exception line that ends it). What a crashing node prints is not its
-    output: the line numbers of its frames would count as printed values (measured: the lab's
-    template, stopped at --time-scale 4 while taking a /clock message, printed a traceback whose
-    "argument '0'" matched one Box-Muller z of the 237 in its window)."""
-    out, inside = [], False
-    for line in texts:
-        text = str(line)
-        if text.startswith("Traceback (most recent call last):"):
-            inside = True
-            out.append(True)
-        elif inside:
-            out.append(True)
-            inside = not text or text[0].isspace()      # the exception line ends it
-        else:
-            out.append(False)
-    return np.array(out, dtype=bool)
 
 
 def fmt(v: float, nd: int = 2) -> str:

@@ -16,8 +16,9 @@ parameter would set, or one that hardly publishes at all, loses the item.
 from __future__ import annotations
 
 import numpy as np
+from pydantic import Field
 
-from grader.analyze import Finding, register
+from grader.analyze import AnalyzerParams, Finding, register
 from grader.analyze._common import Frames, times, topic
 from grader.analyze.action_goals import action_goals, under_other_action_name
 
@@ -34,26 +35,30 @@ EVIDENCE = {
 }
 
 
+class ActionLoopPacedParams(AnalyzerParams):
+    cmd_topic: str = Field("/turtle1/cmd_vel", description="topic of the server's velocity commands")
+    max_hz: float = Field(200.0, gt=0, description="Hz: fastest paced loop accepted (the template's 30 Hz, a "
+                                                   "parameter of 60 or 120 Hz: all well below)")
+    min_hz: float = Field(5.0, ge=0, description="Hz: slowest loop accepted (a loop that steers at all publishes "
+                                                 "more often than this)")
+    min_duration_s: float = Field(1.0, gt=0, description="s: a goal answered faster has too few commands to count")
+
+
 @register("action_loop_paced", timing="the control loop's pacing", evidence={**EVIDENCE, "value": ("commands per second while goals ran", "Hz")},
           expect="between {min_hz:g} and {max_hz:g} velocity commands a second while a goal runs",
-          defaults={
-    "cmd_topic": "/turtle1/cmd_vel",
-    "max_hz": 200.0,          # the template's 30 Hz, a parameter of 60 or 120 Hz: all well below
-    "min_hz": 5.0,            # a loop that steers at all publishes more often than this
-    "min_duration_s": 1.0,    # a goal answered faster has too few commands to count
-})
-def action_loop_paced(frames: Frames, p: dict) -> Finding:
+          params=ActionLoopPacedParams)
+def action_loop_paced(frames: Frames, p: ActionLoopPacedParams) -> Finding:
     """Commands per second while accepted goals ran, within [min_hz, max_hz]."""
     return under_other_action_name(frames, _action_loop_paced(frames, p))
 
 
-def _action_loop_paced(frames: Frames, p: dict) -> Finding:
+def _action_loop_paced(frames: Frames, p: ActionLoopPacedParams) -> Finding:
     gs = [g for g in action_goals(frames) if g["accepted"] and g["t_result"] is not None
-          and g["t_result"] - g["t_sent"] >= p["min_duration_s"]]
+          and g["t_result"] - g["t_sent"] >= p.min_duration_s]
     if not gs:
         return Finding.fail("No accepted goal ran long enough to see the control loop "
-                            f"(at least {p['min_duration_s']:g} s from goal to result).", {})
-    df = topic(frames, p["cmd_topic"])
+                            f"(at least {p.min_duration_s:g} s from goal to result).", {})
+    df = topic(frames, p.cmd_topic)
     t = np.sort(times(df)) if df is not None else np.array([])
     rows, n_all, d_all = [], 0, 0.0
     for g in gs:
@@ -65,14 +70,14 @@ def _action_loop_paced(frames: Frames, p: dict) -> Finding:
         d_all += d
     rate = n_all / d_all
     ev = {"goals": rows, "rate_hz": round(rate, 2)}
-    if rate > p["max_hz"]:
+    if rate > p.max_hz:
         return Finding(round(rate, 1), 0.0, "fail",
                        f"While its goals ran the server published {n_all} commands in {d_all:.1f} s "
                        f"({rate:.0f} a second): the loop is not paced. Call self.rate.sleep() once per "
                        "iteration, so that it runs at controller_rate.", ev)
-    if rate < p["min_hz"]:
+    if rate < p.min_hz:
         return Finding(round(rate, 1), 0.0, "fail",
-                       f"While its goals ran the server published {n_all} commands on {p['cmd_topic']} "
+                       f"While its goals ran the server published {n_all} commands on {p.cmd_topic} "
                        f"in {d_all:.1f} s: publish one Twist per loop iteration.", ev)
     return Finding(round(rate, 1), 1.0, "pass",
                    f"The loop published {rate:.0f} commands a second while its goals ran.", ev)

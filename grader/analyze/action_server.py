@@ -16,12 +16,13 @@ goal nobody answered is reported.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import Field
 
 from grader.analyze.evidence import SHARE, TIME
-from grader.analyze import Finding, graded, provenance, register
+from grader.analyze import AnalyzerParams, Finding, graded, provenance, register
 from grader.analyze._common import (Frames, sim_pose, events, meta, rosout_lines, since_start, stdout_lines, thin, times, topic)
 from grader.contracts.world import WORLD_SIZE_M
 from grader.analyze.goal_publisher import parse_xy_line
@@ -70,15 +71,23 @@ INNER = 11.0          # goals inside [0, inner_bound]^2 must be accepted and rea
 OUTER = WORLD_SIZE_M     # goals outside [0, outer_bound]^2 must be rejected
 SHORT_TIMEOUT = 5.0   # a goal with 0 < time_out <= short_timeout_s is the "timeout" probe
 
+# the parameters several of the Exercise 3 analyzers take (each model keeps its own order)
+OuterBound = Annotated[float, Field(gt=0, description="m: goals outside [0, outer_bound]^2 must be rejected")]
+ShortTimeout = Annotated[float, Field(ge=0, description="s: a goal with 0 < time_out <= short_timeout_s is "
+                                                        "the timeout probe")]
+PoseTopic = Annotated[str, Field(description="the turtle's pose topic")]
+DefaultGoalTol = Annotated[float, Field(gt=0, description="m: goal tolerance when the event does not say which "
+                                                          "goal_tol was sent")]
+
 
 def _in_box(g: dict, hi: float) -> bool:
     return g["x"] is not None and 0.0 <= g["x"] <= hi and 0.0 <= g["y"] <= hi
 
 
-def _is_timeout_probe(g: dict, p: dict) -> bool:
+def _is_timeout_probe(g: dict, p: ActionGoalsSucceedParams | ActionTimeoutParams) -> bool:
     if "timeout" in g["label"].lower():
         return True
-    return g["time_out"] is not None and 0 < g["time_out"] <= p["short_timeout_s"]
+    return g["time_out"] is not None and 0 < g["time_out"] <= p.short_timeout_s
 
 
 class _Unanswered(Finding):
@@ -148,12 +157,16 @@ def _no_action_events(frames: Frames) -> Finding:
     return Finding.error("The scenario sent no action goals of this kind, so this item could not be tested.")
 
 
+class ActionAdvertisedParams(AnalyzerParams):
+    action_name: str = Field("/turtle_goal", description="the action server's name")
+
+
 @register("action_advertised", judges=("ros names",), evidence={**EVIDENCE, "value": ("action server", "")},
           expect="an action server named {action_name}",
-          defaults={"action_name": "/turtle_goal"})
-def action_advertised(frames: Frames, p: dict) -> Finding:
+          params=ActionAdvertisedParams)
+def action_advertised(frames: Frames, p: ActionAdvertisedParams) -> Finding:
     """The action server is advertised under the expected name (``ros2 action list`` shows it)."""
-    name = "/" + str(p["action_name"]).lstrip("/")
+    name = "/" + p.action_name.lstrip("/")
     found_ev = events(frames, (ActionServerFound, ActionServerMissing))
     ev: dict = {"action": name, "events": [e.model_dump(exclude_unset=True) for e in found_ev[:5]]}
     for e in found_ev:
@@ -194,28 +207,31 @@ def action_advertised(frames: Frames, p: dict) -> Finding:
                         f"\"{name.lstrip('/')}\", ...) and keep the node spinning.{hint}", ev)
 
 
+class ActionGoalsSucceedParams(AnalyzerParams):
+    inner_bound: float = Field(INNER, gt=0, description="m: goals inside [0, inner_bound]^2 must be accepted "
+                                                        "and reached")
+    short_timeout_s: ShortTimeout = SHORT_TIMEOUT
+    pose_topic: PoseTopic = "/turtle1/pose"
+    default_goal_tol: DefaultGoalTol = 0.1
+    pos_slack: float = Field(0.05, ge=0, description="m: added to goal_tol when checking the pose at result time")
+
+
 @register("action_goals_succeed", timing="reaching each goal within its time_out", evidence={**EVIDENCE, "value": ("reachable goals", "")},
           expect="every goal inside [0, {inner_bound:g}] m accepted and ending with success=True",
-          defaults={
-    "inner_bound": INNER,
-    "short_timeout_s": SHORT_TIMEOUT,
-    "pose_topic": "/turtle1/pose",
-    "default_goal_tol": 0.1,   # when the event does not say which goal_tol was sent
-    "pos_slack": 0.05,         # m added to goal_tol when checking the pose at result time
-})
-def action_goals_succeed(frames: Frames, p: dict) -> Finding:
+          params=ActionGoalsSucceedParams)
+def action_goals_succeed(frames: Frames, p: ActionGoalsSucceedParams) -> Finding:
     """Reachable goals are accepted and end with success=True with the turtle really within goal_tol."""
     return under_other_action_name(frames, _action_goals_succeed(frames, p))
 
 
-def _action_goals_succeed(frames: Frames, p: dict) -> Finding:
-    gs = [g for g in action_goals(frames) if _in_box(g, p["inner_bound"]) and not _is_timeout_probe(g, p)]
+def _action_goals_succeed(frames: Frames, p: ActionGoalsSucceedParams) -> Finding:
+    gs = [g for g in action_goals(frames) if _in_box(g, p.inner_bound) and not _is_timeout_probe(g, p)]
     if not gs:
         return _no_action_events(frames)
     rows, ok_n = [], 0
-    moved = provenance.moves(frames, p["pose_topic"])
+    moved = provenance.moves(frames, p.pose_topic)
     for g in gs:
-        tol = g["goal_tol"] if g["goal_tol"] else p["default_goal_tol"]
+        tol = g["goal_tol"] if g["goal_tol"] else p.default_goal_tol
         row = {"goal": [g["x"], g["y"]], "goal_tol": tol, "accepted": g["accepted"], "success": g["success"],
                "status": g["status"], "t_end": g["t_result"] or g["t_response"] or g["t_sent"],
                "duration_s": (g["t_result"] - g["t_sent"]) if g["t_result"] is not None else None}
@@ -232,14 +248,14 @@ def _action_goals_succeed(frames: Frames, p: dict) -> Finding:
             problem = (f"the turtle was moved without driving ({provenance.moved_text(frames, during)}) while "
                        "the goal ran: a goal reached that way earns nothing")
         else:
-            pos = _pose_at(frames, p["pose_topic"], g["t_result"])
+            pos = _pose_at(frames, p.pose_topic, g["t_result"])
             dist = math.hypot(pos[0] - g["x"], pos[1] - g["y"]) if pos else None
             row["distance_at_result"] = dist
             if not g["success"]:
                 where = f", turtle {dist:.2f} m away" if dist is not None else ""
                 limit = f", goal timeout {g['time_out']:g} s" if g["time_out"] is not None else ""
                 problem = f"result success=False after {row['duration_s']:.1f} s (status {g['status']}{where}{limit})"
-            elif dist is not None and dist > tol + p["pos_slack"]:
+            elif dist is not None and dist > tol + p.pos_slack:
                 problem = f"reported success but the turtle was {dist:.2f} m away (goal_tol {tol:g})"
             elif g["status"] not in (None, "SUCCEEDED"):
                 # rclpy aborts a goal whose execute callback returns without succeed(): a
@@ -251,7 +267,7 @@ def _action_goals_succeed(frames: Frames, p: dict) -> Finding:
         ok_n += problem is None
         rows.append(row)
     frac = ok_n / len(gs)
-    ev: dict[str, Any] = {"goals": rows, "timeline": _timeline(frames, p["pose_topic"])}
+    ev: dict[str, Any] = {"goals": rows, "timeline": _timeline(frames, p.pose_topic)}
     if any(r.get("teleported") for r in rows):
         ev["student_moves"] = [c.plain(frames) for c in moved[:10]]
     value = f"{ok_n}/{len(gs)} succeeded"
@@ -272,21 +288,25 @@ def _action_goals_succeed(frames: Frames, p: dict) -> Finding:
                    f"Goal ({bad['goal'][0]:g}, {bad['goal'][1]:g}): {bad['problem']}.{hint}", ev)
 
 
+class ActionRejectsOutOfBoundsParams(AnalyzerParams):
+    outer_bound: OuterBound = OUTER
+
+
 @register("action_rejects_out_of_bounds", evidence={**EVIDENCE, "value": ("out-of-bounds goals", "")},
           expect="every goal outside [0, {outer_bound:.2f}] m rejected",
-          defaults={"outer_bound": OUTER})
-def action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
+          params=ActionRejectsOutOfBoundsParams)
+def action_rejects_out_of_bounds(frames: Frames, p: ActionRejectsOutOfBoundsParams) -> Finding:
     """Goals outside the world are rejected in goal_callback (GoalResponse.REJECT)."""
     return under_other_action_name(frames, _action_rejects_out_of_bounds(frames, p))
 
 
-def _action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
-    gs = [g for g in action_goals(frames) if g["x"] is not None and not _in_box(g, p["outer_bound"])]
+def _action_rejects_out_of_bounds(frames: Frames, p: ActionRejectsOutOfBoundsParams) -> Finding:
+    gs = [g for g in action_goals(frames) if g["x"] is not None and not _in_box(g, p.outer_bound)]
     if not gs:
         return _no_action_events(frames)
     rows = [{"goal": [g["x"], g["y"]], "accepted": g["accepted"], "success": g["success"]} for g in gs]
     ok_n = sum(1 for g in gs if g["accepted"] is False)
-    ev = {"goals": rows, "outer_bound": p["outer_bound"], "timeline": _timeline(frames, "/turtle1/pose")}
+    ev = {"goals": rows, "outer_bound": p.outer_bound, "timeline": _timeline(frames, "/turtle1/pose")}
     frac = ok_n / len(gs)
     value = f"{ok_n}/{len(gs)} rejected"
     if ok_n == len(gs):
@@ -299,21 +319,24 @@ def _action_rejects_out_of_bounds(frames: Frames, p: dict) -> Finding:
     ev["at"] = f"goal ({bad['x']:g}, {bad['y']:g}): the answer"
     what = "got no response" if bad["accepted"] is None else "was accepted"
     return Finding(value, frac, graded(frac),
-                   f"Goal ({bad['x']:g}, {bad['y']:g}) is outside the world [0, {p['outer_bound']:.2f}] but {what}: "
+                   f"Goal ({bad['x']:g}, {bad['y']:g}) is outside the world [0, {p.outer_bound:.2f}] but {what}: "
                    "in goal_callback return GoalResponse.REJECT when x or y is outside the world.", ev)
+
+
+class ActionTimeoutParams(AnalyzerParams):
+    outer_bound: OuterBound = OUTER
+    short_timeout_s: ShortTimeout = SHORT_TIMEOUT
+    pose_topic: PoseTopic = "/turtle1/pose"
+    grace_s: float = Field(3.0, ge=0, description="s: after time_out within which success=False must arrive")
+    late_credit: float = Field(0.5, ge=0, le=1, description="share: credit for success=False later than "
+                                                            "time_out + grace_s")
+    default_goal_tol: DefaultGoalTol = 0.1
 
 
 @register("action_timeout", timing="the goal's time_out", evidence={**EVIDENCE, "value": ("short-timeout goal", "")},
           expect="success=False within {grace_s:g} s after the goal's time_out",
-          defaults={
-    "outer_bound": OUTER,
-    "short_timeout_s": SHORT_TIMEOUT,
-    "pose_topic": "/turtle1/pose",
-    "grace_s": 3.0,            # s after time_out within which success=False must arrive
-    "late_credit": 0.5,        # success=False, but later than time_out + grace_s
-    "default_goal_tol": 0.1,
-})
-def action_timeout(frames: Frames, p: dict) -> Finding:
+          params=ActionTimeoutParams)
+def action_timeout(frames: Frames, p: ActionTimeoutParams) -> Finding:
     """A goal with a short time_out ends with success=False soon after its time_out (advisory).
 
     Note the template's loop condition ``T1 - now <= timeout`` is always true (T1 - now is
@@ -322,15 +345,15 @@ def action_timeout(frames: Frames, p: dict) -> Finding:
     return under_other_action_name(frames, _action_timeout(frames, p))
 
 
-def _action_timeout(frames: Frames, p: dict) -> Finding:
-    gs = [g for g in action_goals(frames) if _in_box(g, p["outer_bound"]) and _is_timeout_probe(g, p)]
+def _action_timeout(frames: Frames, p: ActionTimeoutParams) -> Finding:
+    gs = [g for g in action_goals(frames) if _in_box(g, p.outer_bound) and _is_timeout_probe(g, p)]
     if not gs:
         return _no_action_events(frames)
     g = gs[0]
-    to = g["time_out"] or p["short_timeout_s"]
+    to = g["time_out"] or p.short_timeout_s
     ev = {"goal": [g["x"], g["y"]], "time_out": g["time_out"], "accepted": g["accepted"], "success": g["success"],
           "status": g["status"], "duration_s": (g["t_result"] - g["t_sent"]) if g["t_result"] else None,
-          "timeline": _timeline(frames, p["pose_topic"]),
+          "timeline": _timeline(frames, p.pose_topic),
           "at_s": float(since_start(frames, g["t_result"] or g["t_response"] or g["t_sent"])),
           "at": f"goal ({g['x']:g}, {g['y']:g}) with time_out {to:g} s: its end"}
     if g["accepted"] is not True:
@@ -342,10 +365,10 @@ def _action_timeout(frames: Frames, p: dict) -> Finding:
                        f"The goal with time_out={to:g} s never returned a result: end the loop when the elapsed time "
                        "(now - T1) exceeds the timeout and return success=False.", ev)
     dur = g["t_result"] - g["t_sent"]
-    late = dur > to + p["grace_s"]
+    late = dur > to + p.grace_s
     if g["success"]:
-        pos = _pose_at(frames, p["pose_topic"], g["t_result"])
-        tol = g["goal_tol"] or p["default_goal_tol"]
+        pos = _pose_at(frames, p.pose_topic, g["t_result"])
+        tol = g["goal_tol"] or p.default_goal_tol
         if not late and pos and math.hypot(pos[0] - g["x"], pos[1] - g["y"]) <= tol + 0.05:
             return Finding("reached in time", 1.0, "pass",
                            f"The goal was genuinely reached within its time_out ({dur:.1f} s of {to:g} s).", ev)
@@ -354,21 +377,24 @@ def _action_timeout(frames: Frames, p: dict) -> Finding:
                        "enforced. In the template, 'T1 - self.get_clock().now() <= timeout' is always true; "
                        "compare self.get_clock().now() - T1 with the timeout.", ev)
     if late:
-        return Finding(f"success=False after {dur:.1f} s", p["late_credit"], graded(p["late_credit"]),
+        return Finding(f"success=False after {dur:.1f} s", p.late_credit, graded(p.late_credit),
                        f"The goal returned success=False but only after {dur:.1f} s (time_out {to:g} s).", ev)
     return Finding(f"success=False after {dur:.1f} s", 1.0, "pass",
                    f"The goal timed out after {dur:.1f} s (time_out {to:g} s) with success=False.", ev)
 
 
+class ActionClientRejectedParams(AnalyzerParams):
+    outer_bound: OuterBound = OUTER
+    process: str | None = Field(None, description="runner process name of the given client (None: the first "
+                                                  "typed into whose name has 'client', else the first)")
+    client_logger: str = Field("turtle_controller_client_node", description="the client's logger name")
+    reject_pattern: str = Field("reject", description="text (lower case) of the client's rejection message")
+
+
 @register("action_client_rejected", evidence={**EVIDENCE, "value": ("client after a rejected goal", "")},
           expect="the client reports the rejection and keeps working",
-          defaults={
-    "outer_bound": OUTER,
-    "process": None,                              # runner process name of the given client
-    "client_logger": "turtle_controller_client_node",
-    "reject_pattern": "reject",
-})
-def action_client_rejected(frames: Frames, p: dict) -> Finding:
+          params=ActionClientRejectedParams)
+def action_client_rejected(frames: Frames, p: ActionClientRejectedParams) -> Finding:
     """The given client reports a rejected goal and keeps accepting input afterwards (advisory).
 
     Why advisory: the client is given code; this item shows whether the student's server answers
@@ -376,13 +402,13 @@ def action_client_rejected(frames: Frames, p: dict) -> Finding:
     """
     stdin = events(frames, StdinLine)
     procs = [e.process for e in stdin]
-    proc = p["process"] or next((q for q in procs if q and "client" in str(q).lower()), procs[0] if procs else None)
+    proc = p.process or next((q for q in procs if q and "client" in str(q).lower()), procs[0] if procs else None)
     lines = [e for e in stdin if e.process == proc]
     if not lines:
         return Finding.error("No lines were typed into the action client, so its behaviour on a rejected goal "
                              "could not be tested.")
     oob = [e for e in lines if (xy := parse_xy_line(e.line)) is not None and
-           not (0 <= xy[0] <= p["outer_bound"] and 0 <= xy[1] <= p["outer_bound"])]
+           not (0 <= xy[0] <= p.outer_bound and 0 <= xy[1] <= p.outer_bound)]
     if not oob:
         return Finding.error("No out-of-bounds goal was typed into the client.", {"process": proc})
     b = oob[0]
@@ -391,14 +417,14 @@ def action_client_rejected(frames: Frames, p: dict) -> Finding:
     so = stdout_lines(frames)
     texts: list[tuple[float, str]] = []
     if len(ro):
-        r = ro[ro["logger"].str.lstrip("/") == str(p["client_logger"]).lstrip("/")]
+        r = ro[ro["logger"].str.lstrip("/") == p.client_logger.lstrip("/")]
         texts += list(zip(r["time"].tolist(), r["text"].tolist()))
     if len(so):
         s = so[so["process"] == str(proc)]
         texts += list(zip(s["time"].tolist(), s["text"].tolist()))
     texts.sort()
     t_end_window = later[0].t if later else np.inf
-    rej = [tx for t, tx in texts if b.t - 0.05 <= t <= t_end_window + 0.5 and p["reject_pattern"] in tx.lower()]
+    rej = [tx for t, tx in texts if b.t - 0.05 <= t <= t_end_window + 0.5 and p.reject_pattern in tx.lower()]
     exits = [x for x in events(frames, ProcessExit) if x.process == proc and x.t > b.t]
     ev: dict = {"process": proc, "oob_line": b.line, "reject_lines": rej[:3],
                 "exit_events": [{"t": x.t, "returncode": x.returncode} for x in exits]}

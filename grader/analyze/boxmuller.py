@@ -24,15 +24,17 @@ missing sqrt, sin for cos, swapped u1/u2, degrees, ...) and the best one is name
 from __future__ import annotations
 
 import math
+from typing import Annotated
 
 import numpy as np
+from pydantic import Field
 from scipy import stats
 
 from grader.analyze import Finding, graded, register
 from grader.analyze._common import ROSOUT, Frames, meta_row, stdout_lines, thin, topic
 from grader.analyze.evidence import SHARE
 from grader.analyze.boxmuller_formulas import FORMULAS
-from grader.analyze.boxmuller_pairing import (COMMON_DEFAULTS, _examples, _inputs, _no_output_finding, _pair_series,
+from grader.analyze.boxmuller_pairing import (BoxMullerInputParams, _examples, _inputs, _no_output_finding, _pair_series,
                                               _sources, _unanswered, select)
 
 #: labels and units of the evidence (see grader.analyze.evidence)
@@ -86,23 +88,30 @@ EVIDENCE = {
     "histogram": None, "qq": None,
 }
 
-@register("boxmuller", evidence={**EVIDENCE, "value": ("printed values", "")},
-          expect="z = sqrt(−2 ln u1)·cos(2π u2) printed for at least {pass_ratio:.0%} of the published pairs",
-          defaults={
-    **COMMON_DEFAULTS,
-    "min_outputs": 10,       # fewer numeric lines -> not enough evidence
-    "pass_ratio": 0.9,       # matched / expected at or above this -> full credit
-    "min_ratio": 0.02,       # below this (after the chance correction): no credit. A wrong formula
-                             # matched 1 of 524 pairs by chance, and the chance estimate of that
-                             # run's timing made it 0 points in one run and 0.01 in another (issue 22)
-    "bug_min_ratio": 0.8,    # a named mistake must explain at least this share to be reported
-    "max_chance": 0.5,       # not passing, and a random input would match this share: "print more decimals"
-    "tail_grace_s": 2.0,     # inputs in the last seconds of the bag may go unanswered
-    "bug_credit": {"sin_for_cos": 0.5},   # fraction granted when the values match a named variant
-})
-def boxmuller(frames: Frames, p: dict) -> Finding:
+_Share = Annotated[float, Field(ge=0, le=1)]
+
+
+class BoxMullerParams(BoxMullerInputParams):
+    min_outputs: int = Field(10, ge=0, description="fewer numeric lines -> not enough evidence")
+    pass_ratio: float = Field(0.9, ge=0, le=1, description="matched / expected at or above this -> full credit")
+    # A wrong formula matched 1 of 524 pairs by chance, and the chance estimate of that run's
+    # timing made it 0 points in one run and 0.01 in another (issue 22)
+    min_ratio: float = Field(0.02, ge=0, le=1,
+                             description="below this (after the chance correction): no credit")
+    bug_min_ratio: float = Field(0.8, ge=0, le=1,
+                                 description="a named mistake must explain at least this share to be reported")
+    max_chance: float = Field(0.5, ge=0, le=1, description="not passing, and a random input would match this "
+                                                           "share: \"print more decimals\"")
+    tail_grace_s: float = Field(2.0, ge=0, description="s: inputs in the last seconds of the bag may go unanswered")
+    bug_credit: dict[str, _Share] = Field({"sin_for_cos": 0.5},
+                                          description="fraction granted when the values match a named variant")
+
+
+@register("boxmuller", params=BoxMullerParams, evidence={**EVIDENCE, "value": ("printed values", "")},
+          expect="z = sqrt(−2 ln u1)·cos(2π u2) printed for at least {pass_ratio:.0%} of the published pairs")
+def boxmuller(frames: Frames, p: BoxMullerParams) -> Finding:
     """Share of published pairs for which the student printed the correct Box-Muller z."""
-    sel = select(frames, p)
+    sel = select(frames, p, tail_grace_s=p.tail_grace_s)
     early = _no_output_finding(frames, p, sel)
     if early:
         return early
@@ -120,25 +129,25 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
         "best_formula_text": FORMULAS[best.formula][0],
         "best_ratio": best.ratio,
     }
-    shown = best if best.formula != "correct" and best.ratio >= p["bug_min_ratio"] else cp
+    shown = best if best.formula != "correct" and best.ratio >= p.bug_min_ratio else cp
     ev["pairs"] = _pair_series(sel, shown)
-    if best.source.n_numeric < p["min_outputs"]:
+    if best.source.n_numeric < p.min_outputs:
         ev["examples"] = _examples(sel, best)
         return Finding(f"{best.source.n_numeric} lines", 0.0, "fail",
                        f"Only {best.source.n_numeric} printed value(s) for {len(sel.inputs)} published pairs: "
                        "log one z per received message.", ev)
     value = f"{cp.matched}/{cp.expected} matched"
-    if cp.ratio >= p["pass_ratio"]:
+    if cp.ratio >= p.pass_ratio:
         ev["examples"] = _examples(sel, cp, 3)
         return Finding(value, 1.0, "pass",
                        f"{cp.matched} of {cp.expected} printed values match z = sqrt(-2 ln u1)·cos(2πu2).", ev)
-    if best.formula != "correct" and best.ratio >= p["bug_min_ratio"]:
-        frac = float((p.get("bug_credit") or {}).get(best.formula, 0.0))
+    if best.formula != "correct" and best.ratio >= p.bug_min_ratio:
+        frac = float((p.bug_credit or {}).get(best.formula, 0.0))
         ev["examples"] = _examples(sel, best, 3)
         ev["bug"] = best.formula
         value = f"values follow {FORMULAS[best.formula][0]}"
         return Finding(value, frac, graded(frac), FORMULAS[best.formula][2], ev)
-    if cp.chance > p["max_chance"]:
+    if cp.chance > p.max_chance:
         ev["examples"] = _examples(sel, cp, 3)
         return Finding(value, 0.0, "fail",
                        f"Your values are printed too coarsely to be checked (a random number would match "
@@ -152,7 +161,7 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
         ex = wrong[0]
         detail = (f" For example, for u1={ex['u1']:.6g}, u2={ex['u2']:.6g} you printed {ex['printed']:.6g} "
                   f"but z = {ex['expected_z']:.6g}.")
-    if cp.ratio >= p["min_ratio"]:
+    if cp.ratio >= p.min_ratio:
         frac = cp.ratio
         if not wrong and missing:
             # every value printed is right: the shortfall is pairs that got no line at all
@@ -165,30 +174,31 @@ def boxmuller(frames: Frames, p: dict) -> Finding:
         return Finding(value, frac, "partial",
                        f"Only {cp.matched} of {cp.expected} published pairs got a correct z printed "
                        f"(missing or wrong lines).{detail}", ev)
-    few = (f" (only {cp.matched} of {cp.expected} matched: less than {p['min_ratio']:.0%} more than chance "
+    few = (f" (only {cp.matched} of {cp.expected} matched: less than {p.min_ratio:.0%} more than chance "
            "alone would give)") if cp.matched else ""
     return Finding(value, 0.0, "fail",
                    f"Your printed values do not match z = sqrt(-2 ln u1)·cos(2πu2) nor a common variant of it{few}."
                    + detail, ev)
 
 
-@register("boxmuller_logging", judges=("logging",), evidence={**EVIDENCE, "value": ("values written by", "")},
-          expect="values logged with self.get_logger().info (at least {min_outputs} lines on /rosout)",
-          defaults={
-    **COMMON_DEFAULTS,
-    "tail_grace_s": 2.0,
-    "min_outputs": 10,       # numeric lines a logger needs to count as "logs its values"
-})
-def boxmuller_logging(frames: Frames, p: dict) -> Finding:
+class BoxMullerLoggingParams(BoxMullerInputParams):
+    tail_grace_s: float = Field(2.0, ge=0, description="s: inputs in the last seconds of the bag may go unanswered")
+    min_outputs: int = Field(10, ge=0, description="numeric lines a logger needs to count as \"logs its values\"")
+
+
+@register("boxmuller_logging", params=BoxMullerLoggingParams, judges=("logging",),
+          evidence={**EVIDENCE, "value": ("values written by", "")},
+          expect="values logged with self.get_logger().info (at least {min_outputs} lines on /rosout)")
+def boxmuller_logging(frames: Frames, p: BoxMullerLoggingParams) -> Finding:
     """The subscriber reports z through ROS logging (/rosout), as the lab asks, not print().
 
     Why: ``self.get_logger().info`` output is visible to every ROS tool (rqt_console, /rosout,
     log files); print() only reaches the terminal.
     """
-    inp = _inputs(frames, p["topic"])
+    inp = _inputs(frames, p.topic)
     if inp is None or len(inp) == 0:
-        return Finding.error(f"No pairs were recorded on {p['topic']}, so logging could not be tested.",
-                             {"topic": p["topic"]})
+        return Finding.error(f"No pairs were recorded on {p.topic}, so logging could not be tested.",
+                             {"topic": p.topic})
     has_rosout = topic(frames, ROSOUT) is not None or meta_row(frames, ROSOUT) is not None
     if not has_rosout:
         return Finding.error("/rosout was not recorded, so logging cannot be checked (scenario problem).")
@@ -197,11 +207,11 @@ def boxmuller_logging(frames: Frames, p: dict) -> Finding:
     ev: dict = {"rosout_loggers": sorted({s.name for s in ros}),
                 "stdout_processes": sorted({s.name for s in srcs if s.kind == "stdout"})}
     if ros:
-        sel = select(frames, p, ros)
+        sel = select(frames, p, ros, tail_grace_s=p.tail_grace_s)
         src = sel.best.source if sel.best else max(ros, key=lambda s: s.n_numeric)
         ev.update({"logger": src.name, "n_numeric_lines": src.n_numeric,
                    "matched_correct": sel.correct.matched if sel.correct else 0})
-        if src.n_numeric >= p["min_outputs"]:
+        if src.n_numeric >= p.min_outputs:
             return Finding(src.name, 1.0, "pass",
                            f"Values are logged through ROS logging (logger '{src.name}', {src.n_numeric} lines).", ev)
         return Finding(src.name, 0.0, "fail",
@@ -224,23 +234,25 @@ def boxmuller_logging(frames: Frames, p: dict) -> Finding:
     return Finding.fail("No logged values were found: log z in sub_callback with self.get_logger().info(...).", ev)
 
 
-@register("normality", evidence={**EVIDENCE, "value": ("printed values", "")},
+class NormalityParams(BoxMullerInputParams):
+    tail_grace_s: float = Field(2.0, ge=0, description="s: inputs in the last seconds of the bag may go unanswered")
+    # Shapiro-Wilk needs 3 values, the standard deviation's standard error 2
+    min_samples: int = Field(20, ge=3, description="printed values needed to test normality")
+    max_shapiro: int = Field(5000, ge=3, description="values used in the Shapiro-Wilk test, at most (scipy's "
+                                                     "Shapiro-Wilk is accurate up to 5000 samples)")
+    alpha: float = Field(0.01, ge=0, le=1, description="Shapiro-Wilk and Anderson-Darling significance level")
+    z_bound: float = Field(3.0, ge=0, description="|mean| and |std - 1| allowed in standard errors")
+
+
+@register("normality", params=NormalityParams, evidence={**EVIDENCE, "value": ("printed values", "")},
           expect=("standard normal values: Shapiro-Wilk and Anderson-Darling p ≥ {alpha:g}, mean 0 and "
-                  "standard deviation 1 within {z_bound:g} standard errors"),
-          defaults={
-    **COMMON_DEFAULTS,
-    "tail_grace_s": 2.0,
-    "min_samples": 20,
-    "max_shapiro": 5000,     # scipy's Shapiro-Wilk is accurate up to 5000 samples
-    "alpha": 0.01,           # Shapiro-Wilk and Anderson-Darling significance level
-    "z_bound": 3.0,          # |mean| and |std - 1| allowed in standard errors
-})
-def normality(frames: Frames, p: dict) -> Finding:
+                  "standard deviation 1 within {z_bound:g} standard errors"))
+def normality(frames: Frames, p: NormalityParams) -> Finding:
     """The printed values look standard Normal: Shapiro-Wilk and Anderson-Darling (shape) plus mean
     ~ 0 and std ~ 1 within ``z_bound`` standard errors (a Normal with the wrong scale, e.g. the log10
     bug, passes the shape tests but not this one). Half credit for each part.
     """
-    sel = select(frames, p)
+    sel = select(frames, p, tail_grace_s=p.tail_grace_s)
     if sel.best is not None:
         src, pos = sel.best.source, sel.best.pos
     elif sel.sources:
@@ -252,11 +264,11 @@ def normality(frames: Frames, p: dict) -> Finding:
     x = v[np.isfinite(v)]
     n = len(x)
     ev: dict = {"source": {"kind": src.kind, "name": src.name}, "number_position": pos, "n": n}
-    if n < p["min_samples"]:
+    if n < p.min_samples:
         return Finding(n, 0.0, "fail",
-                       f"Only {n} printed value(s): at least {p['min_samples']} are needed to test normality.", ev)
+                       f"Only {n} printed value(s): at least {p.min_samples} are needed to test normality.", ev)
     mean, std = float(np.mean(x)), float(np.std(x, ddof=1))
-    sw = stats.shapiro(x[: p["max_shapiro"]])
+    sw = stats.shapiro(x[: p.max_shapiro])
     try:
         ad = stats.anderson(x, "norm", method="interpolate")
         ad_stat, ad_p = float(ad.statistic), float(ad.pvalue)
@@ -268,7 +280,7 @@ def normality(frames: Frames, p: dict) -> Finding:
     se_mean, se_std = 1.0 / math.sqrt(n), 1.0 / math.sqrt(2.0 * (n - 1))
     ev.update({"mean": mean, "std": std, "shapiro_W": float(sw.statistic), "shapiro_p": float(sw.pvalue),
                "anderson_stat": ad_stat, "anderson_p": ad_p,
-               "mean_bound": p["z_bound"] * se_mean, "std_bound": p["z_bound"] * se_std})
+               "mean_bound": p.z_bound * se_mean, "std_bound": p.z_bound * se_std})
     counts, edges = np.histogram(np.clip(x, -4.0, 4.0), bins=np.linspace(-4.0, 4.0, 33))
     ev["histogram"] = {"bins": edges.round(3).tolist(), "counts": counts.tolist(),
                        "reference": "normal", "xlabel": "z"}
@@ -276,8 +288,8 @@ def normality(frames: Frames, p: dict) -> Finding:
     keep = thin(n, 300)
     ev["qq"] = {"theoretical": np.round(stats.norm.ppf((keep + 1 - 0.375) / (n + 0.25)), 4).tolist(),
                 "sample": np.round(xs[keep], 4).tolist()}
-    shape_ok = sw.pvalue >= p["alpha"] and ad_p >= p["alpha"]
-    std_ok = abs(mean) <= p["z_bound"] * se_mean and abs(std - 1.0) <= p["z_bound"] * se_std
+    shape_ok = sw.pvalue >= p.alpha and ad_p >= p.alpha
+    std_ok = abs(mean) <= p.z_bound * se_mean and abs(std - 1.0) <= p.z_bound * se_std
     frac = 0.5 * shape_ok + 0.5 * std_ok
     value = f"mean {mean:.3f}, std {std:.3f}, n {n}"
     if shape_ok and std_ok:

@@ -13,7 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from grader.analyze import Finding
+from pydantic import Field
+
+from grader.analyze import AnalyzerParams, Finding
 from grader.analyze.boxmuller_formulas import FORMULAS
 from grader.analyze._common import (ROSOUT, STDOUT, Frames, end_time, meta_row, rosout_lines, stdout_lines,
                                     thin, times, topic, traceback_mask)
@@ -24,15 +26,21 @@ _NUM = re.compile(
     re.IGNORECASE,
 )
 
-COMMON_DEFAULTS = {
-    "topic": "/random_numbers",     # where the uniform pairs are (recorded in the bag)
-    "logger": None,                 # student's logger name on /rosout; None = detect
-    "process": None,                # runner process name for /grader/stdout; None = detect
-    "exclude_loggers": ["turtlesim", "rosbag2_recorder", "rosbag2_player", "grader", "simple_publisher"],
-    "max_lag_s": 2.0,               # a printed value may answer inputs up to this much earlier
-    "lead_s": 0.25,                 # ... or this much later (clock skew log stamp vs recorder)
-    "max_chance_full": 0.02,        # the full lag window may decide only where chance matches stay below this
-}
+class BoxMullerInputParams(AnalyzerParams):
+    """Where the Box-Muller analyzers find the inputs and the student's printed values, and how
+    printed lines are paired with inputs (shared by ``boxmuller``, ``boxmuller_logging`` and
+    ``normality``)."""
+
+    topic: str = Field("/random_numbers", description="where the uniform pairs are (recorded in the bag)")
+    logger: str | None = Field(None, description="student's logger name on /rosout; None = detect")
+    process: str | None = Field(None, description="runner process name for /grader/stdout; None = detect")
+    exclude_loggers: tuple[str, ...] = Field(
+        ("turtlesim", "rosbag2_recorder", "rosbag2_player", "grader", "simple_publisher"),
+        description="loggers whose lines are not the student's values")
+    max_lag_s: float = Field(2.0, ge=0, description="s: a printed value may answer inputs up to this much earlier")
+    lead_s: float = Field(0.25, ge=0, description="s: ... or this much later (clock skew log stamp vs recorder)")
+    max_chance_full: float = Field(0.02, ge=0, le=1, description="the full lag window may decide only where "
+                                                                 "chance matches stay below this share")
 
 
 def parse_numbers(text: str) -> list[tuple[float, float]]:
@@ -82,15 +90,15 @@ class Source:
         return v, h
 
 
-def _sources(frames: Frames, p: dict) -> list[Source]:
+def _sources(frames: Frames, p: BoxMullerInputParams) -> list[Source]:
     """Candidate output streams: each /rosout logger, then each process's stdout/stderr."""
     out: list[Source] = []
-    excl = {str(x).lstrip("/") for x in (p.get("exclude_loggers") or [])}
+    excl = {str(x).lstrip("/") for x in (p.exclude_loggers or ())}
     ro = rosout_lines(frames)
     if len(ro):
         for name, g in ro.groupby("logger", sort=False):
-            if p.get("logger"):
-                if str(name).lstrip("/") != str(p["logger"]).lstrip("/"):
+            if p.logger:
+                if str(name).lstrip("/") != str(p.logger).lstrip("/"):
                     continue
             elif str(name).lstrip("/") in excl or str(name).startswith("grader"):
                 continue
@@ -99,7 +107,7 @@ def _sources(frames: Frames, p: dict) -> list[Source]:
     so = stdout_lines(frames)
     if len(so):
         for name, g in so.groupby("process", sort=False):
-            if p.get("process") and str(name) != str(p["process"]):
+            if p.process and str(name) != str(p.process):
                 continue
             g = g.sort_values("time", kind="stable")
             g = g[~traceback_mask(g["text"])]
@@ -170,10 +178,10 @@ class Pairing:
         return max(0.0, (self.raw_ratio - self.chance) / (1.0 - self.chance))
 
 
-def _windows(inp: Inputs, t_out: np.ndarray, p: dict, lag: tuple[float, float] | None = None,
-             shift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def _windows(inp: Inputs, t_out: np.ndarray, p: BoxMullerInputParams,
+             lag: tuple[float, float] | None = None, shift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Index range of inputs each line may answer: t_in in [t_out - lag_max, t_out - lag_min]."""
-    lag_min, lag_max = lag if lag is not None else (-p["lead_s"], p["max_lag_s"])
+    lag_min, lag_max = lag if lag is not None else (-p.lead_s, p.max_lag_s)
     lo = np.searchsorted(inp.t, t_out + shift - lag_max, side="left")
     hi = np.searchsorted(inp.t, t_out + shift - lag_min, side="right")
     return lo, hi
@@ -249,7 +257,8 @@ def _pair(inp: Inputs, src: Source, pos: int, z: np.ndarray, sens: np.ndarray, v
 
 
 def _chance(inp: Inputs, src: Source, pos: int, z: np.ndarray, sens: np.ndarray, v: np.ndarray,
-            h: np.ndarray, p: dict, lag: tuple[float, float], lo: np.ndarray, hi: np.ndarray) -> float | None:
+            h: np.ndarray, p: BoxMullerInputParams, lag: tuple[float, float], lo: np.ndarray,
+            hi: np.ndarray) -> float | None:
     """Share of lines a random input in the lag band would match: the same lines against inputs
     far away in time (full windows only, not cut by the bag's ends); None when the bag is too
     short to shift any window that far."""
@@ -266,7 +275,8 @@ def _chance(inp: Inputs, src: Source, pos: int, z: np.ndarray, sens: np.ndarray,
     return hits / tot if tot else None
 
 
-def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred: Any, p: dict, t_cut: float) -> Pairing:
+def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred: Any, p: BoxMullerInputParams,
+             t_cut: float) -> Pairing:
     """Pair lines with inputs (see _pair) and measure the share matched, corrected for chance.
 
     Two passes: the first uses the full window; when it finds real matches their time lags are
@@ -283,7 +293,7 @@ def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred: Any, p: dic
     """
     z, sens = pred[formula]
     v, h = src.column(pos)
-    full = (-p["lead_s"], p["max_lag_s"])
+    full = (-p.lead_s, p.max_lag_s)
     lo, hi = _windows(inp, src.time, p)
     pairs = _pair(inp, src, pos, z, sens, v, h, lo, hi)
     passes = [(full, pairs, lo, hi)]
@@ -305,12 +315,12 @@ def _pairing(inp: Inputs, src: Source, pos: int, formula: str, pred: Any, p: dic
             cut = max(t_cut, float(inp.t[max(matched_i)]))
         else:
             first_i = None
-            t0 = float(src.time[0]) - p["max_lag_s"] if len(src.time) else float("inf")
+            t0 = float(src.time[0]) - p.max_lag_s if len(src.time) else float("inf")
         expected = int(((inp.t >= t0 - 1e-9) & (inp.t <= cut)).sum())
         expected = max(expected, len(matched_i))
         cand = Pairing(src, pos, formula, pairs, len(matched_i), expected, first_i, lag, chance, (t0, cut))
         if best is None or (cand.ratio > best.ratio and measured is not None
-                            and measured <= p["max_chance_full"]):
+                            and measured <= p.max_chance_full):
             best = cand
     assert best is not None
     return best
@@ -328,9 +338,11 @@ class Selection:
 _POSITIONS = (-1, 0, -2, 1, -3, 2)
 
 
-def select(frames: Frames, p: dict, sources: list[Source] | None = None) -> Selection:
-    """Find the (source, number position, formula) that explains most printed lines."""
-    inp = _inputs(frames, p["topic"])
+def select(frames: Frames, p: BoxMullerInputParams, sources: list[Source] | None = None, *,
+           tail_grace_s: float = 2.0) -> Selection:
+    """Find the (source, number position, formula) that explains most printed lines; inputs in
+    the last ``tail_grace_s`` seconds of the bag may go unanswered."""
+    inp = _inputs(frames, p.topic)
     srcs = _sources(frames, p) if sources is None else sources
     if inp is None or len(inp) == 0 or not srcs:
         return Selection(inp, srcs, None, None, {})
@@ -356,7 +368,7 @@ def select(frames: Frames, p: dict, sources: list[Source] | None = None) -> Sele
                 if best_key is None or key > best_key:
                     best_key, best = key, (src, pos, f)
     assert best is not None and best_key is not None
-    t_cut = end_time(frames) - p.get("tail_grace_s", 2.0)
+    t_cut = end_time(frames) - tail_grace_s
     src, pos, f = best
     if best_key[0] == 0:
         # Nothing matches anything: pair the busiest source's last number for evidence.
@@ -418,19 +430,19 @@ def _pair_series(sel: Selection, pairing: Pairing, max_points: int = 300) -> dic
             "matched": [bool(pairs[k][2]) for k in keep]}
 
 
-def _no_output_finding(frames: Frames, p: dict, sel: Selection) -> Finding | None:
+def _no_output_finding(frames: Frames, p: BoxMullerInputParams, sel: Selection) -> Finding | None:
     if sel.inputs is None or len(sel.inputs) == 0:
-        row = meta_row(frames, p["topic"])
+        row = meta_row(frames, p.topic)
         return Finding.error(
-            f"No (u1, u2) pairs were recorded on {p['topic']}, so the subscriber could not be tested "
-            "(scenario problem).", {"topic": p["topic"], "meta": row})
+            f"No (u1, u2) pairs were recorded on {p.topic}, so the subscriber could not be tested "
+            "(scenario problem).", {"topic": p.topic, "meta": row})
     if topic(frames, ROSOUT) is None and topic(frames, STDOUT) is None:
         return Finding.error("Neither /rosout nor /grader/stdout was recorded: the subscriber's output "
                              "cannot be checked (scenario problem).", {"n_inputs": len(sel.inputs)})
     if not sel.sources:
         return Finding.fail(
             f"Your subscriber printed no numbers while {len(sel.inputs)} pairs were published on "
-            f"{p['topic']}: subscribe to /random_numbers and log z with self.get_logger().info(...).",
+            f"{p.topic}: subscribe to /random_numbers and log z with self.get_logger().info(...).",
             {"n_inputs": len(sel.inputs)})
     return None
 

@@ -18,57 +18,62 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from pydantic import Field
 
 from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sentence, since_start, thin, times,
                                     topic)
 from grader.analyze.goals import fit_gain, heading_error
 from grader.analyze.action_goals import under_other_action_name
-from grader.analyze.controller import _GOAL_DEFAULTS, EVIDENCE, _goals_with_end, _no_goals, _no_pose, _pose
+from grader.analyze.controller import EVIDENCE, GoalParams, _goals_with_end, _no_goals, _no_pose, _pose
 from grader.contracts.events import TurtlesReleased
+
+
+class ControlLawParams(GoalParams):
+    cmd_topic: str = Field("/turtle1/cmd_vel", description="topic of the controller's velocity commands")
+    r2_min: float = Field(0.9, ge=0, le=1, description="both fits need at least this R^2 for full credit")
+    min_d: float = Field(0.05, ge=0, description="m: rows closer to the goal are left out of the angular fit "
+                                                  "(theta_e ill-defined)")
+    skip_after_goal_s: float = Field(0.15, ge=0, description="s after a goal change during which the controller "
+                                                             "may not know it yet")
+    wrap_margin: float = Field(0.05, ge=0, description='R^2 gain of the unwrapped fit that counts as "better"')
+    min_wrap_rows: int = Field(5, ge=1, description="rows where wrapping changes theta_e, needed to judge the wrap")
+    use_pub_time: bool = Field(True, description="pair cmd_vel by its send time (pub_t) when recorded")
+    min_rows: int = Field(20, ge=1, description="commands paired with a pose and a goal needed for the fit")
+    max_tick_turn: float = Field(0.2, gt=0, description="rad: theta_e may differ this much between the two poses a "
+                                                        "command may have been computed from (else it is left out "
+                                                        "of the angular fit)")
 
 
 @register("control_law", evidence={**EVIDENCE, "value": ("fitted control law", "")},
           expect="linear.x = K1·d_e and angular.z = K2·theta_e (wrapped) with K1, K2 > 0 and R² ≥ {r2_min:g}",
-          defaults={
-    **_GOAL_DEFAULTS,
-    "cmd_topic": "/turtle1/cmd_vel",
-    "r2_min": 0.9,            # both fits need at least this R^2 for full credit
-    "min_d": 0.05,            # m: rows closer to the goal are left out of the angular fit (theta_e ill-defined)
-    "skip_after_goal_s": 0.15,  # s after a goal change during which the controller may not know it yet
-    "wrap_margin": 0.05,      # R^2 gain of the unwrapped fit that counts as "better"
-    "min_wrap_rows": 5,       # rows where wrapping changes theta_e, needed to judge the wrap
-    "use_pub_time": True,     # pair cmd_vel by its send time (pub_t) when recorded
-    "min_rows": 20,
-    "max_tick_turn": 0.2,     # rad: theta_e may differ this much between the two poses a command
-                              # may have been computed from (else it is left out of the angular fit)
-})
-def control_law(frames: Frames, p: dict) -> Finding:
+          params=ControlLawParams)
+def control_law(frames: Frames, p: ControlLawParams) -> Finding:
     """Estimated K1, K2 and R^2 of v = K1 d_e, w = K2 theta_e; flags wrong signs and a missing wrap.
 
     Credit: half for the linear law (K1 > 0, R^2 >= r2_min), half for the angular law (K2 > 0,
     R^2 >= r2_min, theta_e wrapped). A right sign with a poor fit earns a quarter.
     """
     finding = _control_law(frames, p)
-    return under_other_action_name(frames, finding) if p["goal_source"] == "action" else finding
+    return under_other_action_name(frames, finding) if p.goal_source == "action" else finding
 
 
-def _control_law(frames: Frames, p: dict) -> Finding:
+def _control_law(frames: Frames, p: ControlLawParams) -> Finding:
     pose = _pose(frames, p)
     if pose is None:
         return _no_pose(frames, p)
-    cmd = topic(frames, p["cmd_topic"])
+    cmd = topic(frames, p.cmd_topic)
     if cmd is None or "linear.x" not in cmd.columns or "angular.z" not in cmd.columns:
-        return Finding.fail(missing_topic_feedback(frames, p["cmd_topic"], "your controller's output"))
+        return Finding.fail(missing_topic_feedback(frames, p.cmd_topic, "your controller's output"))
     gl = _goals_with_end(frames, p, pose)
     if not gl:
         return _no_goals(frames, p)
-    moved = provenance.moves(frames, p["pose_topic"])
+    moved = provenance.moves(frames, p.pose_topic)
     j, gd = _paired_commands(frames, p, cmd, pose, gl, moved)
     ev: dict = {"rows": int(len(j))}
     if moved and gd["moved"].all():
         return provenance.moved_finding(frames, moved, "the control law")
-    if len(j) < p["min_rows"]:
+    if len(j) < p.min_rows:
         return Finding(len(j), 0.0, "fail",
                        f"Only {len(j)} cmd_vel message(s) while a goal was active: the controller must publish "
                        "from its timer callback (every 0.03 s) once it has a pose and a goal.", ev)
@@ -79,11 +84,11 @@ def _control_law(frames: Frames, p: dict) -> Finding:
     th_naive = np.arctan2(dy, dx) - th
     v, w = j["v"].to_numpy(), j["w"].to_numpy()
     k1, r2v = fit_gain(d_e, v)
-    far = d_e >= p["min_d"]
+    far = d_e >= p.min_d
     th_e0 = heading_error(j["x0"].to_numpy(), j["y0"].to_numpy(), j["th0"].to_numpy(), j["gx"].to_numpy(),
                           j["gy"].to_numpy())
-    ambiguous = np.abs(np.angle(np.exp(1j * (th_e - th_e0)))) > p["max_tick_turn"]     # NaN: kept
-    far = (d_e >= p["min_d"]) & ~ambiguous
+    ambiguous = np.abs(np.angle(np.exp(1j * (th_e - th_e0)))) > p.max_tick_turn     # NaN: kept
+    far = (d_e >= p.min_d) & ~ambiguous
     k2, r2w = fit_gain(th_e[far], w[far])
     k2n, r2n = fit_gain(th_naive[far], w[far])
     wrap_rows = int((np.abs(th_naive - th_e)[far] > 1.0).sum())
@@ -92,8 +97,8 @@ def _control_law(frames: Frames, p: dict) -> Finding:
                "K2_unwrapped": k2n, "R2_angular_unwrapped": r2n, "rows_where_wrap_matters": wrap_rows,
                "sample": [{"d_e": float(a), "theta_e": float(b), "linear_x": float(cv), "angular_z": float(cw)}
                           for a, b, cv, cw in list(zip(d_e, th_e, v, w))[:: max(1, len(v) // 8)][:8]]})
-    missing_wrap = wrap_rows >= p["min_wrap_rows"] and np.isfinite(r2n) and r2n > r2w + p["wrap_margin"]
-    ev["wrap"] = ("missing" if missing_wrap else "ok") if wrap_rows >= p["min_wrap_rows"] else "not testable"
+    missing_wrap = wrap_rows >= p.min_wrap_rows and np.isfinite(r2n) and r2n > r2w + p.wrap_margin
+    ev["wrap"] = ("missing" if missing_wrap else "ok") if wrap_rows >= p.min_wrap_rows else "not testable"
     keep = thin(len(v), 300)
     ev["fit_rows"] = {"t": since_start(frames, j["t"].to_numpy()[keep]).tolist(),
                       "d_e": np.round(d_e[keep], 4).tolist(), "theta_e": np.round(th_e[keep], 4).tolist(),
@@ -109,13 +114,13 @@ def _control_law(frames: Frames, p: dict) -> Finding:
     return Finding(value, frac, graded(frac), sentence("; ".join(notes)), ev)
 
 
-def _paired_commands(frames: Frames, p: dict, cmd: pd.DataFrame, pose: pd.DataFrame, gl: list,
+def _paired_commands(frames: Frames, p: ControlLawParams, cmd: pd.DataFrame, pose: pd.DataFrame, gl: list,
                      moved: list) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Each command of an active goal beside the pose it was computed from (and the tick
     before), the goal and whether the turtle was moved without driving; from the release of a
     held hand-over, else ``skip_after_goal_s`` after the goal. Returns it and the goals."""
     ct = times(cmd)
-    if p["use_pub_time"] and "pub_t" in cmd.columns:
+    if p.use_pub_time and "pub_t" in cmd.columns:
         pt = cmd["pub_t"].to_numpy(float)
         ct = np.where(np.isfinite(pt), pt, ct)
     c = pd.DataFrame({"t": ct, "v": cmd["linear.x"].to_numpy(float), "w": cmd["angular.z"].to_numpy(float)})
@@ -137,12 +142,12 @@ def _paired_commands(frames: Frames, p: dict, cmd: pd.DataFrame, pose: pd.DataFr
     # a goal handed over while the turtle was held: from its release (until then a command may
     # still be for the old goal); else skip_after_goal_s after it
     released = {e.step: e.t for e in events(frames, TurtlesReleased) if e.ok}
-    start = np.array([released.get(g.extra.get("step"), g.t + p["skip_after_goal_s"]) for g in gl])
-    j = j[(since >= p["skip_after_goal_s"]) & (j["t"].to_numpy() >= start[k])]
+    start = np.array([released.get(g.extra.get("step"), g.t + p.skip_after_goal_s) for g in gl])
+    j = j[(since >= p.skip_after_goal_s) & (j["t"].to_numpy() >= start[k])]
     return j, gd
 
 
-def _credit(p: dict, k1: float, r2v: float, k2: float, r2w: float, k2n: float, r2n: float,
+def _credit(p: ControlLawParams, k1: float, r2v: float, k2: float, r2w: float, k2n: float, r2n: float,
             missing_wrap: bool) -> tuple[float, float, list[str]]:
     """Half the credit for each law (a quarter for the right sign with a poor fit) and what the
     student reads about each shortfall."""
@@ -151,7 +156,7 @@ def _credit(p: dict, k1: float, r2v: float, k2: float, r2w: float, k2n: float, r
     if not np.isfinite(k1) or k1 <= 0:
         notes.append(f"linear.x does not grow with the distance to the goal (K1 ≈ {fmt(k1, 3)}): "
                      "use linear.x = K1·d_e with K1 > 0")
-    elif r2v >= p["r2_min"]:
+    elif r2v >= p.r2_min:
         lin = 0.5
     else:
         lin = 0.25
@@ -164,7 +169,7 @@ def _credit(p: dict, k1: float, r2v: float, k2: float, r2w: float, k2n: float, r
     elif not np.isfinite(k2) or k2 <= 0:
         notes.append(f"angular.z has the wrong sign (K2 ≈ {fmt(k2, 3)}): a positive theta_e (goal to the left) "
                      "needs a positive (counter-clockwise) angular.z; check the atan2 argument order and K2 > 0")
-    elif r2w >= p["r2_min"]:
+    elif r2w >= p.r2_min:
         ang = 0.5
     else:
         ang = 0.25

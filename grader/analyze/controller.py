@@ -18,12 +18,13 @@ The gains and form of Lab 3's law are checked by ``control_law`` (its own module
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
+from pydantic import Field
 
-from grader.analyze import Finding, graded, provenance, register
+from grader.analyze import AnalyzerParams, Finding, graded, provenance, register
 from grader.analyze._common import (Frames, events, fmt, missing_topic_feedback, sim_pose, since_start, times, topic)
 from grader.contracts.world import WORLD_SIZE_M
 from grader.analyze.goals import SentGoal, goals
@@ -109,25 +110,28 @@ EVIDENCE = {
     "fit_rows": None,
 }
 
-_GOAL_DEFAULTS = {
-    "steps": None,                  # step ids whose goals count (None: every goal)
-    "pose_topic": "/turtle1/pose",
-    "goal_source": "auto",          # "auto" (events, else topic) | "events" | "topic" | "action"
-    "goal_topic": "/turtle1/goal",
-}
+class GoalParams(AnalyzerParams):
+    """The parameters every analyzer of driving to goals shares (``goals_reached``,
+    ``turn_direction``, ``control_law``): which goals count and where poses and goals are read."""
+
+    steps: tuple[str, ...] | None = Field(None, description="step ids whose goals count (None: every goal)")
+    pose_topic: str = Field("/turtle1/pose", description="topic of the simulator's poses")
+    goal_source: Literal["auto", "events", "topic", "action"] = Field(
+        "auto", description='where goals are read: "auto" (events, else topic) | "events" | "topic" | "action"')
+    goal_topic: str = Field("/turtle1/goal", description="topic of the goals (Float32MultiArray [x, y])")
 
 
-def _pose(frames: Frames, p: dict) -> pd.DataFrame | None:
-    df = sim_pose(frames, p["pose_topic"])
+def _pose(frames: Frames, p: GoalParams) -> pd.DataFrame | None:
+    df = sim_pose(frames, p.pose_topic)
     if df is None or not {"x", "y", "theta"} <= set(df.columns):
         return None
     return df
 
 
-def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[SentGoal]:
-    gl = goals(frames, p["goal_source"], p["goal_topic"])
-    if p["steps"]:
-        gl = [g for g in gl if g.extra.get("step") in set(p["steps"])]
+def _goals_with_end(frames: Frames, p: GoalParams, pose: pd.DataFrame) -> list[SentGoal]:
+    gl = goals(frames, p.goal_source, p.goal_topic)
+    if p.steps:
+        gl = [g for g in gl if g.extra.get("step") in set(p.steps)]
     t_last = float(pose.index.max())
     ends = {e.step: e.t for e in events(frames, StepEnd)}
     scen_end = [e.t for e in events(frames, ScenarioEnd)]
@@ -144,20 +148,20 @@ def _goals_with_end(frames: Frames, p: dict, pose: pd.DataFrame) -> list[SentGoa
     return gl
 
 
-def _no_goals(frames: Frames, p: dict) -> Finding:
-    if topic(frames, "/grader/events") is None and topic(frames, p["goal_topic"]) is None:
+def _no_goals(frames: Frames, p: GoalParams) -> Finding:
+    if topic(frames, "/grader/events") is None and topic(frames, p.goal_topic) is None:
         return Finding.error("The scenario recorded neither /grader/events nor "
-                             f"{p['goal_topic']}: no goals to evaluate (scenario problem).")
+                             f"{p.goal_topic}: no goals to evaluate (scenario problem).")
     return Finding.error(f"No goals were sent in this scenario (no goal_sent events, nothing on "
-                         f"{p['goal_topic']}).")
+                         f"{p.goal_topic}).")
 
 
-def _no_pose(frames: Frames, p: dict) -> Finding:
-    return Finding.error(missing_topic_feedback(frames, p["pose_topic"], "published by the simulator")
+def _no_pose(frames: Frames, p: GoalParams) -> Finding:
+    return Finding.error(missing_topic_feedback(frames, p.pose_topic, "published by the simulator")
                          + " Without poses the controller cannot be evaluated (scenario problem).")
 
 
-def pose_and_goals(frames: Frames, p: dict) -> tuple[pd.DataFrame, list[SentGoal]] | Finding:
+def pose_and_goals(frames: Frames, p: GoalParams) -> tuple[pd.DataFrame, list[SentGoal]] | Finding:
     """The simulator's poses and the goals sent (each with its end), or the finding that says
     which is missing."""
     pose = _pose(frames, p)
@@ -169,19 +173,21 @@ def pose_and_goals(frames: Frames, p: dict) -> tuple[pd.DataFrame, list[SentGoal
     return pose, gl
 
 
+class GoalsReachedParams(GoalParams):
+    tol_reached: float = Field(0.1, gt=0, description="m: distance below which a goal counts as reached")
+    tol_final: float = Field(0.15, ge=0, description="m: distance at the end of the goal's time window (held, not left)")
+    time_limit_s: float | None = Field(None, gt=0, description="s after the goal was sent; None = until the next goal / the end")
+    settle_s: float = Field(1.0, gt=0, description='s at the end of the window examined for "stopped"')
+    v_stop: float = Field(0.1, ge=0, description="m/s: commanded speed (pose.linear_velocity) counted as stopped")
+    steady_tol: float = Field(0.05, ge=0, description="m: max displacement during settle_s counted as steady")
+    stop_weight: float = Field(0.25, ge=0, le=1,
+                               description="share of each goal's credit for holding/stopping after reaching it")
+
+
 @register("goals_reached", timing="reaching each goal within its time", evidence={**EVIDENCE, "value": ("goals reached", "")},
           expect="every goal within {tol_reached:g} m, then held within {tol_final:g} m and stopped",
-          defaults={
-    **_GOAL_DEFAULTS,
-    "tol_reached": 0.1,      # m: distance below which a goal counts as reached
-    "tol_final": 0.15,       # m: distance at the end of the goal's time window (held, not left)
-    "time_limit_s": None,    # s after the goal was sent; None = until the next goal / the end
-    "settle_s": 1.0,         # s at the end of the window examined for "stopped"
-    "v_stop": 0.1,           # m/s: commanded speed (pose.linear_velocity) counted as stopped
-    "steady_tol": 0.05,      # m: max displacement during settle_s counted as steady
-    "stop_weight": 0.25,     # share of each goal's credit for holding/stopping after reaching it
-})
-def goals_reached(frames: Frames, p: dict) -> Finding:
+          params=GoalsReachedParams)
+def goals_reached(frames: Frames, p: GoalsReachedParams) -> Finding:
     """Per goal: reached within tolerance and time, time to reach, final error, stopped afterwards."""
     found = pose_and_goals(frames, p)
     if isinstance(found, Finding):
@@ -190,7 +196,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     t = times(pose)
     x, y = pose["x"].to_numpy(float), pose["y"].to_numpy(float)
     v = pose["linear_velocity"].to_numpy(float) if "linear_velocity" in pose.columns else None
-    moved = provenance.moves(frames, p["pose_topic"])
+    moved = provenance.moves(frames, p.pose_topic)
     counted: list[provenance.Call] = []     # the moves that cost a goal
     rows = []
     score = 0.0
@@ -211,11 +217,11 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
             rows.append(row)
             continue
         reached, held, stopped = _arrival(p, g, t[m], x[m], y[m], v[m] if v is not None else None, row)
-        score += (1 - p["stop_weight"]) * reached + p["stop_weight"] * (reached and held and stopped)
+        score += (1 - p.stop_weight) * reached + p.stop_weight * (reached and held and stopped)
         rows.append(row)
     frac = score / len(gl)
     n_reached = sum(1 for r in rows if r.get("reached"))
-    ev = {"goals": rows, "tol_reached": p["tol_reached"], "goal_source": gl[0].source,
+    ev = {"goals": rows, "tol_reached": p.tol_reached, "goal_source": gl[0].source,
           "trajectory": _trajectory(t, x, y, gl, pose["theta"].to_numpy(float))}
     if counted:     # the rubric's advice for a wrong controller is not for these (rubric.score)
         ev["student_moves"] = [c.plain(frames) for c in counted[:10]]
@@ -230,7 +236,7 @@ def goals_reached(frames: Frames, p: dict) -> Finding:
     if n_reached == 0 and not any(r.get("teleported") for r in rows):
         hint = (" Check the signs of the distance and heading errors and of the gains, and that the "
                 "velocity commands reach the turtle's cmd_vel topic.")
-    hint += provenance.ignored_poses_note(frames, p["pose_topic"])
+    hint += provenance.ignored_poses_note(frames, p.pose_topic)
     return Finding(value, frac, graded(frac), "; ".join(problems) + "." + hint, ev)
 
 
@@ -249,29 +255,29 @@ def _decisive_moment(frames: Frames, rows: list[dict]) -> dict[str, Any]:
     return {}
 
 
-def _arrival(p: dict, g: Any, tt: np.ndarray, xs: np.ndarray, ys: np.ndarray, vs: np.ndarray | None,
+def _arrival(p: GoalsReachedParams, g: Any, tt: np.ndarray, xs: np.ndarray, ys: np.ndarray, vs: np.ndarray | None,
              row: dict) -> tuple[bool, bool, bool]:
     """One goal's poses while it was active: reached within ``tol_reached`` (and the time limit),
     held within ``tol_final`` and stopped over the last ``settle_s``; the numbers go in ``row``."""
     d = np.hypot(xs - g.x, ys - g.y)
-    limit = g.t + p["time_limit_s"] if p["time_limit_s"] else g.t_end
-    hit = np.nonzero((d < p["tol_reached"]) & (tt <= limit))[0]
+    limit = g.t + p.time_limit_s if p.time_limit_s else g.t_end
+    hit = np.nonzero((d < p.tol_reached) & (tt <= limit))[0]
     reached = len(hit) > 0
     row.update(start_distance=float(d[0]), min_distance=float(d.min()), final_error=float(d[-1]),
                reached=reached, time_to_reach=float(tt[hit[0]] - g.t) if reached else None,
                closest_t=float(tt[int(np.argmin(d))]), last_t=float(tt[-1]))
     if reached:
         row["reached_at"] = [round(float(xs[hit[0]]), 3), round(float(ys[hit[0]]), 3)]
-    settle = tt >= tt[-1] - p["settle_s"]
+    settle = tt >= tt[-1] - p.settle_s
     disp = float(np.max(np.hypot(xs[settle] - xs[-1], ys[settle] - ys[-1])))
     vmax = float(np.max(np.abs(vs[settle]))) if vs is not None else None
-    stopped = disp <= p["steady_tol"] and (vmax is None or vmax <= p["v_stop"])
-    held = d[-1] <= p["tol_final"]
+    stopped = disp <= p.steady_tol and (vmax is None or vmax <= p.v_stop)
+    held = d[-1] <= p.tol_final
     row.update(settle_displacement=disp, settle_max_speed=vmax, stopped=bool(stopped), held=bool(held))
     return reached, bool(held), bool(stopped)
 
 
-def _goal_problems(frames: Frames, p: dict, rows: list[dict], counted: list) -> list[str]:
+def _goal_problems(frames: Frames, p: GoalsReachedParams, rows: list[dict], counted: list) -> list[str]:
     """A sentence per goal not reached and held (one for all the goals a teleport cost)."""
     problems = []
     moved_goals = [r for r in rows if r.get("teleported")]
@@ -288,7 +294,7 @@ def _goal_problems(frames: Frames, p: dict, rows: list[dict], counted: list) -> 
                 continue
             elif "min_distance" in r:
                 problems.append(f"{label}: closest approach {r['min_distance']:.2f} m "
-                                f"(needs < {p['tol_reached']:g} m), final error {r['final_error']:.2f} m")
+                                f"(needs < {p.tol_reached:g} m), final error {r['final_error']:.2f} m")
             else:
                 problems.append(f"{label}: {r.get('note')}")
         elif not (r["held"] and r["stopped"]):

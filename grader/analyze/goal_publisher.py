@@ -13,8 +13,9 @@ import re
 from typing import Any, cast
 
 import numpy as np
+from pydantic import Field
 
-from grader.analyze import Finding, register
+from grader.analyze import AnalyzerParams, Finding, register
 from grader.analyze.evidence import SHARE, TIME
 from grader.analyze._common import (Frames, events, missing_topic_feedback, own_exits, stdout_lines, times,
                                     topic)
@@ -80,25 +81,34 @@ EVIDENCE = {
 }
 
 
+class GoalTopicParams(AnalyzerParams):
+    """What ``goal_publisher`` and ``goal_publisher_robust`` share: where the goals go, which process."""
+
+    goal_topic: str = Field("/turtle1/goal", description="topic the goal publisher publishes on")
+    process: str | None = Field(None, description="runner process name of the goal publisher; None = detect")
+
+
+class GoalPublisherParams(GoalTopicParams):
+    expected: tuple[tuple[float, float], ...] = Field(
+        ((2.0, 7.0), (8.0, 3.0)), description="m: goals [x, y] expected, used only when no stdin_line events "
+                                              "were recorded")
+    tol: float = Field(1e-3, ge=0, description="m: allowed difference between a typed and a published coordinate")
+    partial_credit: float = Field(0.5, ge=0, le=1, description="credit when only the first goal appeared (in order)")
+
+
 @register("goal_publisher", evidence={**EVIDENCE, "value": ("typed goals published", "")},
-          expect="each typed line x,y published as [x, y] on {goal_topic}", defaults={
-    "goal_topic": "/turtle1/goal",
-    "process": None,               # runner process name of the goal publisher; None = detect
-    "expected": [[2.0, 7.0], [8.0, 3.0]],   # used only when no stdin_line events were recorded
-    "tol": 1e-3,
-    "partial_credit": 0.5,         # only the first goal appeared (in order)
-})
-def goal_publisher(frames: Frames, p: dict) -> Finding:
+          expect="each typed line x,y published as [x, y] on {goal_topic}", params=GoalPublisherParams)
+def goal_publisher(frames: Frames, p: GoalPublisherParams) -> Finding:
     """The typed goals appear on /turtle1/goal as [x, y], in the order they were typed."""
-    proc, lines = _stdin(frames, p["process"])
+    proc, lines = _stdin(frames, p.process)
     expected: list[dict[str, Any]] = []
     for e in lines:
         xy = parse_xy_line(e.line)
         if xy is not None and e.delivered:
             expected.append({"x": xy[0], "y": xy[1], "t": e.t, "line": e.line})
     if not expected:
-        expected = [{"x": float(a), "y": float(b), "t": -np.inf, "line": f"{a},{b}"} for a, b in p["expected"]]
-    msgs = _goal_msgs(frames, p["goal_topic"])
+        expected = [{"x": float(a), "y": float(b), "t": -np.inf, "line": f"{a},{b}"} for a, b in p.expected]
+    msgs = _goal_msgs(frames, p.goal_topic)
     ev: dict = {"process": proc}
     # goals typed after a malformed line the node did not survive are goal_publisher_robust's
     # business: whether the next line still reached the dying process is a matter of a few
@@ -111,7 +121,7 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
             ev["after_malformed"] = {"line": bad[0].line, "not_counted": [g["line"] for g in after]}
     ev["expected"] = [[g["x"], g["y"]] for g in expected]
     if msgs is None:
-        return Finding.fail(missing_topic_feedback(frames, p["goal_topic"], "std_msgs/msg/Float32MultiArray [x, y]")
+        return Finding.fail(missing_topic_feedback(frames, p.goal_topic, "std_msgs/msg/Float32MultiArray [x, y]")
                             + " Publish each typed goal with your node's send_goal(x, y).", ev)
     t, x, y, n = msgs
     ev["published"] = [[float(a), float(b)] for a, b in zip(x[:10], y[:10])]
@@ -122,7 +132,7 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
         if k >= len(expected):
             break
         g = expected[k]
-        if ti >= g["t"] - 0.05 and abs(xi - g["x"]) <= p["tol"] and abs(yi - g["y"]) <= p["tol"]:
+        if ti >= g["t"] - 0.05 and abs(xi - g["x"]) <= p.tol and abs(yi - g["y"]) <= p.tol:
             latencies.append(float(ti - g["t"]) if np.isfinite(g["t"]) else None)
             k += 1
     ev.update({"found_in_order": k, "latency_s": latencies,
@@ -136,16 +146,16 @@ def goal_publisher(frames: Frames, p: dict) -> Finding:
                   "after it count in the robustness item, not here.)")
     if k == len(expected):
         return Finding(value, 1.0, "pass",
-                       f"All {k} typed goals were published on {p['goal_topic']} in order.{extra}", ev)
+                       f"All {k} typed goals were published on {p.goal_topic} in order.{extra}", ev)
     missing = expected[k]
-    swapped = any(abs(xi - missing["y"]) <= p["tol"] and abs(yi - missing["x"]) <= p["tol"] for xi, yi in zip(x, y))
+    swapped = any(abs(xi - missing["y"]) <= p.tol and abs(yi - missing["x"]) <= p.tol for xi, yi in zip(x, y))
     if swapped:
         hint = f" A message [{missing['y']:g}, {missing['x']:g}] was seen: x and y are swapped; publish data = [x, y]."
     else:
         hint = (f" Goal [{missing['x']:g}, {missing['y']:g}] (typed as '{missing['line']}') never appeared; "
                 "after input() parse both floats, call send_goal(x, y), and spin_once so it is sent.")
     if k >= 1:
-        return Finding(value, p["partial_credit"], "partial",
+        return Finding(value, p.partial_credit, "partial",
                        f"Only {k} of {len(expected)} typed goals were published.{hint}{extra}", ev)
     return Finding(value, 0.0, "fail", f"None of the typed goals were published correctly.{hint}{extra}", ev)
 
@@ -165,31 +175,31 @@ def _exits_and_traceback(frames: Frames, proc: str | None, bad: StdinLine) -> tu
     return exits, tb
 
 
-def _stopped_by(frames: Frames, proc: str | None, bad: StdinLine, p: dict) -> bool:
+def _stopped_by(frames: Frames, proc: str | None, bad: StdinLine, p: GoalTopicParams) -> bool:
     """The process stopped on its own after the malformed line ``bad`` (an exit with an error,
     or a traceback in its output) and published none of the goals typed after it. Timing-free:
     when the exit came (before or after the next line was typed) does not matter."""
     exits, tb = _exits_and_traceback(frames, proc, bad)
     if not (tb or any(e.returncode not in (0, None) for e in exits)):
         return False
-    msgs = _goal_msgs(frames, p["goal_topic"])
+    msgs = _goal_msgs(frames, p.goal_topic)
     return msgs is None or not bool(np.any(msgs[0] > bad.t))
 
 
+class GoalPublisherRobustParams(GoalTopicParams):
+    tol: float = Field(1e-3, ge=0, description="m: allowed difference between a typed and a published coordinate")
+
+
 @register("goal_publisher_robust", evidence={**EVIDENCE, "value": ("after a malformed line", "")},
-          expect="the node prints an error and keeps reading goals", defaults={
-    "goal_topic": "/turtle1/goal",
-    "process": None,
-    "tol": 1e-3,
-})
-def goal_publisher_robust(frames: Frames, p: dict) -> Finding:
+          expect="the node prints an error and keeps reading goals", params=GoalPublisherRobustParams)
+def goal_publisher_robust(frames: Frames, p: GoalPublisherRobustParams) -> Finding:
     """The goal publisher survives a malformed line ("Wrong data format!") and keeps working.
 
     Evidence, strongest first: a process_exit event after the malformed line and before the next
     typed line (crash), a Python traceback in its output after the malformed line (crash), a goal
     typed after the malformed line appearing on the topic (survived).
     """
-    proc, lines = _stdin(frames, p["process"])
+    proc, lines = _stdin(frames, p.process)
     if not lines:
         return Finding.error("The scenario recorded no stdin_line events, so robustness to a malformed line "
                              "could not be tested.")
@@ -209,11 +219,11 @@ def goal_publisher_robust(frames: Frames, p: dict) -> Finding:
     good_later = [parse_xy_line(e.line) for e in later]
     good_later = [g for g in good_later if g is not None]
     survived = False
-    msgs = _goal_msgs(frames, p["goal_topic"])
+    msgs = _goal_msgs(frames, p.goal_topic)
     if msgs is not None and good_later:
         t, x, y, _ = msgs
         gx, gy = cast(tuple, good_later[0])          # (Nones filtered out above)
-        survived = bool(np.any((t > b.t) & (np.abs(x - gx) <= p["tol"]) & (np.abs(y - gy) <= p["tol"])))
+        survived = bool(np.any((t > b.t) & (np.abs(x - gx) <= p.tol) & (np.abs(y - gy) <= p.tol)))
     ev["later_goal_published"] = survived
     if crash_exit or undelivered or (tb and not survived):
         if tb:

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from typing import cast
 
-from grader.analyze import REQUIRED, Finding, graded, register
+from pydantic import Field
+
+from grader.analyze import AnalyzerParams, Finding, graded, register
 from grader.analyze._common import Frames, events, own_exits, sim_node
 from grader.contracts.events import Graph, LaunchResolved, NodeStarted, NodeUnavailable
 
@@ -28,15 +30,18 @@ def _full(name: str) -> str:
     return "/" + str(name).strip("/")
 
 
-@register("nodes_running", judges=("node names",), evidence={**EVIDENCE, "value": ('nodes running', '')},
-          expect='{nodes}', defaults={
-    "nodes": REQUIRED,         # required: node names, e.g. [/turtlesim, /goal_setter]
-    "launch_process": None,    # rubric process of a launch file: nodes must also be declared there
-})
-def nodes_running(frames: Frames, p: dict) -> Finding:
+class NodesRunningParams(AnalyzerParams):
+    nodes: tuple[str, ...] = Field(description="node names, e.g. [/turtlesim, /goal_setter]")
+    launch_process: str | None = Field(None, description="rubric process of a launch file: nodes must also be "
+                                                         "declared there")
+
+
+@register("nodes_running", params=NodesRunningParams, judges=("node names",),
+          evidence={**EVIDENCE, "value": ('nodes running', '')}, expect='{nodes}')
+def nodes_running(frames: Frames, p: NodesRunningParams) -> Finding:
     """Each expected node ran (seen in a graph snapshot) and, with ``launch_process``, was
     declared by that launch file under that name."""
-    expected = [_full(n) for n in p["nodes"]]
+    expected = [_full(n) for n in p.nodes]
     if not expected:
         return Finding.error("The rubric lists no nodes to look for (params: nodes).")
     snapshots = events(frames, Graph)
@@ -46,10 +51,10 @@ def nodes_running(frames: Frames, p: dict) -> Finding:
     stale = [n for n in expected if n in seen and not _seen_running(frames, snapshots, n)]
     declared: list[str] | None = None
     launch = None
-    if p["launch_process"]:
-        resolved = [e for e in events(frames, LaunchResolved) if e.process == p["launch_process"]]
+    if p.launch_process:
+        resolved = [e for e in events(frames, LaunchResolved) if e.process == p.launch_process]
         if not resolved:
-            return Finding.error(f"No launch file was resolved for process {p['launch_process']!r} "
+            return Finding.error(f"No launch file was resolved for process {p.launch_process!r} "
                                  "(scenario problem).")
         launch = resolved[-1].launch
         nodes = resolved[-1].nodes
@@ -127,16 +132,18 @@ def _why_absent(frames: Frames, name: str, seen: list[str]) -> str:
         "its process kept running without creating a node"
 
 
-@register("launch_installed", evidence={**EVIDENCE, "value": ('launch file', '')},
-          expect='installed in share/<package>', defaults={
-    "launch_process": REQUIRED,    # required: the rubric process that runs the launch file
-})
-def launch_installed(frames: Frames, p: dict) -> Finding:
+class LaunchInstalledParams(AnalyzerParams):
+    launch_process: str = Field(description="the rubric process that runs the launch file")
+
+
+@register("launch_installed", params=LaunchInstalledParams, evidence={**EVIDENCE, "value": ('launch file', '')},
+          expect='installed in share/<package>')
+def launch_installed(frames: Frames, p: LaunchInstalledParams) -> Finding:
     """The launch file is installed into the package's share folder, where ``ros2 launch
     <package> <file>`` looks (setup.py ``data_files``)."""
-    resolved = [e for e in events(frames, LaunchResolved) if e.process == p["launch_process"]]
+    resolved = [e for e in events(frames, LaunchResolved) if e.process == p.launch_process]
     if not resolved:
-        return Finding.error(f"No launch file was resolved for process {p['launch_process']!r}.")
+        return Finding.error(f"No launch file was resolved for process {p.launch_process!r}.")
     e = resolved[-1]
     ev = {"launch": e.launch, "installed": e.installed, "notes": list(e.notes)}
     if e.installed:

@@ -21,8 +21,9 @@ import math
 from typing import Any
 
 import numpy as np
+from pydantic import Field
 
-from grader.analyze import Finding, register
+from grader.analyze import AnalyzerParams, Finding, register
 from grader.analyze import provenance
 from grader.analyze._common import (Frames, end_time, events, meta, publishers_of, rosout_lines,
                                     service_calls, sim_pose, times, topic)
@@ -64,17 +65,21 @@ EVIDENCE = {
 }
 
 
-@register("integrity_pose_publisher", evidence={**EVIDENCE, "value": ("pose publishers", "")},
-          expect="only the simulator publishing {pose_topic}", defaults={
-    "pose_topic": "/turtle1/pose",
-    "allowed": ["turtlesim"],     # node names allowed to publish the pose
-    "jump_tol": 0.05,             # m beyond v*dt*ticks counted as a jump
-    "max_rate_hz": 62.5 * 1.3,
-})
-def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
+class IntegrityPosePublisherParams(AnalyzerParams):
+    pose_topic: str = Field("/turtle1/pose", description="pose topic")
+    allowed: tuple[str, ...] = Field(("turtlesim",), description="node names allowed to publish the pose")
+    jump_tol: float = Field(0.05, ge=0, description="m: beyond v*dt*ticks counted as a jump")
+    max_rate_hz: float = Field(62.5 * 1.3, gt=0,
+                               description="Hz: pose rate above this means a second publisher")
+
+
+@register("integrity_pose_publisher", params=IntegrityPosePublisherParams,
+          evidence={**EVIDENCE, "value": ("pose publishers", "")},
+          expect="only the simulator publishing {pose_topic}")
+def integrity_pose_publisher(frames: Frames, p: IntegrityPosePublisherParams) -> Finding:
     """Flag (fraction 0 / status fail) when something other than the simulator publishes the pose."""
-    name = p["pose_topic"]
-    allowed = {str(a).strip("/").rsplit("/", 1)[-1] for a in p["allowed"]}
+    name = p.pose_topic
+    allowed = {str(a).strip("/").rsplit("/", 1)[-1] for a in p.allowed}
     pubs = publishers_of(frames, name) + publishers_of(frames, truth_pose_topic(name))
     for e in events(frames, Graph):        # the driver's snapshots of the ROS graph
         for topic_name in (name, truth_pose_topic(name)):
@@ -113,16 +118,16 @@ def integrity_pose_publisher(frames: Frames, p: dict) -> Finding:
         st = rate_stats(t, gap_factor=None)
         st["rate_hz"] = (len(t) - 1) / (t[-1] - t[0]) if t[-1] > t[0] else float("nan")   # bursts average out
         ev["rate_hz"] = st["rate_hz"]
-        if np.isfinite(st["rate_hz"]) and st["rate_hz"] > p["max_rate_hz"]:
+        if np.isfinite(st["rate_hz"]) and st["rate_hz"] > p.max_rate_hz:
             problems.append(f"{name} arrives at {st['rate_hz']:.1f} Hz, above the simulator's 62.5 Hz")
         x, y = df["x"].to_numpy(float), df["y"].to_numpy(float)
         v = np.abs(df["linear_velocity"].to_numpy(float)) if "linear_velocity" in df.columns else np.zeros(len(df))
-        step = np.hypot(np.diff(x), np.diff(y))
+        moved = np.hypot(np.diff(x), np.diff(y))
         ticks = np.maximum(1, np.round(np.diff(t) / DT))
-        allowed_step = np.maximum(v[1:], v[:-1]) * DT * ticks + p["jump_tol"]
-        jumps = np.nonzero(step > allowed_step)[0]
+        allowed_step = np.maximum(v[1:], v[:-1]) * DT * ticks + p.jump_tol
+        jumps = np.nonzero(moved > allowed_step)[0]
         all_jumps: list[dict[str, Any]] = [{"t": float(t[i + 1]), "from": [float(x[i]), float(y[i])],
-                      "to": [float(x[i + 1]), float(y[i + 1])], "distance": float(step[i])} for i in jumps]
+                      "to": [float(x[i + 1]), float(y[i + 1])], "distance": float(moved[i])} for i in jumps]
         ev["jumps"] = all_jumps[:10]
         ev["n_jumps"] = len(all_jumps)
         # jumps right after a teleport/reset request are that request (flagged by integrity_no_teleport)
@@ -153,12 +158,16 @@ def _service_rows(frames: Frames, names: tuple[str, ...]) -> list[float]:
     return out
 
 
-@register("integrity_no_teleport", evidence={**EVIDENCE, "value": ("teleport calls", "")},
-          expect="no teleport or reset call by student code", defaults={
-    "flag_services": ["/turtle1/teleport_absolute", "/turtle1/teleport_relative", "/reset"],
-    "list_services": ["/turtle1/set_pen"],
-})
-def integrity_no_teleport(frames: Frames, p: dict) -> Finding:
+class IntegrityNoTeleportParams(AnalyzerParams):
+    flag_services: tuple[str, ...] = Field(("/turtle1/teleport_absolute", "/turtle1/teleport_relative", "/reset"),
+                                           description="services a student must not call")
+    list_services: tuple[str, ...] = Field(("/turtle1/set_pen",), description="services whose calls are listed")
+
+
+@register("integrity_no_teleport", params=IntegrityNoTeleportParams,
+          evidence={**EVIDENCE, "value": ("teleport calls", "")},
+          expect="no teleport or reset call by student code")
+def integrity_no_teleport(frames: Frames, p: IntegrityNoTeleportParams) -> Finding:
     """Flag teleport/reset calls made by student code, told from the grader's own by the calling client's id; list set_pen calls.
 
     (:mod:`grader.analyze.provenance`: not by when a call was made.)"""
@@ -168,10 +177,10 @@ def integrity_no_teleport(frames: Frames, p: dict) -> Finding:
     listed: list = []
     explained: list = []
     unknown: list = []
-    for svc in p["flag_services"]:
+    for svc in p.flag_services:
         for c in provenance.calls(frames, svc):
             {provenance.GRADER: explained, provenance.STUDENT: flagged}.get(c.by, unknown).append(c.plain(frames))
-    for svc in p["list_services"]:
+    for svc in p.list_services:
         df = topic(frames, f"{svc}/_service_event")
         if df is not None:
             listed += [{"service": svc, "t": c["t"], "request": c["request"]} for c in service_calls(df)]

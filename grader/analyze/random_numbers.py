@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from pydantic import Field
 from scipy import stats
 
 from grader.analyze.evidence import SHARE
-from grader.analyze import Finding, register
+from grader.analyze import AnalyzerParams, Finding, register
 from grader.analyze._common import (Frames, meta, meta_row, missing_topic_feedback, norm_type, sentence,
                                     topic_or_student_topic,
                                     publishers_of, topic)
@@ -44,15 +45,17 @@ EVIDENCE = {
 }
 
 
-@register("topic_type", judges=("ros names",), evidence={**EVIDENCE, "value": ("message type", "")},
-          expect="{type} messages on {topic}", defaults={
-    "topic": "/random_numbers",
-    "type": "std_msgs/msg/Float32MultiArray",
-    "min_count": 1,
-})
-def topic_type(frames: Frames, p: dict) -> Finding:
+class TopicTypeParams(AnalyzerParams):
+    topic: str = Field("/random_numbers", description="the topic")
+    type: str = Field("std_msgs/msg/Float32MultiArray", description="message type expected")
+    min_count: int = Field(1, ge=0, description="messages needed")
+
+
+@register("topic_type", params=TopicTypeParams, judges=("ros names",),
+          evidence={**EVIDENCE, "value": ("message type", "")}, expect="{type} messages on {topic}")
+def topic_type(frames: Frames, p: TopicTypeParams) -> Finding:
     """The topic was published with the expected message type (from the ``__meta__`` frame)."""
-    name, want = p["topic"], norm_type(p["type"])
+    name, want = p.topic, norm_type(p.type)
     row = meta_row(frames, name)
     if row is None and meta(frames) is None:
         # No meta frame: fall back to the topic frame itself (load_frames puts the type in attrs).
@@ -74,30 +77,35 @@ def topic_type(frames: Frames, p: dict) -> Finding:
         return Finding(got, 0.0, "fail",
                        f"{name} has type {got}, but the lab asks for {want}: create the publisher "
                        f"with create_publisher({want.rsplit('/', 1)[-1]}, ...).", ev)
-    if count < p["min_count"]:
+    if count < p.min_count:
         return Finding(count, 0.0, "fail",
                        f"{name} ({want}) exists but no messages were published on it: check that "
                        "your timer callback calls publish().", ev)
     return Finding(got, 1.0, "pass", f"{name} is published with type {want} ({count} messages).", ev)
 
 
-@register("random_numbers_values", evidence={**EVIDENCE, "value": ("valid messages", "")},
-          expect="every message [u1, u2] with both values in (0, 1), uniformly distributed", defaults={
-    "topic": "/random_numbers",
-    "min_messages": 3,
-    "ks_min_samples": 20,   # run the uniformity test only with at least this many messages
-    "ks_alpha": 0.001,      # KS p-value below this -> "not uniform"
-    "shape_credit": 0.5,    # credit when every message is [u1, u2] in (0,1) but uniformity fails
-    "fallback_type": None,  # e.g. std_msgs/msg/Float32MultiArray: judge the student's own topic if misnamed
-})
-def random_numbers_values(frames: Frames, p: dict) -> Finding:
+class RandomNumbersValuesParams(AnalyzerParams):
+    topic: str = Field("/random_numbers", description="the topic")
+    min_messages: int = Field(3, ge=0, description="messages needed")
+    ks_min_samples: int = Field(20, ge=1, description="run the uniformity test only with at least this many messages")
+    ks_alpha: float = Field(0.001, ge=0, le=1, description="KS p-value below this -> \"not uniform\"")
+    shape_credit: float = Field(0.5, ge=0, le=1,
+                                description="credit when every message is [u1, u2] in (0,1) but uniformity fails")
+    fallback_type: str | None = Field(None, description="e.g. std_msgs/msg/Float32MultiArray: judge the student's "
+                                                        "own topic if misnamed")
+
+
+@register("random_numbers_values", params=RandomNumbersValuesParams,
+          evidence={**EVIDENCE, "value": ("valid messages", "")},
+          expect="every message [u1, u2] with both values in (0, 1), uniformly distributed")
+def random_numbers_values(frames: Frames, p: RandomNumbersValuesParams) -> Finding:
     """Every message holds exactly two values in (0, 1); u1 and u2 look U(0,1) and differ.
 
     Why each check: Box-Muller needs exactly two numbers, needs u1 > 0 (log) and u1 < 1 to be
     useful, and is only Normal if both are uniform and independent (publishing the same number
     twice is a classic slip).
     """
-    df, name, note = topic_or_student_topic(frames, p["topic"], p["fallback_type"])
+    df, name, note = topic_or_student_topic(frames, p.topic, p.fallback_type)
     if df is None:
         return Finding.fail(missing_topic_feedback(frames, name), {"topic": name})
     finding = _values(df, name, p)
@@ -107,7 +115,7 @@ def random_numbers_values(frames: Frames, p: dict) -> Finding:
     return finding
 
 
-def _values(df: pd.DataFrame, name: str, p: dict) -> Finding:
+def _values(df: pd.DataFrame, name: str, p: RandomNumbersValuesParams) -> Finding:
     n = len(df)
     if "data[0]" not in df.columns:
         return Finding.fail(f"Messages on {name} carry no data array: fill msg.data = [u1, u2].",
@@ -126,7 +134,7 @@ def _values(df: pd.DataFrame, name: str, p: dict) -> Finding:
                 "n_out_of_range": int((len_ok & ~range_ok).sum()),
                 "lengths_seen": sorted({int(x) for x in lens[np.isfinite(lens)]})[:10],
                 "first": [[float(a), float(b)] for a, b in zip(u1[:5], u2[:5])]}
-    if n < p["min_messages"]:
+    if n < p.min_messages:
         return Finding(n, 0.0, "fail", f"Only {n} message(s) on {name}; the publisher should send one per second.", ev)
     good_ratio = float(good.mean())
     if good_ratio < 1.0:
@@ -136,7 +144,7 @@ def _values(df: pd.DataFrame, name: str, p: dict) -> Finding:
                             f"(lengths seen: {ev['lengths_seen']})")
         if ev["n_out_of_range"]:
             problems.append(f"{ev['n_out_of_range']} message(s) have a value outside (0, 1)")
-        frac = p["shape_credit"] * good_ratio
+        frac = p.shape_credit * good_ratio
         return Finding(f"{int(good.sum())}/{n} valid", frac, "partial" if frac > 0 else "fail",
                        "; ".join(problems) + ". Publish msg.data = [random.random(), random.random()].", ev)
     # Shape is right. Uniformity and independence.
@@ -147,18 +155,18 @@ def _values(df: pd.DataFrame, name: str, p: dict) -> Finding:
         issues.append("u1 and u2 are the same number in most messages: call random.random() twice")
     if n >= 2 and np.unique(u1).size == 1:
         issues.append("u1 never changes: draw new random numbers in every timer callback")
-    if n >= p["ks_min_samples"]:
+    if n >= p.ks_min_samples:
         ks1 = stats.kstest(u1, "uniform")
         ks2 = stats.kstest(u2, "uniform")
         ev["ks"] = {"u1_stat": float(ks1.statistic), "u1_p": float(ks1.pvalue),
                     "u2_stat": float(ks2.statistic), "u2_p": float(ks2.pvalue)}
-        bad = [nm for nm, r in (("u1", ks1), ("u2", ks2)) if r.pvalue < p["ks_alpha"]]
+        bad = [nm for nm, r in (("u1", ks1), ("u2", ks2)) if r.pvalue < p.ks_alpha]
         if bad:
-            issues.append(f"the values of {' and '.join(bad)} do not look uniform on (0,1) (KS test p < {p['ks_alpha']:g})")
+            issues.append(f"the values of {' and '.join(bad)} do not look uniform on (0,1) (KS test p < {p.ks_alpha:g})")
     else:
         ev["ks"] = None
     if issues:
-        frac = p["shape_credit"]
+        frac = p.shape_credit
         return Finding(f"{n}/{n} valid, not uniform", frac, "partial" if frac > 0 else "fail",
                        sentence("; ".join(issues)), ev)
     note = "" if ev["ks"] else f" (too few messages for a uniformity test: {n})"

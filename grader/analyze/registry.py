@@ -13,6 +13,8 @@ from grader.errors import GraderError
 #: name -> the registered callable ``(frames, params) -> Finding``
 _REGISTRY: dict[str, Callable[..., Any]] = {}
 _DEFAULTS: dict[str, dict[str, Any]] = {}
+#: name -> its parameter model (grader.contracts.params), for an analyzer that declares one
+_PARAMS: dict[str, Any] = {}
 _LABELS: dict[str, dict[str, Any]] = {}
 _EXPECT: dict[str, str] = {}
 #: name -> what timing its verdict depends on, in words (a rate, a period, a timeout): such an
@@ -33,5 +35,5 @@ class DuplicateAnalyzer(GraderError, ValueError):
 def forget(names_: Collection[str]) -> None:
     """Unregister analyzers (a plug-in file reloaded after it changed, or unloaded by a test)."""
     for name in names_:
-        for table in (_REGISTRY, _DEFAULTS, _LABELS, _EXPECT, _ORIGIN, _TIMING, _JUDGES):
+        for table in (_REGISTRY, _DEFAULTS, _PARAMS, _LABELS, _EXPECT, _ORIGIN, _TIMING, _JUDGES):
             table.pop(name, None)

@@ -14,29 +14,35 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from pydantic import Field
 
 from grader.analyze import Finding, graded, provenance, register
 from grader.analyze._common import Frames, events, since_start, thin, times, topic
-from grader.analyze.controller import _GOAL_DEFAULTS, EVIDENCE, pose_and_goals
+from grader.analyze.controller import EVIDENCE, GoalParams, pose_and_goals
 from grader.analyze.goals import SentGoal, heading_error
 from grader.contracts.events import TurtlesReleased
 
 
+class TurnDirectionParams(GoalParams):
+    min_turn_deg: float = Field(90.0, ge=0, le=180, description="deg: goals whose required turn is at least this "
+                                                                "are evaluated")
+    wrap_turn_deg: float = Field(10.0, ge=0, le=180, description="deg: ... and goals where wrapping changes the "
+                                                                 "turn, if at least this")
+    ambiguous_deg: float = Field(10.0, ge=0, le=180, description="deg: within this of 180 deg both directions are "
+                                                                 "accepted")
+    detect_deg: float = Field(5.0, gt=0, description="deg: heading change that marks the turtle's first turn "
+                                                     "(evidence, and the verdict for a controller that turns "
+                                                     "without cmd_vel)")
+    react_s: float = Field(0.1, ge=0, description="s: a goal handed over without a hold: commands and turns count "
+                                                  "from this long after it (the controller may still be steering "
+                                                  "for the previous goal until its new one arrives)")
+    cmd_topic: str = Field("/turtle1/cmd_vel", description="topic of the controller's velocity commands")
+
+
 @register("turn_direction", evidence={**EVIDENCE, "value": ("goals turned the short way", "")},
           expect="the short way (at most 180°) for every goal that needs a turn of {min_turn_deg:g}° or more",
-          defaults={
-    **_GOAL_DEFAULTS,
-    "min_turn_deg": 90.0,     # goals whose required turn is at least this are evaluated
-    "wrap_turn_deg": 10.0,    # ... and goals where wrapping changes the turn, if at least this
-    "ambiguous_deg": 10.0,    # within this of 180 deg both directions are accepted
-    "detect_deg": 5.0,        # heading change that marks the turtle's first turn (evidence, and the
-                              # verdict for a controller that turns without cmd_vel)
-    "react_s": 0.1,           # a goal handed over without a hold: commands and turns count from
-                              # this long after it (the controller may still be steering for the
-                              # previous goal until its new one arrives)
-    "cmd_topic": "/turtle1/cmd_vel",
-})
-def turn_direction(frames: Frames, p: dict) -> Finding:
+          params=TurnDirectionParams)
+def turn_direction(frames: Frames, p: TurnDirectionParams) -> Finding:
     """For goals needing a large turn (or where the naive angle difference crosses +-pi), did the
     controller turn the short way? Judged from the sign of angular.z of the command the controller
     computed for the goal from the pose it was handed over at, against the turn needed from there.
@@ -59,9 +65,9 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     pose, gl = found
     t = times(pose)
     x, y, th = (pose[c].to_numpy(float) for c in ("x", "y", "theta"))
-    cmd = topic(frames, p["cmd_topic"])
+    cmd = topic(frames, p.cmd_topic)
     released = {e.step: e.t for e in events(frames, TurtlesReleased) if e.ok}
-    moved = provenance.moves(frames, p["pose_topic"])
+    moved = provenance.moves(frames, p.pose_topic)
     counted: list[provenance.Call] = []
     rows: list[dict[str, Any]] = []
     judged, good = 0, 0
@@ -80,8 +86,8 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
                "required_turn_deg": math.degrees(req), "naive_turn_deg": math.degrees(naive),
                "wrap_matters": bool(wrap_matters)}
         series.append(_heading_series(frames, k, t[m], x[m], y[m], th[m], g))
-        if not (abs(req) >= math.radians(p["min_turn_deg"]) or
-                (wrap_matters and abs(req) >= math.radians(p["wrap_turn_deg"]))):
+        if not (abs(req) >= math.radians(p.min_turn_deg) or
+                (wrap_matters and abs(req) >= math.radians(p.wrap_turn_deg))):
             row["evaluated"] = False
             rows.append(row)
             continue
@@ -113,22 +119,22 @@ def turn_direction(frames: Frames, p: dict) -> Finding:
     return Finding(value, frac, graded(frac), _long_way_message(bad[0]), ev)
 
 
-def _turned_short_way(p: dict, g: Any, req: float, t: np.ndarray, th: np.ndarray, cmd: pd.DataFrame | None,
+def _turned_short_way(p: TurnDirectionParams, g: Any, req: float, t: np.ndarray, th: np.ndarray, cmd: pd.DataFrame | None,
                       t_release: float | None, row: dict) -> bool:
     """Did the turn that decides goal ``g`` (needing ``req`` rad) go the short way? A held
     hand-over is judged from the last command before the release (computed from the placement),
     else from the first turning command ``react_s`` after the goal; the pose's first turn only
     for a controller that sends none. Notes the evidence in ``row``."""
-    t_from = t_release if t_release is not None else g.t + p["react_s"]
+    t_from = t_release if t_release is not None else g.t + p.react_s
     row["judged_from_s"] = float(t_from - g.t)
-    pose_turn = _first_turn(t, th, t_from, g.t_end, p["detect_deg"])
+    pose_turn = _first_turn(t, th, t_from, g.t_end, p.detect_deg)
     row["initial_turn"] = _TURN_WORDS[pose_turn]
     w_judged, first_move = _judged_command(cmd, g, t_release, t_from, t, th, row)
     cmd_turn = int(np.sign(w_judged)) if w_judged is not None else first_move
     row["commanded_turn"] = _TURN_WORDS[cmd_turn]
     turn = cmd_turn if w_judged is not None or cmd_turn else pose_turn
     row["basis"] = "command" if w_judged is not None else ("first tick" if cmd_turn else "pose")
-    ambiguous = abs(req) >= math.pi - math.radians(p["ambiguous_deg"])
+    ambiguous = abs(req) >= math.pi - math.radians(p.ambiguous_deg)
     ok = turn != 0 and (ambiguous or turn == int(np.sign(req)))
     row.update(ambiguous=bool(ambiguous), short_way=bool(ok), turn=_TURN_WORDS[turn])
     return bool(ok)

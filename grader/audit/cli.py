@@ -1,9 +1,12 @@
-"""``grader rubric audit RUBRIC``: the command line of ``grader.audit.run`` (registered by
-``grader.rubric.guide`` next to ``grader rubric check``)."""
+"""``grader rubric ...``: the rubric tools' command line. ``check``, ``schema`` and ``guide`` over
+``grader.rubric`` (load, the JSON Schema, the guide's generated tables), ``audit`` and
+``collateral`` over ``grader.audit.run`` and ``grader.audit.collateral``. A front-end: the
+rubric floor below it registers no command."""
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -12,7 +15,61 @@ from grader.audit.mutate import OPERATORS
 from grader.audit.report import text_summary
 from grader.audit.run import choose, find_reference, run_audit
 from grader.grading.cli import _positive, _time_scale_option
+from grader.labs import CHECKOUT
+from grader.rubric.guide import json_schema, refresh
 from grader.rubric.load import load_rubric, display_path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    r = sub.add_parser("rubric", help="rubric tools: check, audit (mutation testing), JSON Schema, the guide's tables")
+    rsub = r.add_subparsers(dest="rubric_command", metavar="ACTION", required=True)
+    s = rsub.add_parser("schema", help="print (or write) the rubric JSON Schema")
+    s.add_argument("-o", "--out", type=Path, default=None)
+    s.set_defaults(func=_run_schema)
+    g = rsub.add_parser("guide", help="refresh the generated tables of a rubric guide (rubrics/README.md)")
+    g.add_argument("readme", type=Path, nargs="?", default=None)
+    g.add_argument("--check", action="store_true", help="exit 1 when the tables are stale, write nothing")
+    g.set_defaults(func=_run_guide)
+    c = rsub.add_parser("check", help="validate a rubric and list what it grades")
+    c.add_argument("rubric", type=Path)
+    c.set_defaults(func=_run_check)
+
+    register_audit(rsub)
+
+
+def _run_schema(args: argparse.Namespace) -> int:
+    text = json.dumps(json_schema(), indent=1) + "\n"
+    if args.out:
+        args.out.write_text(text)
+    else:
+        print(text, end="")
+    return 0
+
+
+def _run_guide(args: argparse.Namespace) -> int:
+    readme = args.readme or CHECKOUT / "rubrics" / "README.md"
+    changed = refresh(readme, check=args.check)
+    if args.check and changed:
+        print(f"{readme}: stale generated part(s): {', '.join(changed)} (run grader rubric guide)")
+        return 1
+    print(f"{readme}: " + (f"updated {', '.join(changed)}" if changed else "up to date"))
+    return 0
+
+
+def _run_check(args: argparse.Namespace) -> int:
+    rubric = load_rubric(args.rubric)
+    print(f"{rubric.lab}: {rubric.title}")
+    print(f"  {len(rubric.items)} items, {rubric.auto_max:g} automatic + {rubric.manual_max:g} manual points; "
+          f"scenarios: {', '.join(rubric.scenarios) or 'none'}" + (f"; handout: {rubric.handout}" if rubric.handout else ""))
+    for sid, sc in rubric.scenarios.items():
+        print(f"  scenario {sid}: {len(sc.steps)} steps, up to {sc.budget_s:g} s; processes: "
+              + (", ".join(p.name for p in sc.processes) or "none"))
+    if rubric.equivalent_mutants:
+        print(f"  {len(rubric.equivalent_mutants)} equivalent mutant(s) of the reference recorded (grader rubric audit)")
+    for what, name, use, why in rubric.contract.lines():
+        note = "; ".join(x for x in (use, why) if x)
+        print(f"  contract {what}: {name}" + (f" ({note})" if note else ""))
+    return 0
 
 
 def register_audit(rsub: argparse._SubParsersAction) -> None:

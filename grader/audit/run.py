@@ -106,22 +106,11 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
 
     rubric = load_rubric(rubric_path)
     ref = find_reference(rubric, reference)
-    try:
-        chosen, made, given = choose(rubric, ref, operators, sample_n, seed, all_files)
-    except ValueError as exc:
-        raise GraderError(str(exc)) from None
-    if only:
-        missing = sorted(set(only) - {m.id for m in chosen})
-        if missing:
-            raise GraderError(f"no mutant {', '.join(missing)} among the {len(chosen)} chosen "
-                              "(ids come from an earlier report; check --operators/--sample)")
-        chosen = [m for m in chosen if m.id in set(only)]
+    chosen, made, given = _choose_only(rubric, ref, operators, sample_n, seed, all_files, only)
     out = Path(out).resolve()
     workspaces, graded = out / "workspaces", out / "graded"
     workspaces.mkdir(parents=True, exist_ok=True)
-    say(f"{rubric.lab}: {made} mutants of {display_path(ref)}" + (f" ({len(given)} given file(s) left out)" if given else "")
-        + (f"; regrading the {len(chosen)} recorded" if regrade else
-           f"; grading {len(chosen)} at --jobs {jobs}, --time-scale {time_scale:g}"))
+    say(_plan_line(rubric.lab, made, ref, given, len(chosen), regrade, jobs, time_scale))
     slots = Slots(jobs)
     t0 = time.monotonic()
     rubric = _with_untouched_support(rubric, ref, chosen)
@@ -137,35 +126,10 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
                          reuse=reuse, time_scale=time_scale)
     baseline = _read_result(graded / REFERENCE_ID)
     ref_wall = round(time.monotonic() - t0, 1)
-    lost = _lost(baseline)
-    if lost:
-        raise GraderError(f"the reference solution {ref} does not earn every automatic point "
-                          f"({baseline['auto_score']:g}/{baseline['auto_max']:g}: "
-                          + ", ".join(f"{k} -{v:g}" for k, v in lost.items())
-                          + f"; see {graded / REFERENCE_ID / 'report.html'}); a mutation audit needs a reference "
-                          "at full marks: fix the rubric or the reference first")
+    _check_reference(baseline, ref, graded)
 
-    todo = []
-    for m in chosen:
-        dest = workspaces / m.id
-        if (resume or regrade) and (graded / m.id / "result.json").exists():
-            continue
-        if dest.exists():
-            shutil.rmtree(dest)
-        m.write(dest)
-        todo.append(dest)
-    done_count = [len(chosen) - len(todo)]
-
-    def on_done(sid: str, graded_mutant: GradedSubmission | None, error: str | None) -> None:
-        done_count[0] += 1
-        verdict = (f"ERROR {error}" if error or graded_mutant is None else
-                   f"{graded_mutant.result.auto_score:g}/{graded_mutant.result.auto_max:g}")
-        say(f"[{done_count[0]}/{len(chosen)}] {sid}: {verdict}")
-
-    failures: dict[str, str] = {}
-    if todo:
-        failures = grade_batch(todo, rubric, graded, slots=slots, cache_dir=cache_dir, reuse=reuse,
-                               on_done=on_done, time_scale=time_scale)
+    todo = _write_mutants(chosen, workspaces, graded, resume or regrade)
+    failures = _grade_mutants(todo, len(chosen), rubric, graded, slots, cache_dir, reuse, time_scale, say)
     equivalents = {e.mutant: e.reason for e in rubric.equivalent_mutants}
     outcomes = [_outcome(m, graded / m.id, failures.get(m.id), equivalents) for m in chosen]
     report = AuditReport(rubric=display_path(Path(rubric_path).resolve()), lab=rubric.lab, reference=display_path(ref),
@@ -178,6 +142,74 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
 
     write_report(report, out)
     return report
+
+
+def _choose_only(rubric: Any, ref: Path, operators: list[str] | None, sample_n: int | None, seed: int,
+                 all_files: bool, only: list[str] | None) -> tuple[list[Mutant], int, list[str]]:
+    """``choose`` as a GraderError, narrowed to ``--only``: the audit's choosing stage in one place."""
+    try:
+        chosen, made, given = choose(rubric, ref, operators, sample_n, seed, all_files)
+    except ValueError as exc:
+        raise GraderError(str(exc)) from None
+    if only:
+        missing = sorted(set(only) - {m.id for m in chosen})
+        if missing:
+            raise GraderError(f"no mutant {', '.join(missing)} among the {len(chosen)} chosen "
+                              "(ids come from an earlier report; check --operators/--sample)")
+        chosen = [m for m in chosen if m.id in set(only)]
+    return chosen, made, given
+
+
+def _plan_line(lab: str, made: int, ref: Path, given: list[str], n_chosen: int, regrade: bool, jobs: int,
+               time_scale: float) -> str:
+    """The audit's opening line (what is mutated and how it is graded), kept out of the run's flow."""
+    return (f"{lab}: {made} mutants of {display_path(ref)}"
+            + (f" ({len(given)} given file(s) left out)" if given else "")
+            + (f"; regrading the {n_chosen} recorded" if regrade else
+               f"; grading {n_chosen} at --jobs {jobs}, --time-scale {time_scale:g}"))
+
+
+def _check_reference(baseline: dict[str, Any], ref: Path, graded: Path) -> None:
+    """Refuse a reference short of full automatic marks: a mutant's lost point would mean nothing."""
+    lost = _lost(baseline)
+    if lost:
+        raise GraderError(f"the reference solution {ref} does not earn every automatic point "
+                          f"({baseline['auto_score']:g}/{baseline['auto_max']:g}: "
+                          + ", ".join(f"{k} -{v:g}" for k, v in lost.items())
+                          + f"; see {graded / REFERENCE_ID / 'report.html'}); a mutation audit needs a reference "
+                          "at full marks: fix the rubric or the reference first")
+
+
+def _write_mutants(chosen: list[Mutant], workspaces: Path, graded: Path, keep_graded: bool) -> list[Path]:
+    """Write each mutant still to grade into a fresh workspace (``keep_graded``: skip those with a result)."""
+    todo = []
+    for m in chosen:
+        dest = workspaces / m.id
+        if keep_graded and (graded / m.id / "result.json").exists():
+            continue
+        if dest.exists():
+            shutil.rmtree(dest)
+        m.write(dest)
+        todo.append(dest)
+    return todo
+
+
+def _grade_mutants(todo: list[Path], total: int, rubric: Any, graded: Path, slots: Slots, cache_dir: Path | None,
+                   reuse: bool, time_scale: float, say: Callable[[str], None]) -> dict[str, str]:
+    """Grade the written mutants as one batch, saying each verdict as it lands; why each one failed."""
+    done_count = [total - len(todo)]
+
+    def on_done(sid: str, graded_mutant: GradedSubmission | None, error: str | None) -> None:
+        done_count[0] += 1
+        verdict = (f"ERROR {error}" if error or graded_mutant is None else
+                   f"{graded_mutant.result.auto_score:g}/{graded_mutant.result.auto_max:g}")
+        say(f"[{done_count[0]}/{total}] {sid}: {verdict}")
+
+    failures: dict[str, str] = {}
+    if todo:
+        failures = grade_batch(todo, rubric, graded, slots=slots, cache_dir=cache_dir, reuse=reuse,
+                               on_done=on_done, time_scale=time_scale)
+    return failures
 
 
 def _with_untouched_support(rubric: Any, reference: Path, chosen: list[Mutant]) -> Any:

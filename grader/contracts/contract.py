@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Annotated, Any, Iterator, Mapping
+from typing import Annotated, Iterator, Mapping
 
 from pydantic import Field, field_validator, model_validator
 
 from grader.contracts.fields import (ActionType, ExecutableName, LaunchFile, Model, MsgType, PackageName,
                                      RosName, SrvType)
 from grader.contracts.text import pattern_text
+from grader.contracts.values import JsonValue
 
 Role = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "a role id like news or greeter (lower case, digits, _)")]
 Why = Annotated[str, Field(min_length=1, pattern=r"\S", description="where the lab text fixes it")]
@@ -29,7 +30,7 @@ WHAT = {"packages": "package", "executables": "executable", "nodes": "node", "to
         "services": "service", "actions": "action", "launch_files": "launch file"}
 
 
-def _short(value: Any) -> Any:
+def _short(value: object) -> object:
     """``news: /robot_news`` is ``news: {name: /robot_news}``."""
     return {"name": value} if isinstance(value, str) else value
 
@@ -48,7 +49,7 @@ class _Entry(Model):
 
     @model_validator(mode="before")
     @classmethod
-    def _plain(cls, value: Any) -> Any:
+    def _plain(cls, value: object) -> object:
         return _short(value)
 
 
@@ -84,7 +85,7 @@ class NodeEntry(_Entry):
 
     @field_validator("publishes", "subscribes", "serves", mode="before")
     @classmethod
-    def _one(cls, value: Any) -> Any:
+    def _one(cls, value: object) -> object:
         return [value] if isinstance(value, str) else value
 
 
@@ -173,12 +174,12 @@ class Mismatch:
     scenarios: tuple[str, ...] = ()
     blocks: tuple[str, ...] = ()
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, JsonValue]:
         return {"role": self.role, "kind": self.kind, "expected": self.expected, "found": list(self.found),
                 "feedback": self.feedback, "scenarios": list(self.scenarios), "blocks": list(self.blocks)}
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "Mismatch":
+    def from_dict(cls, d: Mapping[str, JsonValue]) -> "Mismatch":
         return cls(role=str(d.get("role", "")), kind=str(d.get("kind", "")), expected=str(d.get("expected", "")),
                    found=tuple(d.get("found") or ()), feedback=str(d.get("feedback", "")),
                    scenarios=tuple(d.get("scenarios") or ()), blocks=tuple(d.get("blocks") or ()))

@@ -14,9 +14,10 @@ A record that does not fit its kind's model (a hand-made or damaged bag) is kept
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from pydantic import BaseModel, ConfigDict, ValidationError
+from grader.contracts.values import JsonValue
 
 EVENTS_TOPIC = "/grader/events"
 STDOUT_TOPIC = "/grader/stdout"
@@ -142,7 +143,7 @@ class MessageSent(StepEvent):
     KIND = Event.MESSAGE_SENT
     topic: str = ""
     type: str = ""
-    msg: Any = None
+    msg: JsonValue = None
     count: int = 1
 
 
@@ -160,7 +161,7 @@ class ServiceCall(Asked):
     KIND = Event.SERVICE_CALL
     service: str = ""
     type: str = ""
-    request: dict[str, Any] = {}
+    request: dict[str, JsonValue] = {}
     client_gid: list[int] | None = None
     client_gid_error: str | None = None
 
@@ -169,7 +170,7 @@ class ServiceResponse(Asked):
     KIND = Event.SERVICE_RESPONSE
     service: str = ""
     #: None: no response in time
-    response: dict[str, Any] | None = None
+    response: dict[str, JsonValue] | None = None
     timed_out: bool = False
 
 
@@ -194,7 +195,7 @@ class ActionServerMissing(ActionEvent):
 
 class ActionGoalSent(ActionEvent):
     KIND = Event.ACTION_GOAL_SENT
-    goal: dict[str, Any] = {}
+    goal: dict[str, JsonValue] = {}
 
 
 class ActionGoalResponse(ActionEvent):
@@ -213,7 +214,7 @@ class ActionGoalUnanswered(ActionEvent):
 class ActionResult(ActionEvent):
     KIND = Event.ACTION_RESULT
     status: int | None = None
-    result: dict[str, Any] = {}
+    result: dict[str, JsonValue] = {}
 
 
 class ActionCancelSent(StepEvent):
@@ -314,13 +315,13 @@ class LaunchResolved(ProcessEvent):
     installed: bool = False
     notes: list[str] = []
     #: the nodes it declares (name, node_name, package, executable, stand_in, error, start_delay)
-    nodes: list[dict[str, Any]] = []
+    nodes: list[dict[str, JsonValue]] = []
 
 
 class Packages(EventRecord):
     """The build's packages: ``{name: {status, executables, launch_files, ...}}``."""
     KIND = Event.PACKAGES
-    packages: dict[str, dict[str, Any]] = {}
+    packages: dict[str, dict[str, JsonValue]] = {}
 
 
 class LimitHit(EventRecord):
@@ -365,7 +366,7 @@ MODELS: dict[str, type[EventRecord]] = _kinds()
 assert set(MODELS) == {str(k) for k in Event}, "every Event has its model"
 
 
-def parse_event(data: dict[str, Any], t: float = 0.0) -> EventRecord:
+def parse_event(data: dict[str, JsonValue], t: float = 0.0) -> EventRecord:
     """The model of one event as recorded (``t``: its receive time); a record that does not fit
     its kind's model is a plain :class:`EventRecord` (see the module's docstring)."""
     record = {**data, "t": t}
@@ -385,7 +386,7 @@ class EventFieldError(TypeError):
     """The driver built an event with a field its model does not declare (a programming error)."""
 
 
-def build_event(kind: Event, wall: float, fields: dict[str, Any]) -> EventRecord:
+def build_event(kind: Event, wall: float, fields: dict[str, JsonValue]) -> EventRecord:
     """The model of an event the driver is about to emit; ``fields`` must be JSON already (the
     driver round-trips them). A field the model does not know is refused, so every field an
     event carries is declared here."""

@@ -9,11 +9,12 @@ its field errors. ``Goal`` sits here because steps and conditions both use it.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Union
+from typing import Annotated, Union
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from grader.contracts.text import pattern_text
+from pydantic import ValidatorFunctionWrapHandler
 
 RosName = Annotated[str, pattern_text(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", "a ROS name like /turtle1/pose")]
 PackageName = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digits, _)")]
@@ -48,7 +49,8 @@ class Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
-def with_rules(cls: type, handler: Any, value: Any, own: list[tuple[tuple, str]]) -> Any:
+def with_rules(cls: type, handler: ValidatorFunctionWrapHandler, value: object,
+               own: list[tuple[tuple, str]]) -> object:
     """Run a wrap validator's ``handler`` and report ``own`` problems (``(loc, message)``, loc
     relative to the model) together with the field errors, so a user sees every problem at once."""
     from pydantic import ValidationError
@@ -60,7 +62,7 @@ def with_rules(cls: type, handler: Any, value: Any, own: list[tuple[tuple, str]]
         result = handler(value)
     except ValidationError as exc:
         for err in exc.errors():
-            detail: dict[str, Any] = {"type": err["type"], "loc": err["loc"], "input": err.get("input")}
+            detail: dict[str, object] = {"type": err["type"], "loc": err["loc"], "input": err.get("input")}
             if err["type"] in ("value_error", "assertion_error", "rule"):
                 detail["type"] = PydanticCustomError("rule", _braces(err["msg"].removeprefix("Value error, ")))
             elif "ctx" in err:
@@ -90,7 +92,7 @@ class Goal(Model):
 
     @model_validator(mode="before")
     @classmethod
-    def _pair(cls, value: Any) -> Any:
+    def _pair(cls, value: object) -> object:
         if isinstance(value, (list, tuple)):
             if len(value) != 2:
                 raise ValueError(f"expected a position [x, y] or {{x: .., y: ..}}, got a list of {len(value)}")

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 import pandas as pd
+from grader.contracts.values import JsonValue
 
 
-def jsonable(obj: Any) -> Any:
+def jsonable(obj: object) -> JsonValue:
     """Plain JSON types from numpy/pandas/pathlib/datetime values; NaN and infinities become None.
 
     Evidence goes straight into result.json and the HTML report, so it must serialise with the

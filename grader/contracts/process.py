@@ -4,7 +4,6 @@ standard input. Shared by the rubric's scenarios (``grader.scenario.model``), th
 
 from __future__ import annotations
 
-from typing import Any
 
 from pydantic import Field, model_validator
 
@@ -20,7 +19,7 @@ class StdinLine(Model):
 
     @model_validator(mode="before")
     @classmethod
-    def _plain(cls, value: Any) -> Any:
+    def _plain(cls, value: object) -> object:
         return {"line": value} if isinstance(value, str) else value
 
 

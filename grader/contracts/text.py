@@ -4,20 +4,22 @@ models that declare them and the loader that reports them."""
 from __future__ import annotations
 
 import difflib
-from typing import Any, Iterable
+from typing import Iterable
 
 from pydantic import Field
+from pydantic.fields import FieldInfo
 
 #: pattern -> what it means in words: the loader says "expected a ROS name like /turtle1/pose",
 #: not the regular expression
 PATTERN_WHAT: dict[str, str] = {}
 
 
-def pattern_text(pattern: str, what: str, **field: Any) -> Any:
+def pattern_text(pattern: str, what: str) -> FieldInfo:
     """The constraint of a text field of this language (``Annotated[str, pattern_text(...)]``),
     whose pattern the loader's error message replaces by ``what``."""
     PATTERN_WHAT[pattern] = what
-    return Field(pattern=pattern, description=what, **field)
+    info: FieldInfo = Field(pattern=pattern, description=what)
+    return info
 
 
 def suggest(word: str, candidates: Iterable[str]) -> str:

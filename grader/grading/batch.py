@@ -29,6 +29,7 @@ from grader.grading.starvation import REGRADE_TIME_SCALE
 from grader.cache import default_cache_dir
 from grader.cache.store import end_batch
 from grader.scenario import cancel_all
+from grader.workspace.source import submission_id
 
 
 def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
@@ -47,7 +48,7 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
     ``$GRADER_CACHE_MAX_SIZE`` or 5 GB).
     """
     from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import grade_submission, submission_id
+    from grader.grading.pipeline import grade_submission
 
     out.mkdir(parents=True, exist_ok=True)
     failures: dict[str, str] = {}

@@ -42,7 +42,7 @@ def effective_params(rubric: Rubric) -> dict[str, dict]:
     for item in rubric.items:
         if item.analyzer:
             try:
-                out[item.id] = {**analyze.defaults(item.analyzer), **dict(item.params)}
+                out[item.id] = analyze.effective_params(item.analyzer, item.params)
             except Exception:  # noqa: BLE001 - an unknown analyzer is reported by the item itself
                 out[item.id] = dict(item.params)
     return out

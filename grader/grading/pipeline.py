@@ -7,7 +7,6 @@
 from __future__ import annotations
 
 import json
-import re
 import resource
 import shutil
 import time
@@ -39,36 +38,12 @@ from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
 from grader.similarity.files import snapshot
 from grader.workspace import build_workspace
 from grader.workspace.build import default_cache_dir
-from grader.workspace.source import is_archive
+from grader.workspace.source import submission_id
 
 if TYPE_CHECKING:
     from grader.grading.schedule import Slots
     from grader.rubric.schema import Item, Rubric
     from grader.scenario.model import Scenario
-
-
-def submission_id(path: Path) -> str:
-    """Folder name or archive stem, made safe for a folder and a CSV cell."""
-    name = path.name
-    for suffix in (".tar.gz", ".tgz", ".tar.xz", ".tar.bz2", ".tar", ".zip"):
-        if name.lower().endswith(suffix):
-            name = name[: -len(suffix)]
-            break
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "submission"
-
-
-def discover_submissions(root: Path) -> list[Path]:
-    """A folder of submissions (one folder or archive each), or a single submission."""
-    root = Path(root)
-    if not root.exists():
-        raise GraderError(f"{root} does not exist.")
-    if is_archive(root) or (root / "src").is_dir() or (root / "package.xml").exists():
-        return [root]
-    subs = sorted(p for p in root.iterdir()
-                  if (p.is_dir() and not p.name.startswith(".")) or is_archive(p))
-    if not subs:
-        raise GraderError(f"{root} holds no submissions (expected one folder or archive per student).")
-    return subs
 
 
 def early_ends(record: dict, scenario: Any) -> list[dict]:

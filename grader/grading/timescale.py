@@ -179,7 +179,7 @@ def expected_rates(rubric: Any, scenario_id: str) -> tuple[RateExpectation, ...]
     for item in rubric.items:
         if item.analyzer != RATE_ANALYZER or scenario_id not in item.scenario:
             continue
-        params = {**analyze.defaults(RATE_ANALYZER), **dict(item.params)}
+        params = analyze.effective_params(RATE_ANALYZER, item.params)
         try:
             out.append(RateExpectation(topic=params["topic"], expected_hz=float(params["expected_hz"]),
                                        rel_tol=float(params.get("partial_rel_tol") or 0.3)))

@@ -11,8 +11,7 @@ from pathlib import Path
 
 from grader.intake.model import Arrival
 from grader.intake.times import NO_TIME, archive_time, folder_time
-from grader.workspace.source import is_archive
-from grader.grading.pipeline import submission_id, discover_submissions
+from grader.workspace.source import discover_submissions, is_archive, submission_id
 
 
 def _submission_id(path: Path) -> str:

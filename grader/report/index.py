@@ -17,6 +17,7 @@ from html import escape
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
+from grader.contracts.late import late_by_text
 from grader.report.result import atomic_write, check_submission_id
 from grader.report.style import CSS, INDEX_JS
 from grader.rubric.result import ItemResult, Result
@@ -89,8 +90,6 @@ def _num(v: float | None) -> str:
 
 def _late_cell(result: Result) -> str:
     """−5 (2 days), 0 (on time), — (no late policy)."""
-    from grader.intake.late import late_by_text
-
     if result.late is None:
         return "—"
     return f"−{result.late_penalty:g} ({escape(late_by_text(result.late))})"

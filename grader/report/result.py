@@ -21,6 +21,7 @@ from grader.rubric.schema import Rubric, Section, SectionSpec
 from grader.rubric.result import ItemResult, Notice, Result
 from grader.contracts.jsonable import jsonable
 from grader.contracts.contract import Mismatch
+from grader.contracts.late import LatePenalty, late_by_text
 
 RESULT_SCHEMA = 1
 SUBMISSION_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@+-]{0,127}$")
@@ -130,7 +131,6 @@ def result_from_dict(doc: Mapping[str, Any]) -> Result:
     hidden = doc.get("hidden") or {}
     late = None
     if isinstance(doc.get("late"), Mapping):
-        from grader.intake.late import LatePenalty
         late = LatePenalty.from_dict(doc["late"])
 
     return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
@@ -242,8 +242,6 @@ def grades_csv_text(results: Mapping[str, Result], rubric: Rubric | None = None,
     ``intake, lms_id, student`` for submissions taken from an LMS download, ``intake``: each
     submission's result.json ``intake``); empty cells for ungraded manual items and for totals
     not final yet."""
-    from grader.intake.late import late_by_text
-
     first = next(iter(results.values()), None)
     if rubric is not None:
         item_ids = rubric.item_ids

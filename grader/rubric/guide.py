@@ -10,21 +10,19 @@
   ``rubrics/README.md`` between its ``<!-- generated:... -->`` markers.
 
 ``grader rubric schema`` prints the schema; ``grader rubric guide`` refreshes the README's
-generated parts (a test fails when they are stale).
+generated parts (a test fails when they are stale); the command line is ``grader.audit.cli``'s.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import typing
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Mapping
 
 from grader.errors import GraderError
-from grader.audit.cli import register_audit
-from grader.labs import CHECKOUT
 from grader.contracts import contract as c
+from grader.contracts.params import AnalyzerParams, bounds, type_words
 from grader.rubric.load import load_rubric
 from grader.rubric.schema import Rubric
 from grader.scenario import model as m
@@ -96,8 +94,6 @@ def _with_references(node: Any) -> Any:
 def analyzer_reference() -> str:
     """Every registered analyzer: what it checks, its parameters with defaults and meaning."""
     from grader import analyze
-    from grader.analyze import REQUIRED
-
     from grader.analyze.plugins import loaded_files
 
     # a lab's own analyzers (a rubric's ``analyzers:`` file) are documented with that lab, and are
@@ -121,15 +117,37 @@ def analyzer_reference() -> str:
         if timing:
             out.append(f"Depends on timing ({timing}): on a recording the grading machine starved, a lost "
                        "point is an `error`, not a `fail` ([docs/busy-machines.md](../docs/busy-machines.md)).\n")
-        out.append("| parameter | default | meaning |\n|---|---|---|")
-        for key, default in analyze.defaults(name).items():
-            label = labels.get(key)
-            meaning = (f"{label[0]}" + (f" ({label[1]})" if label[1] and label[1] not in ("share", "time")
-                                         else " (0..1)" if label[1] == "share" else "")) if label else ""
-            shown = "**required**" if default is REQUIRED else f"`{json.dumps(default)}`"
-            out.append(f"| `{key}` | {shown} | {meaning} |")
+        model = analyze.params_model(name)
+        out += _model_table(model) if model is not None else _defaults_table(name, labels)
         out.append("")
     return "\n".join(out)
+
+
+def _model_table(model: type[AnalyzerParams]) -> list[str]:
+    """The rows of an analyzer's parameters from its model: type and bounds, default, meaning."""
+    rows = ["| parameter | type | default | meaning |", "|---|---|---|---|"]
+    for key, info in model.model_fields.items():
+        shape = ", ".join(w for w in (type_words(info), bounds(info)) if w)
+        shown = "**required**" if info.is_required() else f"`{json.dumps(info.get_default())}`"
+        cells = (shape, shown, info.description or "")
+        rows.append(f"| `{key}` | " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return rows
+
+
+def _defaults_table(name: str, labels: Mapping[str, Any]) -> list[str]:
+    """The rows of a plug-in's parameters declared as a plain dict (no types: the evidence's
+    labels say what a name means, when they know it)."""
+    from grader import analyze
+    from grader.analyze import REQUIRED
+
+    rows = ["| parameter | default | meaning |", "|---|---|---|"]
+    for key, default in analyze.defaults(name).items():
+        label = labels.get(key)
+        meaning = (f"{label[0]}" + (f" ({label[1]})" if label[1] and label[1] not in ("share", "time")
+                                     else " (0..1)" if label[1] == "share" else "")) if label else ""
+        shown = "**required**" if default is REQUIRED else f"`{json.dumps(default)}`"
+        rows.append(f"| `{key}` | {shown} | {meaning} |")
+    return rows
 
 
 def _schema_type(prop: dict[str, Any]) -> str:
@@ -189,8 +207,8 @@ def scenario_reference() -> str:
     return "\n".join(out)
 
 
-def contract_reference() -> str:
-    """The contract's kinds and their keys, then the contract of every rubric in ``rubrics/``."""
+def contract_reference(rubrics: Path) -> str:
+    """The contract's kinds and their keys, then the contract of every rubric in ``rubrics``."""
     out = ["#### Kinds of names\n"]
     for kind, cls in (("packages", c.PackageEntry), ("executables", c.ExecutableEntry), ("nodes", c.NodeEntry),
                       ("topics", c.TopicEntry), ("services", c.ServiceEntry), ("actions", c.ActionEntry),
@@ -199,7 +217,7 @@ def contract_reference() -> str:
         out.append(f"**`{kind}:`** {doc}\n")
         out.append(_fields_table(cls) + "\n")
     out.append("#### The labs' contracts\n")
-    for path in sorted((CHECKOUT / "rubrics").glob("*.yaml")):
+    for path in sorted(rubrics.glob("*.yaml")):
         rubric = load_rubric(path)
         lines = rubric.contract.lines()
         out.append(f"**`{path.name}`** ({rubric.lab})" + ("" if lines else ": no contract") + "\n")
@@ -210,11 +228,15 @@ def contract_reference() -> str:
     return "\n".join(out)
 
 
-GENERATED = {"analyzers": analyzer_reference, "scenario": scenario_reference, "contract": contract_reference}
+#: the generated parts of a rubric guide, each made from the folder of rubrics it documents
+GENERATED: dict[str, Callable[[Path], str]] = {"analyzers": lambda _rubrics: analyzer_reference(),
+                                               "scenario": lambda _rubrics: scenario_reference(),
+                                               "contract": contract_reference}
 
 
 def refresh(readme: Path, check: bool = False) -> list[str]:
-    """Rewrite the generated parts of ``readme``; returns the names of the parts that changed."""
+    """Rewrite the generated parts of ``readme`` (the guide of the rubrics beside it); returns
+    the names of the parts that changed."""
     text = readme.read_text(encoding="utf-8")
     changed = []
     for name, make in GENERATED.items():
@@ -223,62 +245,10 @@ def refresh(readme: Path, check: bool = False) -> list[str]:
             raise GraderError(f"{readme} lacks the markers {begin} ... {end}")
         head, rest = text.split(begin, 1)
         old, tail = rest.split(end, 1)
-        new = "\n" + make().strip() + "\n"
+        new = "\n" + make(readme.parent).strip() + "\n"
         if old != new:
             changed.append(name)
             text = head + begin + new + end + tail
     if changed and not check:
         readme.write_text(text, encoding="utf-8")
     return changed
-
-
-def register(sub: argparse._SubParsersAction) -> None:
-    r = sub.add_parser("rubric", help="rubric tools: check, audit (mutation testing), JSON Schema, the guide's tables")
-    rsub = r.add_subparsers(dest="rubric_command", metavar="ACTION", required=True)
-    s = rsub.add_parser("schema", help="print (or write) the rubric JSON Schema")
-    s.add_argument("-o", "--out", type=Path, default=None)
-    s.set_defaults(func=_run_schema)
-    g = rsub.add_parser("guide", help="refresh the generated tables of a rubric guide (rubrics/README.md)")
-    g.add_argument("readme", type=Path, nargs="?", default=None)
-    g.add_argument("--check", action="store_true", help="exit 1 when the tables are stale, write nothing")
-    g.set_defaults(func=_run_guide)
-    c = rsub.add_parser("check", help="validate a rubric and list what it grades")
-    c.add_argument("rubric", type=Path)
-    c.set_defaults(func=_run_check)
-
-    register_audit(rsub)
-
-
-def _run_schema(args: argparse.Namespace) -> int:
-    text = json.dumps(json_schema(), indent=1) + "\n"
-    if args.out:
-        args.out.write_text(text)
-    else:
-        print(text, end="")
-    return 0
-
-
-def _run_guide(args: argparse.Namespace) -> int:
-    readme = args.readme or CHECKOUT / "rubrics" / "README.md"
-    changed = refresh(readme, check=args.check)
-    if args.check and changed:
-        print(f"{readme}: stale generated part(s): {', '.join(changed)} (run grader rubric guide)")
-        return 1
-    print(f"{readme}: " + (f"updated {', '.join(changed)}" if changed else "up to date"))
-    return 0
-
-
-def _run_check(args: argparse.Namespace) -> int:
-    rubric = load_rubric(args.rubric)
-    print(f"{rubric.lab}: {rubric.title}")
-    print(f"  {len(rubric.items)} items, {rubric.auto_max:g} automatic + {rubric.manual_max:g} manual points; "
-          f"scenarios: {', '.join(rubric.scenarios) or 'none'}" + (f"; handout: {rubric.handout}" if rubric.handout else ""))
-    for sid, sc in rubric.scenarios.items():
-        print(f"  scenario {sid}: {len(sc.steps)} steps, up to {sc.budget_s:g} s; processes: "
-              + (", ".join(p.name for p in sc.processes) or "none"))
-    if rubric.equivalent_mutants:
-        print(f"  {len(rubric.equivalent_mutants)} equivalent mutant(s) of the reference recorded (grader rubric audit)")
-    for what, name, use, why in rubric.contract.lines():
-        note = "; ".join(x for x in (use, why) if x)
-        print(f"  contract {what}: {name}" + (f" ({note})" if note else ""))
-    return 0

@@ -55,6 +55,25 @@ def registered_analyzers() -> dict[str, dict[str, bool]] | None:
             for name in analyze.names()}
 
 
+def parameter_value_problems(rubric: Rubric) -> list[tuple[str, str]]:
+    """Each item parameter whose value its analyzer's model refuses (``tol_reached: -1``), as
+    ``(items[i].params.key, why and what is allowed)``; unknown analyzers and names are
+    :func:`grader.rubric.crossrefs.rubric_problems`' to say."""
+    try:
+        from grader import analyze
+        from grader.contracts.params import problems
+    except ImportError:
+        return []
+    known = set(analyze.names())
+    out: list[tuple[str, str]] = []
+    for index, item in enumerate(rubric.items):
+        model = analyze.params_model(item.analyzer) if item.analyzer in known else None
+        if model is not None:
+            out += [(f"items[{index}].params.{key}", f"analyzer {item.analyzer!r}: {why}")
+                    for key, why in problems(model, item.params)]
+    return out
+
+
 def load_analyzer_files(rubric: Rubric) -> list[tuple[str, str]]:
     """Import the rubric's own analyzer files (``analyzers:``, grader.analyze.plugins); the
     problems as ``(field path, message)``. Nothing when grader.analyze is not importable (a
@@ -117,6 +136,7 @@ def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
     if isinstance(analyzers, _Registry):
         plugin_problems = load_analyzer_files(rubric)
         analyzers = registered_analyzers()
+        plugin_problems += parameter_value_problems(rubric)
     cross = rubric_problems(rubric, analyzers, check_files)   # cross-references (grader.rubric.crossrefs)
     cross += [p for p in plugin_problems if p not in cross]
     if cross:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 from grader.rubric.schema import Section, SectionSpec
 
 if TYPE_CHECKING:
-    from grader.intake.late import LatePenalty
+    from grader.contracts.late import LatePenalty
     from grader.contracts.contract import Mismatch
 
 #: status of a manual item nobody graded yet

@@ -55,21 +55,44 @@ class Driver(GraphQueries):
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from std_msgs.msg import String
 
+        self._open_node(rclpy, Parameter, domain_id, sim_node, time_scale > 1 or lockstep is not None)
+        self._make_clock(time_scale, clock_node, lockstep, lockstep_exclude)
+        self.String = String
+        self._keep_recorder_hooks(sink, recording_matched, recorded_count)
+        from rclpy.serialization import serialize_message
+        self._serialize = serialize_message
+        latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.events_pub = self.node.create_publisher(String, EVENTS_TOPIC, latched)
+        self.stdout_pub = self.node.create_publisher(String, STDOUT_TOPIC, latched)
+        self._init_state(processes)
+        self._watch_outputs(QoSProfile, Clock, ClockType, time_scale)
+        self._start_spinning()
+
+    def _open_node(self, rclpy: Any, parameter_cls: Any, domain_id: int, sim_node: str, sim_time: bool) -> None:
+        """Open the driver's own rclpy context on the scenario's domain and the node every entity is on."""
         self.rclpy = rclpy
         self.sim_node = sim_node
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx, domain_id=domain_id)
-        sim_time = time_scale > 1 or lockstep is not None
-        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if sim_time else []
+        overrides = [parameter_cls("use_sim_time", parameter_cls.Type.BOOL, True)] if sim_time else []
         self.node = rclpy.create_node("grader_driver", context=self.ctx, parameter_overrides=overrides)
+
+    def _make_clock(self, time_scale: float, clock_node: str | None, lockstep: Callable[[], list[int]] | None,
+                    lockstep_exclude: Callable[[], set[int]]) -> None:
+        """Make the scenario clock (and lockstep's stepper) right after the node, so its entities come first."""
         # its service clients are made here, before the executor spins, and send while it is paused
         stepper = None
         if lockstep is not None:
-            stepper = Stepper(self.ctx, sim_node, lockstep, lockstep_exclude)
+            stepper = Stepper(self.ctx, self.sim_node, lockstep, lockstep_exclude)
         self.clock = ScenarioClock(time_scale, self.node,
                                    f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
                                    paused=self.executor_paused, stepper=stepper)
-        self.String = String
+
+    def _keep_recorder_hooks(self, sink: Callable[[str, bytes], None] | None,
+                             recording_matched: Callable[[str, int], bool] | None,
+                             recorded_count: Callable[[str], int | None] | None) -> None:
+        """Keep the recorder's callables, through which events reach the bag and recording is checked."""
         #: writes a serialized message of EVENTS_TOPIC / STDOUT_TOPIC straight into the bag
         self.sink = sink
         #: (topic, publishers) -> the recorder's subscription is matched with that many (RecorderThread.matched)
@@ -77,12 +100,9 @@ class Driver(GraphQueries):
         #: topic -> messages the recorder has written on it so far (RecorderThread.recorded), None
         #: for a topic this recording does not take
         self.recorded_count = recorded_count
-        from rclpy.serialization import serialize_message
-        self._serialize = serialize_message
-        latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.events_pub = self.node.create_publisher(String, EVENTS_TOPIC, latched)
-        self.stdout_pub = self.node.create_publisher(String, STDOUT_TOPIC, latched)
+
+    def _init_state(self, processes: dict[str, ManagedProcess]) -> None:
+        """Set up the state the callbacks and steps share, all of it before the first callback can run."""
         self.processes = processes
         self.events: list[EventRecord] = []
         self.lock = threading.Lock()
@@ -111,13 +131,19 @@ class Driver(GraphQueries):
         self._held_since: float | None = None
         self.turtle_hold_requests = 0
         self.commands: dict[str, list] = {}       # topic -> [count, last (linear.x, linear.y, angular.z)]
+
+    def _watch_outputs(self, qos_profile_cls: Any, clock_cls: Any, clock_type: Any, time_scale: float) -> None:
+        """Subscribe /rosout and start the tail timer: they turn student output into counts and bag lines."""
         self.node.create_subscription(self._import("rcl_interfaces/msg/Log"), "/rosout",
-                                      self._on_rosout, QoSProfile(depth=1000))
+                                      self._on_rosout, qos_profile_cls(depth=1000))
         if time_scale > 1:   # output lines reach the bag as often, in scenario time, as at 1x
             self.node.create_timer(0.05 / time_scale, self._tail_outputs,
-                                   clock=Clock(clock_type=ClockType.STEADY_TIME))
+                                   clock=clock_cls(clock_type=clock_type.STEADY_TIME))
         else:
             self.node.create_timer(0.05, self._tail_outputs)
+
+    def _start_spinning(self) -> None:
+        """Start the executor's spin thread last, once every entity of the driver's node exists."""
         self.executor = make_executor(self.ctx)   # EventsExecutor: the CPU goes to student nodes
         self.executor.add_node(self.node)
         self._spin_lock = threading.Lock()

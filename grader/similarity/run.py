@@ -21,7 +21,7 @@ from typing import Any
 
 from grader.errors import GraderError
 from grader.similarity import behaviour, code
-from grader.similarity.compare import analyse, TOLERANCE, UNIFORM_SHARE
+from grader.similarity.compare import analyse, BehaviourAnalysis, BehaviourMatch, TOLERANCE, UNIFORM_SHARE
 from grader.similarity.files import SOURCE_DIR
 from grader.similarity.summary import KNOWN_PREFIX, OUT_DIR, PAIRS_CSV, SUMMARY, read_summary
 from grader import analyze
@@ -165,19 +165,7 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     docs = {sid: json.loads((out / sid / "result.json").read_text(encoding="utf-8")) for sid in ids}
-    # behaviour features (stored at grade time; bags read only where missing, on `jobs` processes)
-    missing = [sid for sid in ids if any((d / "bag").exists() and not (d / behaviour.FINGERPRINT_FILE).exists()
-                                         for d in _first_runs(out / sid))]
-    feats: dict[str, list[behaviour.Feature]] = {}
-    if missing and jobs > 1 and len(missing) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for sid, fl in pool.map(_behaviour_worker, [str(out / s) for s in missing]):
-                feats[sid] = [behaviour.Feature.from_dict(f) for f in fl]
-    item_scenarios, labels = _labels(rubric)
-    for sid in ids:
-        if sid not in feats:
-            feats[sid] = _scenario_features(out / sid)
-        feats[sid] += behaviour.result_features(docs[sid], item_scenarios, labels)
+    feats, item_scenarios = _behaviour_features(out, ids, docs, rubric, jobs)
     timings["behaviour_features_s"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
@@ -187,47 +175,18 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
 
     # source
     t2 = time.perf_counter()
-    given = [Path(p) for p in ([rubric.handout] if rubric.handout else []) + list(rubric.support.values())]
-    given += [Path(p) for p in settings.boilerplate]
-    boiler = code.boilerplate_hashes(given)
-    sets = [code.read_set(sid, out / sid / SOURCE_DIR, boiler) for sid in ids]
-    no_source = [s.id for s in sets if not (out / s.id / SOURCE_DIR).is_dir()]
-    common = code.drop_common(sets, settings.common_share, settings.common_min)
+    sets, boiler, no_source, common = _source_sets(out, ids, rubric, settings)
     timings["source_fingerprints_s"] = time.perf_counter() - t2
     t3 = time.perf_counter()
     smatches = code.compare_all(sets, settings.min_shared)
-    known_pairs: dict[tuple[str, str], code.SourceMatch] = {}
-    known_sets: list[code.SourceSet] = []
-    if settings.known:
-        with tempfile.TemporaryDirectory(prefix="grader-known-") as tmp:
-            known_sets = _known_sets(Path(settings.known), boiler, Path(tmp))
-        for k in known_sets:
-            k.hashes -= common
-            for s in sets:
-                m = code.compare_one(s, k)
-                if m.shared >= settings.min_shared:
-                    known_pairs[s.id, k.id] = m
+    known_pairs, known_sets = _known_matches(settings, boiler, common, sets)
     timings["source_pairs_s"] = time.perf_counter() - t3
 
-    pairs: dict[tuple[str, str], Pair] = {}
-    for (a, b), m in list(smatches.items()) + list(known_pairs.items()):
-        pairs[a, b] = Pair(a, b, round(float(m.score), 4), round(float(m.a_in_b), 4), round(float(m.b_in_a), 4),
-                           int(m.shared), known=b.startswith(KNOWN_PREFIX))
-    for (a, b), bm in bmatches.items():
-        p = pairs.setdefault((a, b), Pair(a, b))
-        p.behaviour, p.behaviour_bits = float(bm.score), float(bm.bits)
-    for p in pairs.values():
-        p.listed = bool(p.source >= settings.threshold or p.behaviour >= settings.behaviour_threshold)
+    pairs = _pairs(smatches, known_pairs, bmatches, settings)
     t4 = time.perf_counter()
-    for p in pairs.values():           # the features behind a pair: for the pairs the class view shows
-        if p.listed and (p.a, p.b) in bmatches:
-            p.features = [vars(s).copy() for s in found.shared(p.a, p.b)[:MAX_FEATURES]]
+    _explain(pairs, bmatches, found)
     timings["behaviour_explained_s"] = time.perf_counter() - t4
-    clusters = _clusters([p for p in pairs.values() if p.listed and not p.known])
-    for i, members in enumerate(clusters):
-        for p in pairs.values():
-            if p.listed and p.a in members and p.b in members:
-                p.cluster = i
+    clusters = _assign_clusters(pairs)
     ranked = sorted(pairs.values(), key=lambda p: (not p.listed, -p.strength(settings), p.a, p.b))
     timings["total_s"] = time.perf_counter() - t0
     return {
@@ -245,6 +204,86 @@ def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, A
         "_sets": {s.id: s for s in sets + known_sets},
         "_features": feats,
     }
+
+
+def _behaviour_features(out: Path, ids: list[str], docs: dict[str, dict], rubric: Any,
+                        jobs: int) -> tuple[dict[str, list[behaviour.Feature]], dict[str, list[str]]]:
+    """Behaviour features per submission (bags read, on ``jobs`` processes, only where none are stored)."""
+    missing = [sid for sid in ids if any((d / "bag").exists() and not (d / behaviour.FINGERPRINT_FILE).exists()
+                                         for d in _first_runs(out / sid))]
+    feats: dict[str, list[behaviour.Feature]] = {}
+    if missing and jobs > 1 and len(missing) > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            for sid, fl in pool.map(_behaviour_worker, [str(out / s) for s in missing]):
+                feats[sid] = [behaviour.Feature.from_dict(f) for f in fl]
+    item_scenarios, labels = _labels(rubric)
+    for sid in ids:
+        if sid not in feats:
+            feats[sid] = _scenario_features(out / sid)
+        feats[sid] += behaviour.result_features(docs[sid], item_scenarios, labels)
+    return feats, item_scenarios
+
+
+def _source_sets(out: Path, ids: list[str], rubric: Any,
+                 settings: Settings) -> tuple[list[code.SourceSet], Any, list[str], set[int]]:
+    """Source sets without given or class-wide code; also the boilerplate and dropped hashes known solutions need."""
+    given = [Path(p) for p in ([rubric.handout] if rubric.handout else []) + list(rubric.support.values())]
+    given += [Path(p) for p in settings.boilerplate]
+    boiler = code.boilerplate_hashes(given)
+    sets = [code.read_set(sid, out / sid / SOURCE_DIR, boiler) for sid in ids]
+    no_source = [s.id for s in sets if not (out / s.id / SOURCE_DIR).is_dir()]
+    common = code.drop_common(sets, settings.common_share, settings.common_min)
+    return sets, boiler, no_source, common
+
+
+def _known_matches(settings: Settings, boiler: Any, common: set[int], sets: list[code.SourceSet]
+                   ) -> tuple[dict[tuple[str, str], code.SourceMatch], list[code.SourceSet]]:
+    """Each submission against each ``--known`` solution (kept when they share enough), and those solutions."""
+    known_pairs: dict[tuple[str, str], code.SourceMatch] = {}
+    known_sets: list[code.SourceSet] = []
+    if settings.known:
+        with tempfile.TemporaryDirectory(prefix="grader-known-") as tmp:
+            known_sets = _known_sets(Path(settings.known), boiler, Path(tmp))
+        for k in known_sets:
+            k.hashes -= common
+            for s in sets:
+                m = code.compare_one(s, k)
+                if m.shared >= settings.min_shared:
+                    known_pairs[s.id, k.id] = m
+    return known_pairs, known_sets
+
+
+def _pairs(smatches: dict[tuple[str, str], code.SourceMatch], known_pairs: dict[tuple[str, str], code.SourceMatch],
+           bmatches: dict[tuple[str, str], BehaviourMatch], settings: Settings) -> dict[tuple[str, str], Pair]:
+    """Source and behaviour scores merged into one Pair per pair, each marked listed or not."""
+    pairs: dict[tuple[str, str], Pair] = {}
+    for (a, b), m in list(smatches.items()) + list(known_pairs.items()):
+        pairs[a, b] = Pair(a, b, round(float(m.score), 4), round(float(m.a_in_b), 4), round(float(m.b_in_a), 4),
+                           int(m.shared), known=b.startswith(KNOWN_PREFIX))
+    for (a, b), bm in bmatches.items():
+        p = pairs.setdefault((a, b), Pair(a, b))
+        p.behaviour, p.behaviour_bits = float(bm.score), float(bm.bits)
+    for p in pairs.values():
+        p.listed = bool(p.source >= settings.threshold or p.behaviour >= settings.behaviour_threshold)
+    return pairs
+
+
+def _explain(pairs: dict[tuple[str, str], Pair], bmatches: dict[tuple[str, str], BehaviourMatch],
+             found: BehaviourAnalysis) -> None:
+    """The shared features behind each listed behaviour pair: only the pairs the class view shows pay for them."""
+    for p in pairs.values():
+        if p.listed and (p.a, p.b) in bmatches:
+            p.features = [vars(s).copy() for s in found.shared(p.a, p.b)[:MAX_FEATURES]]
+
+
+def _assign_clusters(pairs: dict[tuple[str, str], Pair]) -> list[set[str]]:
+    """The clusters of listed class pairs, with each listed pair inside one numbered by it."""
+    clusters = _clusters([p for p in pairs.values() if p.listed and not p.known])
+    for i, members in enumerate(clusters):
+        for p in pairs.values():
+            if p.listed and p.a in members and p.b in members:
+                p.cluster = i
+    return clusters
 
 
 def _tolerances() -> dict[str, float]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import tarfile
 import zipfile
@@ -212,3 +213,28 @@ def tree_digest(src: Path, extra: str = "") -> str:
         h.update(str(f.relative_to(src)).encode() + b"\0")
         h.update(hashlib.sha256(f.read_bytes()).digest())
     return h.hexdigest()[:20]
+
+
+# ------------------------------------------------------------------ a folder of submissions
+def submission_id(path: Path) -> str:
+    """Folder name or archive stem, made safe for a folder and a CSV cell."""
+    name = path.name
+    for suffix in (".tar.gz", ".tgz", ".tar.xz", ".tar.bz2", ".tar", ".zip"):
+        if name.lower().endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "submission"
+
+
+def discover_submissions(root: Path) -> list[Path]:
+    """A folder of submissions (one folder or archive each), or a single submission."""
+    root = Path(root)
+    if not root.exists():
+        raise GraderError(f"{root} does not exist.")
+    if is_archive(root) or (root / "src").is_dir() or (root / "package.xml").exists():
+        return [root]
+    subs = sorted(p for p in root.iterdir()
+                  if (p.is_dir() and not p.name.startswith(".")) or is_archive(p))
+    if not subs:
+        raise GraderError(f"{root} holds no submissions (expected one folder or archive per student).")
+    return subs

@@ -58,7 +58,7 @@ def test_wrong_radius_and_wrong_way_says_both() -> None:
 
 def test_a_bad_turn_value_is_a_configuration_error() -> None:
     finding = analyze.run("circle_radius", circle(2.0, 1.0), {"expected_m": 2.0, "turn": "Left"})
-    assert finding.status == "error" and "turn must be left or right" in finding.feedback
+    assert finding.status == "error" and "turn: Input should be 'left' or 'right'" in finding.feedback
 
 
 def _recorded(frames: dict) -> dict:

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from pydantic import ValidationError
+
 from grader.errors import GraderError
 from grader.rubric import RubricError, load_rubric
 
@@ -331,3 +333,34 @@ def test_equivalent_mutants_are_validated_with_lines(problems, line_of, write_ru
         f"{F}:{line_of(cross, 'flip-0')}: equivalent_mutants[2].mutant: unknown mutation operator 'flip' in "
         "'flip-00000000' (known: flip_sign, scale_constant, swap_args, rename_topic, drop_call, remove_angle_wrap, "
         "change_timer_period); copy the id from grader rubric audit's report"]
+
+
+GOALS = BASE.replace("ex1_publisher", "ex2_controller").replace("analyzer: topic_type", "analyzer: goals_reached")
+
+
+@pytest.mark.parametrize("value, why", [
+    ("-1", "Input should be greater than 0 (got -1); allowed: number, > 0"),
+    ('"x"', "Input should be a valid number, unable to parse string as a number (got 'x'); allowed: number, > 0"),
+])
+def test_a_parameter_value_its_analyzer_refuses_is_refused_at_its_line(problems, line_of, value, why):
+    """The analyzer's parameter model decides a value at load time, on the line it is written,
+    with what is allowed (issue 38), instead of failing or misgrading inside the analysis."""
+    text = GOALS + f"    params:\n      tol_final: 0.2\n      tol_reached: {value}\n"
+    assert problems(text) == [f"{F}:{line_of(text, 'tol_reached')}: items[0].params.tol_reached: "
+                              f"analyzer 'goals_reached': {why}"]
+    load_rubric(Path("rubrics/x.yaml"), analyzers=None)       # no registry: values unchecked
+
+
+def test_the_values_an_analyzer_runs_with_are_the_models(write_rubric):
+    """What the rubric says reaches the analyzer as its model's typed attributes, and the
+    finding records the values as written, defaults merged (every threshold that decided it)."""
+    from grader import analyze
+
+    model = analyze.params_model("goals_reached")
+    assert model is not None
+    given = model.model_validate({"tol_reached": 1, "steps": ["go"]})
+    assert given.tol_reached == 1.0 and isinstance(given.tol_reached, float) and given.steps == ("go",)
+    with pytest.raises(ValidationError):
+        given.tol_reached = 2.0                                    # frozen: no analysis changes it
+    assert analyze.effective_params("goals_reached", {"tol_reached": 1})["tol_reached"] == 1
+    assert analyze.effective_params("goals_reached", {})["tol_final"] == model.model_fields["tol_final"].default
