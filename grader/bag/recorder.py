@@ -50,6 +50,10 @@ stays out of the bag.
 
 A little over the project's ~400 lines: discovery, subscription, the writer hand-off and
 the stop protocol share one loop and its state; split, each part would need the others' fields.
+
+A little over the project's ~450 lines: one process's program (``python -m grader.bag.recorder``),
+the recorder and the command line that starts it, which ``recorder_thread`` reuses as they are
+(its options and defaults are the CLI's); split, the two would have to agree on every option.
 """
 
 from __future__ import annotations
