@@ -164,7 +164,7 @@ def run_audit_cli(args: argparse.Namespace) -> int:
 
 
 def run_collateral_cli(args: argparse.Namespace) -> int:
-    from grader.audit.collateral import run_collateral, text_summary
+    from grader.audit.collateral import run_collateral, text_summary  # noqa: PLC0415 - audit.collateral loads pandas, numpy (424 ms CPU), only on this path
 
     out = args.out or Path(f"collateral-{load_rubric(args.rubric).lab}")
 

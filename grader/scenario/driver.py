@@ -51,17 +51,17 @@ class Driver(GraphQueries, TopicWatches):
                  recorded_count: Callable[[str], int | None] | None = None,
                  lockstep: Callable[[], list[int]] | None = None,
                  lockstep_exclude: Callable[[], set[int]] = set) -> None:
-        import rclpy
-        from rclpy.clock import Clock, ClockType
-        from rclpy.parameter import Parameter
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-        from std_msgs.msg import String
+        import rclpy  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+        from rclpy.clock import Clock, ClockType  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+        from rclpy.parameter import Parameter  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+        from std_msgs.msg import String  # noqa: PLC0415 - std_msgs: ROS, imported where it is used, so this module loads without a ROS install
 
         self._open_node(rclpy, Parameter, domain_id, sim_node, time_scale > 1 or lockstep is not None)
         self._make_clock(time_scale, clock_node, lockstep, lockstep_exclude)
         self.String = String
         self._keep_recorder_hooks(sink, recording_matched, recorded_count)
-        from rclpy.serialization import serialize_message
+        from rclpy.serialization import serialize_message  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
         self._serialize = serialize_message
         latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -276,14 +276,14 @@ class Driver(GraphQueries, TopicWatches):
         starts (every scenario with a simulator: placements, and the hold at its end), so it is
         discovered in time."""
         if self._hold_client is None:
-            from std_srvs.srv import SetBool
+            from std_srvs.srv import SetBool  # noqa: PLC0415 - std_srvs: ROS, imported where it is used, so this module loads without a ROS install
 
             self._hold_client = self.node.create_client(SetBool, f"/{self.sim_node}/{HOLD_TURTLES_SERVICE}")
 
     def hold_turtles(self, on: bool, step: str | None = None, wait_s: float = 5.0) -> bool:
         """Hold every turtle still (``on``) or let them move again; True when the simulator
         answered. Counted in ``turtle_hold_requests`` (the simulator counts what it serves)."""
-        from std_srvs.srv import SetBool
+        from std_srvs.srv import SetBool  # noqa: PLC0415 - std_srvs: ROS, imported where it is used, so this module loads without a ROS install
 
         self.prepare_turtle_hold()
         ok = False

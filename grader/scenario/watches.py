@@ -49,7 +49,7 @@ class TopicWatches:
     def watch_pose(self, topic: str = "/turtle1/pose") -> None:
         """Keep the latest turtlesim Pose of ``topic`` in ``poses[topic]`` (and ``pose`` for the
         first one watched)."""
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
 
         if topic in self.pose_log:
             return
@@ -146,7 +146,7 @@ class TopicWatches:
 
     def watch_action_status(self, action: str) -> None:
         """Keep the latest status of every goal of ``action`` (its ``_action/status`` topic)."""
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
 
         topic = action.rstrip("/") + "/_action/status"
         if topic in self._subs:
