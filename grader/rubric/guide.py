@@ -10,7 +10,7 @@
   ``rubrics/README.md`` between its ``<!-- generated:... -->`` markers.
 
 ``grader rubric schema`` prints the schema; ``grader rubric guide`` refreshes the README's
-generated parts (a test fails when they are stale); the command line is ``grader.audit.cli``'s.
+generated parts (a test fails when they are stale); the command line is ``grader.commands.rubric``'s.
 """
 
 from __future__ import annotations
