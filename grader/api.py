@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
+from pydantic import ValidationError
+
 from grader.errors import GraderError
 from grader.cache import default_cache_dir
 from grader.cache.store import end_batch
@@ -64,7 +66,7 @@ def load_rubric(path: PathLike, *, check_files: bool = True) -> Rubric:
 
 
 def _rubric(rubric: PathLike | Rubric) -> Rubric:
-    from grader.analyze.plugins import load_rubric_files
+    from grader.analyze.plugins import load_rubric_files  # noqa: PLC0415 - analyze.plugins loads pandas, numpy (424 ms CPU), only on this path
 
     if isinstance(rubric, Rubric):
         load_rubric_files(rubric)          # a Rubric built without load_rubric: its analyzer files
@@ -93,8 +95,6 @@ class BatchResult:
 def due_override(rubric: Rubric, due: str | None, timezone: str | None) -> dict[str, str | None] | None:
     """``due``/``timezone`` (``grader grade --due/--timezone``) checked against the rubric's late
     policy: the override :func:`grade` passes on, or None."""
-    from pydantic import ValidationError
-
     if due is None:
         if timezone:
             raise GraderError("--timezone goes with --due (the rubric's late policy has its own time zone)")
@@ -157,7 +157,7 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
 
 def _read_students(roster: PathLike | None, roster_map: Sequence[str]) -> Roster | None:
     """Read ``roster`` (``--map`` needs it) before :func:`grade` writes anything, so a bad one changes nothing."""
-    from grader.scores.roster import parse_mapping, read_roster
+    from grader.scores.roster import parse_mapping, read_roster  # noqa: PLC0415 - scores.roster loads pandas, numpy (424 ms CPU), only on this path
 
     if roster_map and not roster:
         raise GraderError("--map describes the roster's columns: give the roster with --roster")
@@ -168,8 +168,8 @@ def _take_in(submissions: PathLike, loaded: Rubric, out: Path, students: Roster 
              classroom_prefix: str | None, intake: str, on_intake: Callable[[IntakeBatch], None] | None
              ) -> IntakeBatch:
     """Find what ``submissions`` holds and write ``out/intake.csv``, so the intake is on disk before grading."""
-    from grader.intake.batch import WORK_DIR, read_intake
-    from grader.report.result import atomic_write
+    from grader.intake.batch import WORK_DIR, read_intake  # noqa: PLC0415 - intake.batch loads pandas, numpy (424 ms CPU), only on this path
+    from grader.report.result import atomic_write  # noqa: PLC0415 - report.result loads pandas, numpy (424 ms CPU), only on this path
 
     out.mkdir(parents=True, exist_ok=True)
     found = read_intake(Path(submissions), loaded, work=out / WORK_DIR, roster=students,
@@ -202,7 +202,7 @@ def _run_batch(batch: BatchResult, todo: list[Arrival], loaded: Rubric, out: Pat
                on_done: Callable[[str, GradedSubmission | None, str | None], None] | None,
                progress: Callable[[str], None] | None) -> None:
     """Grade ``todo`` into ``batch``, writing the batch files even when interrupted, so finished ones are kept."""
-    from grader.grading.outputs import write_batch_outputs
+    from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
 
     def done(sid: str, graded: GradedSubmission | None, error: str | None) -> None:
         if graded is not None:          # graded again at the end of the batch (starved): replaced
@@ -225,7 +225,7 @@ def _run_batch(batch: BatchResult, todo: list[Arrival], loaded: Rubric, out: Pat
 def graded_and_measured(sub_out: Path) -> bool:
     """``--resume`` skips this submission: it has a result, and no item of it waits for a
     recording the grading machine did not starve (``Result.starved``)."""
-    from grader.report.result import read_result
+    from grader.report.result import read_result  # noqa: PLC0415 - report.result loads pandas, numpy (424 ms CPU), only on this path
 
     path = sub_out / "result.json"
     if not path.exists():
@@ -245,7 +245,7 @@ def check(workspace: PathLike = ".", *, lab: str | None = None, rubric: PathLike
     The rubric is ``rubric`` or the one of ``lab`` (an id of ``grader labs``). Writes the report
     to ``out`` (default ``WORKSPACE/.grader-check``). ``graded.result`` holds each item's status.
     """
-    from grader.grading.pipeline import grade_submission
+    from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     if rubric is None and lab is None:
         raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
@@ -276,9 +276,9 @@ def regrade(path: PathLike, rubric: PathLike | Rubric, *,
     ``path`` is a batch (``OUT``: every ``OUT/<id>`` is regraded and the batch files rewritten)
     or one submission (``OUT/<id>``). ``on_done`` gets each one as it is regraded.
     """
-    from grader.grading.outputs import write_batch_outputs
-    from grader.grading.analysis import SCENARIOS_DIR
-    from grader.grading.pipeline import regrade_submission
+    from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
+    from grader.grading.analysis import SCENARIOS_DIR  # noqa: PLC0415 - grading.analysis loads pandas, numpy (424 ms CPU), only on this path
+    from grader.grading.pipeline import regrade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     loaded = _rubric(rubric)
     path = Path(path)
@@ -308,8 +308,8 @@ def read_frames(path: PathLike, topics: Sequence[str] | None = None) -> dict[str
     on) or a bag folder (rosbag2 MCAP: ``metadata.yaml`` + ``*.mcap``). ``topics`` selects topics
     of a bag (naming one the bag lacks is an error).
     """
-    from grader.bag.frames import load_frames
-    from grader.grading.analysis import scenario_frames
+    from grader.bag.frames import load_frames  # noqa: PLC0415 - bag.frames loads pandas, numpy (424 ms CPU), only on this path
+    from grader.grading.analysis import scenario_frames  # noqa: PLC0415 - grading.analysis loads pandas, numpy (424 ms CPU), only on this path
 
     where = Path(path)
     if not where.exists():
@@ -326,7 +326,7 @@ def analyze(rubric: PathLike | Rubric, item_id: str,
     :func:`read_frames`), as grading runs it: the item's parameters over the analyzer's
     defaults; never raises for the recording's sake (an analysis that cannot happen is an
     ``error`` finding). Scoring (partial credit, ``requires``, the contract) is not applied."""
-    from grader.grading.analysis import analyze_item
+    from grader.grading.analysis import analyze_item  # noqa: PLC0415 - grading.analysis loads pandas, numpy (424 ms CPU), only on this path
 
     loaded = _rubric(rubric)
     try:

@@ -355,7 +355,7 @@ def main(argv: list[str] | None = None) -> int:
 # `grader setup`: the same preparation for an installed grader, in the environment it runs in
 
 def installed_target() -> Target:
-    from grader.labs import requirements_dir
+    from grader.labs import requirements_dir  # noqa: PLC0415 - bootstrap runs on a bare python before the dependencies it installs exist
 
     return Target(Path(sys.prefix), Path(sys.executable), requirements_dir())
 
@@ -399,8 +399,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_setup(args: argparse.Namespace) -> int:
-    from grader.errors import GraderError
-    from grader.labs import in_checkout
+    from grader.errors import GraderError  # noqa: PLC0415 - bootstrap runs on a bare python before the dependencies it installs exist
+    from grader.labs import in_checkout  # noqa: PLC0415 - bootstrap runs on a bare python before the dependencies it installs exist
 
     if in_checkout():
         raise GraderError("this grader runs from a source checkout: set it up with `make bootstrap` "

@@ -16,12 +16,12 @@ from typing import Any, Callable
 def make_executor(context: Any, kind: str = "events") -> Any:
     if kind == "events":
         try:
-            from rclpy.experimental import EventsExecutor
+            from rclpy.experimental import EventsExecutor  # noqa: PLC0415 - rclpy.experimental: ROS, imported where it is used (this module loads in processes that never use it)
         except ImportError:
             pass
         else:
             return EventsExecutor(context=context)
-    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415 - rclpy.executors: ROS, imported where it is used (this module loads in processes that never use it)
 
     return SingleThreadedExecutor(context=context)
 

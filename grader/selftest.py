@@ -9,8 +9,8 @@ import time
 
 
 def main() -> int:
-    import rclpy
-    from turtlesim.msg import Pose
+    import rclpy  # noqa: PLC0415 - rclpy: ROS, imported where it is used (this module loads in processes that never use it)
+    from turtlesim.msg import Pose  # noqa: PLC0415 - turtlesim.msg: ROS, imported where it is used (this module loads in processes that never use it)
 
     role = sys.argv[1] if len(sys.argv) > 1 else "listen"
     rclpy.init()

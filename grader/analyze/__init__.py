@@ -154,7 +154,7 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
                          else copy.deepcopy(merged))        # analyzers may not mutate shared defaults
             finding.params = jsonable(merged)            # every threshold that decided it
             if isinstance(finding, Finding) and "scenario_start" not in finding.evidence:
-                from grader.analyze._common import scenario_start
+                from grader.analyze._common import scenario_start  # noqa: PLC0415 - at the head it would close a circle: analyze -> analyze._common -> analyze
 
                 t0 = scenario_start(frames)
                 if t0 is not None:
@@ -243,7 +243,7 @@ def defaults(name: str) -> dict[str, Any]:
 def evidence_labels(name: str | None) -> dict[str, Any]:
     """``{key: (label, unit) | None}`` for analyzer ``name``'s evidence (common keys included);
     only the common table for an unknown or missing analyzer (e.g. a result of an older grader)."""
-    from grader.analyze.evidence import merged
+    from grader.analyze.evidence import merged  # noqa: PLC0415 - at the head it would close a circle: analyze -> analyze.evidence -> analyze
 
     if name:
         _load_all()

@@ -100,7 +100,7 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     write ``audit.json`` and ``audit.md`` into ``out``. ``regrade``: grade the recordings
     already in ``out`` again with the rubric as it is now (offline: after changing items,
     parameters or analyzers; a mutant whose scenario changed must be run again)."""
-    from grader.grading.pipeline import grade_submission
+    from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     time_scale = machine_time_scale(time_scale)
 
@@ -229,8 +229,8 @@ def _with_untouched_support(rubric: Any, reference: Path, chosen: list[Mutant]) 
 def _regrade_all(rubric: Any, graded: Path, ids: list[str], say: Callable[[str], None]) -> None:
     """Analyze and score the recorded mutants again (no ROS); refuse recordings of a scenario
     that is not the rubric's any more."""
-    from grader.grading.analysis import SCENARIOS_DIR
-    from grader.grading.pipeline import regrade_submission
+    from grader.grading.analysis import SCENARIOS_DIR  # noqa: PLC0415 - grading.analysis loads pandas, numpy (424 ms CPU), only on this path
+    from grader.grading.pipeline import regrade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     stale = []
     for sid in ids:

@@ -12,6 +12,7 @@ are checkable from the bag. Prints ``READY`` when matched and ``DONE <n> in <s> 
 
 from __future__ import annotations
 
+import os
 import argparse
 import math
 import random
@@ -95,13 +96,12 @@ def _publish_paced(pubs: list[Any], payloads: list[bytes], rate_hz: float) -> tu
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
 
-    import os
 
-    import rclpy
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    import rclpy  # noqa: PLC0415 - rclpy: ROS, imported where it is used (this module loads in processes that never use it)
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415 - rclpy.qos: ROS, imported where it is used (this module loads in processes that never use it)
 
-    from grader.bag.rosio import message_class
-    from grader.rosenv import add_interface_paths
+    from grader.bag.rosio import message_class  # noqa: PLC0415 - bag.loadgen loads in every scenario child process; bag.rosio only on this path
+    from grader.rosenv import add_interface_paths  # noqa: PLC0415 - bag.loadgen loads in every scenario child process; rosenv only on this path
 
     add_interface_paths()     # a grader process: the students' types from the grader's own build of them
     ctx = rclpy.Context()
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
                      reliability=ReliabilityPolicy.BEST_EFFORT if args.best_effort else ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL if args.transient_local else DurabilityPolicy.VOLATILE)
     pubs = [node.create_publisher(cls, t, qos) for t in args.topics]
-    from rclpy.serialization import serialize_message
+    from rclpy.serialization import serialize_message  # noqa: PLC0415 - rclpy.serialization: ROS, imported where it is used (this module loads in processes that never use it)
 
     rng = random.Random(args.seed)
     payloads = [serialize_message(fill(cls(), i, args.pattern, rng)) for i in range(args.count)]
@@ -121,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.service_calls:
         _setup_service(node, service_state)
 
-    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415 - rclpy.executors: ROS, imported where it is used (this module loads in processes that never use it)
 
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)
@@ -158,9 +158,9 @@ def _setup_service(node: Any, state: dict) -> None:
     local (depth 100): the introspection publisher is rcl's own, so its matches cannot be waited
     for, and a recorder whose subscription matches a moment after the graph shows it (CI: 2 of 12
     events in the bag, the first calls' lost) still gets every event."""
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from rclpy.service_introspection import ServiceIntrospectionState
-    from turtlesim.srv import TeleportAbsolute
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415 - rclpy.qos: ROS, imported where it is used (this module loads in processes that never use it)
+    from rclpy.service_introspection import ServiceIntrospectionState  # noqa: PLC0415 - rclpy.service_introspection: ROS, imported where it is used (this module loads in processes that never use it)
+    from turtlesim.srv import TeleportAbsolute  # noqa: PLC0415 - turtlesim.srv: ROS, imported where it is used (this module loads in processes that never use it)
 
     events = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)

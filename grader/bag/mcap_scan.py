@@ -115,13 +115,13 @@ def _decompress(compression: str, data: bytes, size: int) -> bytes:
         return data
     if compression == "zstd":
         try:
-            import zstandard
+            import zstandard  # noqa: PLC0415 - zstandard: imported where it is used (optional)
             return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
         except ImportError:  # pragma: no cover - one of the two is always there with rosbags
-            from backports import zstd
+            from backports import zstd  # noqa: PLC0415 - backports: imported where it is used (optional)
             return zstd.decompress(data)
     if compression == "lz4":
-        import lz4.frame
+        import lz4.frame  # noqa: PLC0415 - lz4.frame: imported where it is used (optional)
         return lz4.frame.decompress(data)
     raise McapFormatError(f"unsupported chunk compression {compression!r}")
 

@@ -33,6 +33,7 @@ from typing import Sequence
 
 from grader.bag.recorder import Recorder, _log, build_parser, recorder_argv
 from grader.errors import GraderError
+from grader.sim.record import DECLARE, POSE_TYPE, read_record
 
 
 class ScenarioRecorder(Recorder):
@@ -77,8 +78,6 @@ class ScenarioRecorder(Recorder):
     def write_record(self, path: Path) -> int:
         """Write the simulator's record of its poses (:mod:`grader.sim.record`) into the bag, each
         pose at the time the simulator published it; returns how many."""
-        from grader.sim.record import DECLARE, POSE_TYPE, read_record
-
         n = 0
         for topic, t_ns, data in read_record(path):
             if topic not in self.writer.topics:

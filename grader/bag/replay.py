@@ -11,6 +11,7 @@ matched); ``DONE <n>`` after the last message.
 
 from __future__ import annotations
 
+import argparse
 import os
 import signal
 import sys
@@ -85,10 +86,10 @@ def replay(p: ReplayPlan, *, rate: float = 1.0, loop: bool = False, clock_hz: fl
            domain_id: int | None = None, node_name: str = "grader_replay",
            log: Any = print) -> int:
     """Publish the plan; returns the number of messages sent (per pass, times passes)."""
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
+    import rclpy  # noqa: PLC0415 - rclpy: ROS, imported where it is used (this module loads in processes that never use it)
+    from rclpy.signals import SignalHandlerOptions  # noqa: PLC0415 - rclpy.signals: ROS, imported where it is used (this module loads in processes that never use it)
 
-    from grader.bag.rosio import dict_to_qos, message_class, replay_offer
+    from grader.bag.rosio import dict_to_qos, message_class, replay_offer  # noqa: PLC0415 - bag.replay loads in every scenario child process; bag.rosio only on this path
 
     if rate <= 0:
         raise GraderError("--rate must be positive (1.0 = recorded speed).")
@@ -111,8 +112,8 @@ def replay(p: ReplayPlan, *, rate: float = 1.0, loop: bool = False, clock_hz: fl
             publishers.append(node.create_publisher(cls, out_name, qos))
         clock_pub = None
         if clock_hz > 0:
-            from rclpy.qos import QoSProfile
-            from rosgraph_msgs.msg import Clock
+            from rclpy.qos import QoSProfile  # noqa: PLC0415 - rclpy.qos: ROS, imported where it is used (this module loads in processes that never use it)
+            from rosgraph_msgs.msg import Clock  # noqa: PLC0415 - rosgraph_msgs.msg: ROS, imported where it is used (this module loads in processes that never use it)
             clock_pub = node.create_publisher(Clock, "/clock", QoSProfile(depth=1))
         live = [x for x in publishers if x is not None]
         deadline = time.monotonic() + wait_timeout
@@ -137,7 +138,7 @@ def replay(p: ReplayPlan, *, rate: float = 1.0, loop: bool = False, clock_hz: fl
 
 
 def _clock_msg(ns: int):
-    from rosgraph_msgs.msg import Clock
+    from rosgraph_msgs.msg import Clock  # noqa: PLC0415 - rosgraph_msgs.msg: ROS, imported where it is used (this module loads in processes that never use it)
 
     m = Clock()
     m.clock.sec, m.clock.nanosec = ns // 1_000_000_000, ns % 1_000_000_000
@@ -218,9 +219,7 @@ def add_arguments(p: Any) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import argparse
-
-    from grader.rosenv import add_interface_paths
+    from grader.rosenv import add_interface_paths  # noqa: PLC0415 - bag.replay loads in every scenario child process; rosenv only on this path
 
     add_interface_paths()     # a grader process: the students' types from the grader's own build of them
     parser = argparse.ArgumentParser(prog="python -m grader.bag.replay")

@@ -63,7 +63,7 @@ def qos_to_dict(qos: Any) -> dict[str, Any]:
 
 
 def _duration(d: dict[str, int]):
-    from rclpy.duration import Duration, Infinite
+    from rclpy.duration import Duration, Infinite  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
 
     if d.get("sec", 0) >= INFINITE["sec"] or d.get("sec", 0) >= 0x7FFFFFFF:
         return Infinite
@@ -72,7 +72,7 @@ def _duration(d: dict[str, int]):
 
 def dict_to_qos(d: dict[str, Any], depth: int = 10):
     """A QoSProfile to *offer* when replaying a recorded offer (history becomes keep_last)."""
-    from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
+    from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
                            ReliabilityPolicy)
 
     q = dict(default_qos(), **d)

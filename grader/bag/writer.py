@@ -18,6 +18,7 @@ and more the recorder's 10,000 msg/s target.
 
 from __future__ import annotations
 
+from importlib.metadata import PackageNotFoundError, version
 import io
 import time
 from dataclasses import dataclass, field
@@ -36,8 +37,6 @@ METADATA_RECORD = "rosbag2"
 
 
 def _library() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         mcap_version = version("mcap")
     except PackageNotFoundError:  # pragma: no cover - a source checkout of mcap

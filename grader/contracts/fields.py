@@ -14,7 +14,8 @@ from typing import Annotated, Union
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from grader.contracts.text import pattern_text
-from pydantic import ValidatorFunctionWrapHandler
+from pydantic import ValidationError, ValidatorFunctionWrapHandler
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 RosName = Annotated[str, pattern_text(r"^~?/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$", "a ROS name like /turtle1/pose")]
 PackageName = Annotated[str, pattern_text(r"^[a-z][a-z0-9_]*$", "a ROS package name (lower case, digits, _)")]
@@ -53,9 +54,6 @@ def with_rules(cls: type, handler: ValidatorFunctionWrapHandler, value: object,
                own: list[tuple[tuple, str]]) -> object:
     """Run a wrap validator's ``handler`` and report ``own`` problems (``(loc, message)``, loc
     relative to the model) together with the field errors, so a user sees every problem at once."""
-    from pydantic import ValidationError
-    from pydantic_core import InitErrorDetails, PydanticCustomError
-
     errors: list[InitErrorDetails] = []
     result = None
     try:

@@ -47,8 +47,8 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
     if the batch is interrupted. ``cache_max_size``: the cache's cap (``5G``; default
     ``$GRADER_CACHE_MAX_SIZE`` or 5 GB).
     """
-    from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import grade_submission
+    from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
+    from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     out.mkdir(parents=True, exist_ok=True)
     failures: dict[str, str] = {}
@@ -102,8 +102,8 @@ def rerun_starved(graded: dict[str, Any], todo: list[tuple[str, Any, Any]], rubr
     """Grade again, one at a time, each submission of ``graded`` whose result has starved timing
     items; returns ``{id: why it has no result}`` for those that could not be graded again (their
     earlier result went with the new attempt). The class view is rewritten after each."""
-    from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import grade_submission
+    from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
+    from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     again = [(sid, path, record) for sid, path, record in todo if sid in graded and graded[sid].result.starved]
     if again:

@@ -3,6 +3,7 @@ and the self-check table printed by `grader check`."""
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -182,8 +183,6 @@ def time_scale_notes(time_scales: dict[str, dict]) -> list[str]:
 
 
 def _wrap(text: str, width: int) -> list[str]:
-    import textwrap
-
     return textwrap.wrap(text, width) or []
 
 

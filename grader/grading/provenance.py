@@ -23,7 +23,7 @@ from grader.grading.reuse import made_by
 def scenario_recordings(sub_out: Path) -> dict[str, dict[str, Any]]:
     """``{scenario: {"key", "made_by", "reused_from"?}}`` from each ``scenario.json`` of a
     graded submission (``made_by`` None: recorded by a grader that did not note it)."""
-    from grader.grading.analysis import SCENARIOS_DIR
+    from grader.grading.analysis import SCENARIOS_DIR  # noqa: PLC0415 - grading.analysis loads pandas, numpy (424 ms CPU), only on this path
 
     out: dict[str, dict[str, Any]] = {}
     for record_file in sorted(Path(sub_out).glob(f"{SCENARIOS_DIR}/*/scenario.json")):

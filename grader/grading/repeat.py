@@ -27,6 +27,7 @@ Folders: run 1 is ``scenarios/<id>/`` as for any scenario; run k is ``scenarios/
 
 from __future__ import annotations
 
+import json
 import re
 from collections import Counter
 from dataclasses import replace
@@ -89,8 +90,6 @@ def lockstep_record_exact(record: dict) -> bool:
 
 def exact_lockstep(folder: Path) -> bool:
     """Whether the recorded run in ``folder`` (its scenario.json) was an exact lockstep run."""
-    import json
-
     try:
         return lockstep_record_exact(json.loads((Path(folder) / "scenario.json").read_text()))
     except (OSError, ValueError):

@@ -18,6 +18,7 @@ the one submission (it is graded once; the others take its recordings).
 
 from __future__ import annotations
 
+import zipfile
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, cast
@@ -62,8 +63,6 @@ def find_metadata(root: Path) -> Path | None:
 
 
 def zip_is_gradescope(archive: Path) -> bool:
-    import zipfile
-
     if not archive.name.lower().endswith(".zip"):
         return False
     try:

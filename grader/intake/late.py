@@ -13,6 +13,7 @@ counts (a student is never charged for lateness nobody can show).
 
 from __future__ import annotations
 
+from zoneinfo import ZoneInfo
 from dataclasses import replace
 from datetime import datetime
 
@@ -21,8 +22,6 @@ from grader.rubric.intake_fields import LatePolicy
 
 
 def _show(when: datetime, zone: str) -> str:
-    from zoneinfo import ZoneInfo
-
     try:
         when = when.astimezone(ZoneInfo(zone))
     except (KeyError, ValueError):

@@ -121,7 +121,7 @@ def describe_launch(path: Path, arguments: dict[str, str], env: dict[str, str]) 
             *(f"{k}:={v}" for k, v in arguments.items())]
     # the launch file is student code: jailed (grader.sandbox), seeing only its builds and the
     # grader package (the launch/launch_ros stand-ins), with no network
-    from grader.sandbox.oneshot import build_trees, run_jailed_capture
+    from grader.sandbox.oneshot import build_trees, run_jailed_capture  # noqa: PLC0415 - launch loads in every scenario child process; sandbox.oneshot only on this path
 
     package = Path(__file__).resolve().parents[1]
     run, stdout, stderr = run_jailed_capture(
@@ -200,7 +200,7 @@ def resolve_launch(proc: Process, build: Any, *, sim_in_scenario: bool) -> Launc
                              "simulator (already running in this scenario)")
                 out.append(LaunchedProcess(**declared, stand_in=True))
                 continue
-            from grader.sim import sim_argv
+            from grader.sim import sim_argv  # noqa: PLC0415 - launch loads in every scenario child process; sim only on this path
             argv = sim_argv(ros_args=node_ros_args(entity)[1:])
             out.append(LaunchedProcess(**declared, argv=tuple(argv), start_delay=entity["delay"],
                                        env=entity.get("env", {})))
@@ -240,12 +240,12 @@ def _unique(name: str, used: set[str]) -> str:
 # ----------------------------------------------------------------------- system ROS 2 launch
 def system_ros_launch_available() -> bool:
     """A sourced ROS 2 with ``ros2 launch`` (the real thing is used then)."""
-    from grader.rosenv import ros_mode
+    from grader.rosenv import ros_mode  # noqa: PLC0415 - launch loads in every scenario child process; rosenv only on this path
 
     if os.environ.get("GRADER_OWN_LAUNCH") or ros_mode() != "system" or not shutil.which("ros2"):
         return False
     try:
-        import launch  # noqa: F401
+        import launch  # noqa: F401, PLC0415 - only asks whether a real ROS launch is installed
     except ImportError:
         return False
     return True

@@ -122,7 +122,7 @@ class FindPackageShare(Substitution):
 
 
 def package_share(package: str, at: str) -> str:
-    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory  # noqa: PLC0415 - ament_index_python: ROS, imported where it is used, so this module loads without a ROS install
 
     try:
         return get_package_share_directory(package)
@@ -416,7 +416,7 @@ def _scalar_list(items: list) -> bool:
 
 
 def _yaml_param(name: str, text: str) -> Any:
-    import yaml
+    import yaml  # noqa: PLC0415 - yaml: imported where it is used
 
     try:
         value = yaml.safe_load(text)

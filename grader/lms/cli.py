@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+import os
 import argparse
 from pathlib import Path
 
@@ -67,9 +69,6 @@ def run_bundle(args: argparse.Namespace) -> int:
 
 
 def run_classroom_result(args: argparse.Namespace) -> int:
-    import os
-    import sys
-
     line, runner = step_output(args.result)
     target = os.environ.get("GITHUB_OUTPUT")
     if target:

@@ -105,7 +105,7 @@ def _link(sid: str, item_id: str | None = None, text: str | None = None) -> str:
 
 
 def _distribution(subs: Sequence[Submission]) -> str:
-    from grader.report.figures.classview import score_histogram
+    from grader.report.figures.classview import score_histogram  # noqa: PLC0415 - report.figures.classview loads matplotlib (311 ms CPU), only on this path
 
     scores = [s.result.auto_score for s in subs]
     top = max((s.result.auto_max for s in subs), default=0.0)
@@ -182,7 +182,7 @@ def _unstable(subs: Sequence[Submission]) -> str:
     """Items graded from repeated runs (``repeat:`` in the rubric: the median run, or the worst
     with ``repeat_by: worst``) whose runs disagreed: the grades a student may question first,
     with how each run came out."""
-    from grader.report.readable import spread_text
+    from grader.report.readable import spread_text  # noqa: PLC0415 - at the head it would close a circle: report.index -> report -> report.index
 
     repeated = [(s, i) for s in subs for i in s.result.items if _repeated(i.decided or {})]
     if not repeated:

@@ -10,7 +10,7 @@
   ``rubrics/README.md`` between its ``<!-- generated:... -->`` markers.
 
 ``grader rubric schema`` prints the schema; ``grader rubric guide`` refreshes the README's
-generated parts (a test fails when they are stale); the command line is ``grader.audit.cli``'s.
+generated parts (a test fails when they are stale); the command line is ``grader.commands.rubric``'s.
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ import json
 import typing
 from pathlib import Path
 from typing import Any, Callable, Mapping
+
+from pydantic_core import PydanticUndefined
 
 from grader.errors import GraderError
 from grader.contracts import contract as c
@@ -93,8 +95,8 @@ def _with_references(node: Any) -> Any:
 # ------------------------------------------------------------------------------ Markdown tables
 def analyzer_reference() -> str:
     """Every registered analyzer: what it checks, its parameters with defaults and meaning."""
-    from grader import analyze
-    from grader.analyze.plugins import loaded_files
+    from grader import analyze  # noqa: PLC0415 - analyze loads pandas, numpy (424 ms CPU), only on this path
+    from grader.analyze.plugins import loaded_files  # noqa: PLC0415 - analyze.plugins loads pandas, numpy (424 ms CPU), only on this path
 
     # a lab's own analyzers (a rubric's ``analyzers:`` file) are documented with that lab, and are
     # loaded only in processes that loaded its rubric: the guide lists the grader's (and plug-ins')
@@ -137,8 +139,8 @@ def _model_table(model: type[AnalyzerParams]) -> list[str]:
 def _defaults_table(name: str, labels: Mapping[str, Any]) -> list[str]:
     """The rows of a plug-in's parameters declared as a plain dict (no types: the evidence's
     labels say what a name means, when they know it)."""
-    from grader import analyze
-    from grader.analyze import REQUIRED
+    from grader import analyze  # noqa: PLC0415 - analyze loads pandas, numpy (424 ms CPU), only on this path
+    from grader.analyze import REQUIRED  # noqa: PLC0415 - analyze loads pandas, numpy (424 ms CPU), only on this path
 
     rows = ["| parameter | default | meaning |", "|---|---|---|"]
     for key, default in analyze.defaults(name).items():
@@ -168,8 +170,6 @@ def _schema_type(prop: dict[str, Any]) -> str:
 
 
 def _fields_table(cls: Any, skip: tuple[str, ...] = ()) -> str:
-    from pydantic_core import PydanticUndefined
-
     props = cls.model_json_schema(by_alias=True).get("properties", {})
     rows = ["| key | type | default | meaning |", "|---|---|---|---|"]
     for key, field in cls.model_fields.items():

@@ -8,6 +8,7 @@ rubrics/README.md ("Late policy", "Loose files").
 
 from __future__ import annotations
 
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
@@ -27,8 +28,6 @@ UNIT_SECONDS = {"day": 86400.0, "hour": 3600.0}
 def parse_due(text: str, zone: str | None) -> datetime:
     """``2025-02-14 23:59`` (+ ``zone``) or ``2025-02-14T23:59-05:00`` -> an aware datetime.
     Raises ValueError with the fix in words."""
-    from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
-
     text = str(text).strip()
     try:
         when = datetime.fromisoformat(text)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import json
 import os
 from pathlib import Path
@@ -14,6 +15,7 @@ from grader.rubric.contract import resolve_references
 from grader.rubric.crossrefs import rubric_problems
 from grader.rubric.located import Problem, dotted, load_located, problems_from
 from grader.rubric.schema import Rubric
+from grader.contracts.params import problems
 
 
 class RubricError(GraderError):
@@ -48,7 +50,7 @@ REGISTRY = _Registry()
 def registered_analyzers() -> dict[str, dict[str, bool]] | None:
     """``{analyzer: {parameter: required?}}`` from grader.analyze, or None without it."""
     try:
-        from grader import analyze
+        from grader import analyze  # noqa: PLC0415 - analyze loads pandas, numpy (424 ms CPU), only on this path
     except ImportError:
         return None
     return {name: {k: k in analyze.required(name) for k in sorted(analyze.defaults(name))}
@@ -60,8 +62,7 @@ def parameter_value_problems(rubric: Rubric) -> list[tuple[str, str]]:
     ``(items[i].params.key, why and what is allowed)``; unknown analyzers and names are
     :func:`grader.rubric.crossrefs.rubric_problems`' to say."""
     try:
-        from grader import analyze
-        from grader.contracts.params import problems
+        from grader import analyze  # noqa: PLC0415 - analyze loads pandas, numpy (424 ms CPU), only on this path
     except ImportError:
         return []
     known = set(analyze.names())
@@ -79,7 +80,7 @@ def load_analyzer_files(rubric: Rubric) -> list[tuple[str, str]]:
     problems as ``(field path, message)``. Nothing when grader.analyze is not importable (a
     wheel build reads rubrics with PyYAML and pydantic only)."""
     try:
-        from grader.analyze.plugins import load_file
+        from grader.analyze.plugins import load_file  # noqa: PLC0415 - analyze.plugins loads pandas, numpy (424 ms CPU), only on this path
     except ImportError:
         return []
     out: list[tuple[str, str]] = []
@@ -147,8 +148,6 @@ def load_rubric(path: str | os.PathLike[str], *, check_files: bool = True,
 
 def _split(dotted: str) -> tuple:
     """``items[3].params.k`` -> ``("items", 3, "params", "k")`` (to look up a line)."""
-    import re
-
     out: list = []
     for part in re.findall(r"\[(\d+)\]|\[('[^']*')\]|([^.\[\]]+)", dotted):
         index, quoted, name = part

@@ -9,6 +9,7 @@ whole at the end or on timeout, and capped output.
 
 from __future__ import annotations
 
+import tempfile
 import os
 import signal
 import subprocess
@@ -140,8 +141,6 @@ def _end(proc: subprocess.Popen, group: cgroups.CgroupSet | None, result: Jailed
 
 def run_jailed_capture(argv: Sequence[str], *, cap: int = 4 * 2**20, **kwargs) -> tuple[JailedRun, str, str]:
     """:func:`run_jailed`, returning what it printed (at most ``cap`` bytes per stream)."""
-    import tempfile
-
     with tempfile.TemporaryDirectory(prefix="grader-oneshot-") as tmp:
         out, err = Path(tmp) / "stdout", Path(tmp) / "stderr"
         run = run_jailed(argv, stdout=out, stderr=err, output_cap=cap, **kwargs)

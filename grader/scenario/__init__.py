@@ -83,7 +83,7 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
     broken launch file) keeps an ``error`` instead: the scenario still runs, and the items that
     need that process fail with that explanation.
     """
-    from grader.launch import launch_files, resolve_launch
+    from grader.launch import launch_files, resolve_launch  # noqa: PLC0415 - at the head it would close a circle: scenario -> launch -> scenario
 
     launched: dict[str, tuple[LaunchedProcess, ...]] = {}
     sim_node = "turtlesim"
@@ -110,7 +110,7 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
             launched[proc.name] = (LaunchedProcess(name=proc.name, process=proc.name, error=str(exc)),)
     prefixes = tuple(str(p) for p in build.prefixes()) if build is not None else ()
     interfaces = tuple(str(p) for p in build.interface_prefixes()) if build is not None else ()
-    from grader.workspace.executables import stray_executables
+    from grader.workspace.executables import stray_executables  # noqa: PLC0415 - scenario loads in every scenario child process; workspace.executables only on this path
 
     packages = {name: PackageFacts(status=pkg.status, executables=tuple(sorted(pkg.executables)),
                                    launch_files=tuple(launch_files(build, name)),
@@ -133,18 +133,18 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
     run_file = out / "run.json"
     run_file.write_text(run.model_dump_json(indent=1))
     if env is None:
-        from grader.rosenv import child_env
+        from grader.rosenv import child_env  # noqa: PLC0415 - scenario loads in every scenario child process; rosenv only on this path
         env = child_env(prefixes=[Path(p) for p in run.prefixes])
     limit = run.wall_limit_s + GRACE_S
     if CANCELLED.is_set():
         raise KeyboardInterrupt
     t0 = time.monotonic()
-    from grader.runner import die_with_parent      # (grader.runner imports this package's model)
-    from grader.sandbox import ScenarioSandbox     # namespaces + cgroups; see grader/sandbox
+    from grader.runner import die_with_parent      # (grader.runner imports this package's model)  # noqa: PLC0415 - scenario loads in every scenario child process; runner only on this path
+    from grader.sandbox import ScenarioSandbox     # namespaces + cgroups; see grader/sandbox  # noqa: PLC0415 - scenario loads in every scenario child process; sandbox only on this path
 
     sandbox = ScenarioSandbox(prefixes=run.prefixes, env=env, memory_mb=run.scenario.limits.memory_mb,
                               name=run.id)
-    from grader.rosenv import trusted_env     # nothing of the students' builds runs in the grader's processes
+    from grader.rosenv import trusted_env     # nothing of the students' builds runs in the grader's processes  # noqa: PLC0415 - scenario loads in every scenario child process; rosenv only on this path
 
     env = trusted_env(env, [Path(p) for p in run.prefixes], [Path(p) for p in run.interfaces])
     with sandbox, open(out / "scenario.log", "wb") as log:

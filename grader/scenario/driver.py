@@ -7,7 +7,8 @@ scenario's recorder, in this process) they go into the bag from here, not throug
 node could publish an "event" of its own (:mod:`grader.bag.recorder`).
 
 One node holds every client, publisher and the hold/placement state the steps share; what it
-asks the graph is in ``graph_queries.py``, the step logic in ``steps.py``.
+asks the graph is in ``graph_queries.py``, what it listens to (poses, commands, counts, action
+status) in ``watches.py``, the step logic in ``steps.py``.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from grader.executors import make_executor
 from grader.runner import ManagedProcess
 from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event, EventRecord, build_event
 from grader.scenario.graph_queries import GRADER_NODE_PREFIX, GraphQueries
+from grader.scenario.watches import TopicWatches
 from grader.scenario.messages import import_type
 from grader.sim.clock import HOLD_SERVICE
 from grader.scenario.lockstep import Stepper
@@ -32,7 +34,7 @@ from grader.sim import HOLD_TURTLES_SERVICE
 
 
 
-class Driver(GraphQueries):
+class Driver(GraphQueries, TopicWatches):
     """Owns an rclpy context on the scenario's domain and a background executor thread.
 
     ``time_scale`` > 1: the node runs with ``use_sim_time`` and ``clock`` measures scenario time
@@ -49,17 +51,17 @@ class Driver(GraphQueries):
                  recorded_count: Callable[[str], int | None] | None = None,
                  lockstep: Callable[[], list[int]] | None = None,
                  lockstep_exclude: Callable[[], set[int]] = set) -> None:
-        import rclpy
-        from rclpy.clock import Clock, ClockType
-        from rclpy.parameter import Parameter
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-        from std_msgs.msg import String
+        import rclpy  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+        from rclpy.clock import Clock, ClockType  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+        from rclpy.parameter import Parameter  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+        from std_msgs.msg import String  # noqa: PLC0415 - std_msgs: ROS, imported where it is used, so this module loads without a ROS install
 
         self._open_node(rclpy, Parameter, domain_id, sim_node, time_scale > 1 or lockstep is not None)
         self._make_clock(time_scale, clock_node, lockstep, lockstep_exclude)
         self.String = String
         self._keep_recorder_hooks(sink, recording_matched, recorded_count)
-        from rclpy.serialization import serialize_message
+        from rclpy.serialization import serialize_message  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
         self._serialize = serialize_message
         latched = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -253,113 +255,6 @@ class Driver(GraphQueries):
                        json.dumps({"process": name, "stream": stream, "line": rest.decode(errors="replace")}))
             del self._tail_rest[path]
 
-    def pose_mark(self, topic: str) -> int:
-        """The number of the latest pose of ``topic`` received (0 before any)."""
-        log = self.pose_log.get(topic)
-        return log[-1][0] if log else 0
-
-    def poses_since(self, topic: str, mark: int) -> list[Any]:
-        """The poses of ``topic`` received after ``mark`` (see :meth:`pose_mark`), oldest first."""
-        return [msg for n, msg in list(self.pose_log.get(topic, ())) if n > mark]
-
-    def watch_pose(self, topic: str = "/turtle1/pose") -> None:
-        """Keep the latest turtlesim Pose of ``topic`` in ``poses[topic]`` (and ``pose`` for the
-        first one watched)."""
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-        if topic in self.pose_log:
-            return
-
-        log = self.pose_log.setdefault(topic, collections.deque(maxlen=256))
-
-        def on_pose(msg: Any) -> None:
-            self.poses[topic] = msg
-            log.append((log[-1][0] + 1 if log else 1, msg))
-            if topic not in self._counted:                           # `until: messages` on it counts too
-                self.counts[topic] = self.counts.get(topic, 0) + 1
-            if self.pose_topic == topic:
-                self.pose = msg
-
-        self.pose_topic = self.pose_topic or topic
-        self._listen(topic, "turtlesim/msg/Pose", on_pose, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
-
-    def count_messages(self, topic: str, type_name: str | None, wait_s: float = 3.0) -> None:
-        """Count messages on ``topic`` (type from the step, else from the graph).
-
-        Without a type and before the topic exists, the topic is remembered and the subscription
-        is made by the tail timer as soon as a publisher appears.
-        """
-        if topic in self._counted or topic in self.pose_log:     # (its pose subscription counts it)
-            return
-        type_name = type_name or self.topic_type(topic, wait_s=wait_s)
-        if not type_name:
-            self._watch.add(topic)
-            return
-        self._watch.discard(topic)
-        self._counted.add(topic)
-        self.counts.setdefault(topic, 0)
-
-        def on_msg(_msg: Any) -> None:
-            self.counts[topic] += 1
-            if self.watchdog is not None:
-                self.watchdog.arrived(topic, self.clock.sim_s())
-
-        self._listen(topic, type_name, on_msg, 100)
-
-    def _listen(self, topic: str, type_name: str, handler: Callable[[Any], None], qos: Any) -> None:
-        """Hand ``topic``'s messages to ``handler`` too, through one subscription per topic.
-        Each watcher used to make its own and skip the topic when another had one: at
-        ``--time-scale 4`` the rate watchdog's count of ``/turtle1/cmd_vel`` came first, the
-        hand-over never saw a command, and every placed goal of Lab 3's ex2_controller was held
-        its full 2 s of wall time (8 s of simulated time) before the turtle was let go."""
-        handlers = self._handlers.get(topic)
-        if handlers is not None:
-            handlers.append(handler)
-            return
-        handlers = self._handlers[topic] = [handler]
-
-        def on_msg(msg: Any) -> None:
-            for h in handlers:
-                h(msg)
-
-        self._subs[topic] = self.node.create_subscription(self._import(type_name), topic, on_msg, qos)
-
-    def commands_heard(self, topic: str) -> bool:
-        """Every publisher the graph shows on the watched command ``topic`` is matched by the
-        driver's subscription (:meth:`watch_commands`) and by the recorder's: a command sent
-        from now on is counted by the hand-over and is in the bag."""
-        sub = self._subs.get(topic)
-        n = self.node.count_publishers(topic)
-        if sub is None or n == 0 or sub.get_publisher_count() < n:
-            return False
-        return self.topic_recorded(topic)
-
-    def topic_recorded(self, topic: str) -> bool:
-        """Every publisher the graph shows on ``topic`` is matched by the recorder's
-        subscription: what is published on it from now on is in the bag (true at once of a topic
-        the scenario does not record). (The graph shows the recorder's subscription before its
-        DDS reader has matched a new publisher: in one of three runs of bench_flake a 2 Hz
-        publisher's first two messages went unrecorded.)"""
-        if self.recording_matched is None:
-            return True
-        n = self.node.count_publishers(topic)
-        return n > 0 and self.recording_matched(topic, n)
-
-    def watch_commands(self, topic: str) -> None:
-        """Keep the velocity commands on ``topic`` (a Twist topic) in ``commands[topic]``: how
-        many so far and the last one (linear.x, linear.y, angular.z), so a hand-over can tell
-        when a controller's commands change with its new goal."""
-        if topic in self.commands:
-            return
-        self.commands[topic] = [0, None]
-
-        def on_cmd(msg: Any) -> None:
-            entry = self.commands[topic]
-            entry[0] += 1
-            entry[1] = (msg.linear.x, msg.linear.y, msg.angular.z)
-
-        self._listen(topic, "geometry_msgs/msg/Twist", on_cmd, 100)
-
     def service_client(self, cls: Any, name: str) -> Any:
         """The driver's client of service ``name`` (one per service and type, made on first use):
         a new client per call costs a discovery round each time (``wait_for_service`` then sleeps
@@ -381,14 +276,14 @@ class Driver(GraphQueries):
         starts (every scenario with a simulator: placements, and the hold at its end), so it is
         discovered in time."""
         if self._hold_client is None:
-            from std_srvs.srv import SetBool
+            from std_srvs.srv import SetBool  # noqa: PLC0415 - std_srvs: ROS, imported where it is used, so this module loads without a ROS install
 
             self._hold_client = self.node.create_client(SetBool, f"/{self.sim_node}/{HOLD_TURTLES_SERVICE}")
 
     def hold_turtles(self, on: bool, step: str | None = None, wait_s: float = 5.0) -> bool:
         """Hold every turtle still (``on``) or let them move again; True when the simulator
         answered. Counted in ``turtle_hold_requests`` (the simulator counts what it serves)."""
-        from std_srvs.srv import SetBool
+        from std_srvs.srv import SetBool  # noqa: PLC0415 - std_srvs: ROS, imported where it is used, so this module loads without a ROS install
 
         self.prepare_turtle_hold()
         ok = False
@@ -415,27 +310,6 @@ class Driver(GraphQueries):
         """Poll until ``predicate()`` or ``timeout_s`` of scenario time (``wall``: wall seconds;
         ``react``: a wall wait that ticks in lockstep, see ScenarioClock.wait_until)."""
         return self.clock.wait_until(predicate, timeout_s, poll, wall=wall, react=react)
-
-    def watch_action_status(self, action: str) -> None:
-        """Keep the latest status of every goal of ``action`` (its ``_action/status`` topic)."""
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-        topic = action.rstrip("/") + "/_action/status"
-        if topic in self._subs:
-            return
-
-        def on_status(msg: Any) -> None:
-            for st in msg.status_list:
-                self.goal_status[bytes(st.goal_info.goal_id.uuid)] = int(st.status)
-
-        self._subs[topic] = self.node.create_subscription(
-            self._import("action_msgs/msg/GoalStatusArray"), topic, on_status,
-            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL))
-
-    def action_status(self, action: str, goal_id: bytes) -> int | None:
-        """The last status the server published for ``goal_id`` (None: it never mentioned it)."""
-        return self.goal_status.get(goal_id)
 
     def shutdown(self) -> None:
         try:

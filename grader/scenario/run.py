@@ -19,6 +19,7 @@ Starting the students' processes (limits, scripted stdin, the wait until a node 
 
 from __future__ import annotations
 
+import faulthandler
 import contextlib
 import json
 import os
@@ -71,8 +72,8 @@ def _discover_like(graph: RosGraph) -> None:
 
 def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     """Execute ``run``; returns (and writes) the scenario record."""
-    from grader.scenario.runtime import Runtime
-    from grader.scenario.steps import prepare
+    from grader.scenario.runtime import Runtime  # noqa: PLC0415 - scenario.run loads in every scenario child process; scenario.runtime only on this path
+    from grader.scenario.steps import prepare  # noqa: PLC0415 - scenario.run loads in every scenario child process; scenario.steps only on this path
 
     spec = run.scenario
     scale = run.time_scale if run.time_scale > 1 and not run.lockstep else None
@@ -162,7 +163,7 @@ def _driver(run: ScenarioRun, graph: RosGraph, students: dict[str, ManagedProces
             sim: ManagedProcess | None, scale: float | None, clock_node: str | None) -> Any:
     """The scenario's driver, told what the recorder has matched and recorded, and in lockstep
     which processes to wait for (the simulator's and the students', not the recorder's thread)."""
-    from grader.scenario.driver import Driver
+    from grader.scenario.driver import Driver  # noqa: PLC0415 - scenario.run loads in every scenario child process; scenario.driver only on this path
 
     driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
                     clock_node=clock_node, sink=recorder.post,
@@ -231,7 +232,7 @@ def _run_steps(rt: Any, students: dict[str, ManagedProcess], record: dict[str, A
     """Every step in order, its outcome in the record; a step is skipped once no student process
     is left (build failed, crashed on start-up: waiting for its limit would only cost time, the
     bag says why), and an ``on_timeout: abort`` step that timed out ends the scenario."""
-    from grader.scenario.steps import action_name, run_step
+    from grader.scenario.steps import action_name, run_step  # noqa: PLC0415 - scenario.run loads in every scenario child process; scenario.steps only on this path
 
     spec, driver = rt.scenario, rt.driver
     for step in spec.steps:
@@ -371,7 +372,6 @@ def main(argv: list[str] | None = None) -> int:
     run = ScenarioRun.model_validate_json(Path(argv[0]).read_text())
 
     add_interface_paths()     # a grader process: the students' types from the grader's own build of them
-    import faulthandler
     faulthandler.enable()      # a crash in rclpy leaves the Python stacks in scenario.log
     # SIGTERM from the parent (batch Ctrl-C, time limit) → unwind through the finally blocks
     signal.signal(signal.SIGTERM, _interrupt_once)

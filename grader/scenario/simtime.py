@@ -64,7 +64,7 @@ class ScenarioClock:
         self._client: Any = None
         self._stop_client: Any = None
         if self.simulated and hold_service is not None and not self.lockstep:
-            from std_srvs.srv import SetBool, Trigger
+            from std_srvs.srv import SetBool, Trigger  # noqa: PLC0415 - std_srvs.srv: ROS, imported where it is used (this module loads in processes that never use it)
 
             self._client = node.create_client(SetBool, hold_service)
             self._stop_client = node.create_client(Trigger, hold_service.replace(HOLD_SERVICE, STOP_SERVICE))
@@ -214,7 +214,7 @@ class ScenarioClock:
         owner served more hold requests than this driver made: someone else held the clock."""
         if not self.simulated or self.hold_service is None or self.lockstep:
             return True
-        from std_srvs.srv import Trigger
+        from std_srvs.srv import Trigger  # noqa: PLC0415 - std_srvs.srv: ROS, imported where it is used (this module loads in processes that never use it)
 
         reply = self._request(self._stop_client, Trigger.Request())
         try:
@@ -237,7 +237,7 @@ class ScenarioClock:
 
     def _call(self, on: bool) -> tuple[int, int] | None:
         """Ask the clock owner to hold (or run); its reply: (time in ns, matched readers)."""
-        from std_srvs.srv import SetBool
+        from std_srvs.srv import SetBool  # noqa: PLC0415 - std_srvs.srv: ROS, imported where it is used (this module loads in processes that never use it)
 
         reply = self._request(self._client, SetBool.Request(data=on))
         try:

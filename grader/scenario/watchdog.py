@@ -66,8 +66,8 @@ def tree_times(pids: dict[str, int]) -> dict[str, tuple[float, dict[int, float]]
     from /proc: CPU seconds (user + system, reaped children included) and, per live thread
     (``tid``), runnable seconds (on a CPU or waiting for one: ``schedstat``); per thread, since
     summed they overstate a DDS node's wait (:data:`RUNNABLE_SHARE`)."""
-    from grader.scenario.cpuwait import thread_schedstat
-    from grader.scenario.quiescence import descendants
+    from grader.scenario.cpuwait import thread_schedstat  # noqa: PLC0415 - scenario.watchdog loads in every scenario child process; scenario.cpuwait only on this path
+    from grader.scenario.quiescence import descendants  # noqa: PLC0415 - scenario.watchdog loads in every scenario child process; scenario.quiescence only on this path
 
     tick = os.sysconf("SC_CLK_TCK")
     out = {}

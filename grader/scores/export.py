@@ -161,7 +161,7 @@ def _match(results: Mapping[str, Result], roster: Roster | None, report: ExportR
     ids its intake record kept (Canvas ID, SIS ids, e-mail, SID)."""
     if roster is None:
         return [(None, sid) for sid in sorted(results)]
-    from grader.intake.match import safe_id
+    from grader.intake.match import safe_id  # noqa: PLC0415 - at the head it would close a circle: scores.export -> intake -> intake.batch -> scores -> scores.export
 
     owner: dict[int, str] = {}
     by_sub = roster.by_submission()

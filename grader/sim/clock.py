@@ -118,9 +118,9 @@ class SimClock:
     def attach(self, node: Any) -> None:
         """Create the ``/clock`` publisher (the ROS clock QoS: best effort, depth 1) and the
         node's ``~/hold_clock`` service."""
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
-        from rosgraph_msgs.msg import Clock
-        from std_srvs.srv import SetBool, Trigger
+        from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: PLC0415 - rclpy.qos: ROS, imported where it is used (this module loads in processes that never use it)
+        from rosgraph_msgs.msg import Clock  # noqa: PLC0415 - rosgraph_msgs.msg: ROS, imported where it is used (this module loads in processes that never use it)
+        from std_srvs.srv import SetBool, Trigger  # noqa: PLC0415 - std_srvs.srv: ROS, imported where it is used (this module loads in processes that never use it)
 
         self._msg = Clock()
         self._pub = node.create_publisher(Clock, CLOCK_TOPIC,
@@ -156,8 +156,8 @@ class SimClock:
 def make_clock_node(context: Any, time_scale: float) -> Any:
     """The clock of a scenario without a simulator: node ``grader_clock`` publishing ``/clock``
     (same ticks, same holds), nothing else."""
-    from rclpy.clock import Clock, ClockType
-    from rclpy.node import Node
+    from rclpy.clock import Clock, ClockType  # noqa: PLC0415 - rclpy.clock: ROS, imported where it is used (this module loads in processes that never use it)
+    from rclpy.node import Node  # noqa: PLC0415 - rclpy.node: ROS, imported where it is used (this module loads in processes that never use it)
 
     node = Node(CLOCK_NODE, context=context, start_parameter_services=False)
     clock = SimClock(time_scale)

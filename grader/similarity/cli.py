@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import argparse
 from pathlib import Path
 
@@ -43,9 +44,7 @@ def grade_settings(args: argparse.Namespace):
 def after_grading(out: Path, rubric, settings) -> None:
     """Similarity of the batch after `grader grade`/`grader merge` (seconds for a class): never
     fails the grading; a problem is one line on stderr. ``settings``: ``grade_settings(args)``."""
-    import sys
-
-    from grader.similarity.run import graded_ids, run_similarity
+    from grader.similarity.run import graded_ids, run_similarity  # noqa: PLC0415 - similarity.run loads pandas, numpy (424 ms CPU), only on this path
 
     if settings is None or len(graded_ids(out)) < 2:
         return
@@ -86,7 +85,7 @@ def _share(text: str) -> float:
 
 
 def settings_from(args: argparse.Namespace):
-    from grader.similarity.run import Settings
+    from grader.similarity.run import Settings  # noqa: PLC0415 - similarity.run loads pandas, numpy (424 ms CPU), only on this path
 
     for d in args.boilerplate:
         if not Path(d).is_dir():
@@ -123,7 +122,7 @@ def print_summary(summary: dict, out: Path) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from grader.similarity.run import run_similarity
+    from grader.similarity.run import run_similarity  # noqa: PLC0415 - similarity.run loads pandas, numpy (424 ms CPU), only on this path
 
     if not args.out.is_dir():
         raise GraderError(f"{args.out} is not a folder (give the output folder of `grader grade`)")

@@ -82,7 +82,7 @@ def _regions_html(text: str, slices: list) -> str:
 
 
 def _source_section(p: Mapping[str, Any], sets: Mapping[str, Any]) -> str:
-    from grader.similarity.code import matched_regions
+    from grader.similarity.code import matched_regions  # noqa: PLC0415 - similarity.code loads numpy (147 ms CPU), only on this path
 
     a, b = sets.get(p["a"]), sets.get(p["b"])
     if a is None or b is None or not p.get("shared_fingerprints"):
@@ -105,7 +105,7 @@ def _source_section(p: Mapping[str, Any], sets: Mapping[str, Any]) -> str:
 
 
 def _behaviour_section(p: Mapping[str, Any], summary: Mapping[str, Any]) -> str:
-    from grader.similarity.figures import overlay_figures
+    from grader.similarity.figures import overlay_figures  # noqa: PLC0415 - similarity.figures loads pandas, matplotlib, numpy (424 ms CPU), only on this path
 
     if p.get("known"):
         return ('<section aria-labelledby="beh-h"><h2 id="beh-h">Behaviour</h2><p>A known solution has no '
@@ -138,7 +138,7 @@ def _behaviour_section(p: Mapping[str, Any], summary: Mapping[str, Any]) -> str:
 
 def render_pair(p: Mapping[str, Any], summary: Mapping[str, Any], out: Path) -> str:
     """The self-contained side-by-side page of one listed pair."""
-    from grader.report.style import CSS
+    from grader.report.style import CSS  # noqa: PLC0415 - report.style loads pandas, numpy (424 ms CPU), only on this path
 
     title = f"{_name(p['a'])} and {_name(p['b'])}: what is similar"
     group = ""

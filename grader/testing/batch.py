@@ -44,8 +44,8 @@ def layout(bags_root: Path, out: Path, only: list[str] | None = None) -> list[st
 def recorded_batch(bags_root: Path, out: Path, rubric: Any, only: list[str] | None = None) -> list[Any]:
     """Regrade every submission laid out from ``bags_root`` into ``out``; the GradedSubmissions.
     Items whose scenario has no recording come out "not checked" (error)."""
-    from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import regrade_submission
+    from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
+    from grader.grading.pipeline import regrade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     graded = [regrade_submission(out / sid, rubric) for sid in layout(bags_root, out, only)]
     write_batch_outputs(out, rubric)
@@ -58,9 +58,9 @@ def recorded_intake(arrivals: list[Any], bags: dict[str, Path], out: Path, rubri
     for the build and the scenarios: each gradable arrival's recordings (``bags[arrival.id]``, a
     folder of ``<scenario>/bag``) are laid out under its id with its arrival record, then
     regraded. The GradedSubmissions."""
-    from grader.grading.outputs import write_batch_outputs
-    from grader.grading.pipeline import regrade_submission
-    from grader.intake.model import write_record
+    from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
+    from grader.grading.pipeline import regrade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
+    from grader.intake.model import write_record  # noqa: PLC0415 - intake.model loads pandas, numpy (424 ms CPU), only on this path
 
     graded = []
     for arrival in (a for a in arrivals if a.gradable):

@@ -15,8 +15,8 @@ def rclpy_node(domain_id: int, name: str = "test_client") -> Iterator[tuple]:
     A private context (not ``rclpy.init()``) lets one test process talk to several isolated
     graphs and never leaks global state between tests.
     """
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
+    import rclpy  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
 
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=domain_id)

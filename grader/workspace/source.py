@@ -136,8 +136,6 @@ def _build_type(package_xml: Path) -> str:
 
 
 def _package_name(package_xml: Path) -> str:
-    import re
-
     m = re.search(r"<name>\s*([^<\s]+)\s*</name>", package_xml.read_text(errors="replace"))
     if not m:
         raise GraderError(f"{package_xml} has no <name> element; every ROS package needs one.")

@@ -25,7 +25,7 @@ def _grep(pattern: str) -> list[str]:
 
 def test_each_shared_value_is_defined_once() -> None:
     assert _grep(r"11\.0888") == ["contracts/world.py:9"]
-    assert _grep(r"^def jsonable\b") == ["contracts/jsonable.py:14"]
+    assert [hit.split(":")[0] for hit in _grep(r"^def jsonable\b")] == ["contracts/jsonable.py"]
     assert _grep(r"^STATUSES\s*=") == ["contracts/status.py:6"]
     assert [hit.split(":")[0] for hit in _grep(r"^class Goal\b")] == ["contracts/fields.py"]
     assert _grep(r"\bresult: Any\b") == []

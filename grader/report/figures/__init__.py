@@ -82,7 +82,7 @@ class FigureContext:
         """A new matplotlib Figure (no pyplot, so no global state) titled ``title`` (what to look
         at), and its axes; ``legend_width`` inches on the right are kept for a legend placed with
         ``ax.legend(**OUTSIDE)`` (from ``grader.report.figures._mpl``)."""
-        from grader.report.figures._mpl import new_figure
+        from grader.report.figures._mpl import new_figure  # noqa: PLC0415 - report.figures._mpl loads matplotlib (311 ms CPU), only on this path
 
         return new_figure(title, size, nrows, ncols, legend_width, **kwargs)
 
@@ -147,7 +147,7 @@ def figures_for(ctx: FigureContext, uid: str) -> tuple[list[RenderedFigure], lis
     fns = _FIGURES.get(ctx.item.analyzer or "", [])
     if not fns or not ctx.evidence:
         return [], []
-    from grader.report.figures._mpl import report_style, to_svg
+    from grader.report.figures._mpl import report_style, to_svg  # noqa: PLC0415 - report.figures._mpl loads matplotlib (311 ms CPU), only on this path
 
     out: list[RenderedFigure] = []
     errors: list[str] = []

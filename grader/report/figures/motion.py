@@ -22,7 +22,7 @@ def _path(evidence: Mapping[str, Any]) -> tuple[list[float], list[float]] | None
 
 
 def _world(ax: Any) -> None:
-    from matplotlib.patches import Rectangle
+    from matplotlib.patches import Rectangle  # noqa: PLC0415 - matplotlib.patches: 311 ms CPU to import, paid only on this path
 
     ax.add_patch(Rectangle((0, 0), WORLD_SIZE_M, WORLD_SIZE_M, fill=False, ec="#555555", lw=1.2, label="walls"))
     ax.set(xlim=(-0.3, WORLD_SIZE_M + 0.3), ylim=(-0.3, WORLD_SIZE_M + 0.3), xlabel="x (m)", ylabel="y (m)", aspect="equal")
@@ -35,7 +35,7 @@ def fitted_circle(ctx: FigureContext) -> Plot | None:
     radius = num(ctx.evidence.get("radius_m"))
     if pts is None or not centre or len(centre) != 2 or radius is None:
         return None
-    from matplotlib.patches import Circle
+    from matplotlib.patches import Circle  # noqa: PLC0415 - matplotlib.patches: 311 ms CPU to import, paid only on this path
 
     expected = num(ctx.param("expected_m"))
     title = "The path should lie on the fitted circle, whose radius should be the expected one"

@@ -14,7 +14,7 @@ from grader.errors import GraderError
 from grader.audit.mutate import OPERATORS
 from grader.audit.report import text_summary
 from grader.audit.run import choose, find_reference, run_audit
-from grader.grading.cli import _positive, _time_scale_option
+from grader.commands.options import positive as _positive, time_scale_option as _time_scale_option
 from grader.labs import CHECKOUT
 from grader.rubric.guide import json_schema, refresh
 from grader.rubric.load import load_rubric, display_path
@@ -164,7 +164,7 @@ def run_audit_cli(args: argparse.Namespace) -> int:
 
 
 def run_collateral_cli(args: argparse.Namespace) -> int:
-    from grader.audit.collateral import run_collateral, text_summary
+    from grader.audit.collateral import run_collateral, text_summary  # noqa: PLC0415 - audit.collateral loads pandas, numpy (424 ms CPU), only on this path
 
     out = args.out or Path(f"collateral-{load_rubric(args.rubric).lab}")
 

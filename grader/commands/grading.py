@@ -9,12 +9,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from grader.errors import GraderError
-from grader.contracts.speed import DEFAULT_TIME_SCALE, MIN_CPUS_FOR_DEFAULT
 from grader import api
+from grader.commands.options import positive as _positive, time_scale_option as _time_scale_option
 from grader.cache.store import parse_size
 from grader.grading.provenance import by_other_grader
 from grader.labs import rubric_for_lab
-from grader.sim.cli import MAX_TIME_SCALE
 from grader.similarity.cli import add_grade_options, grade_settings
 
 if TYPE_CHECKING:
@@ -94,7 +93,7 @@ def _size(text: str) -> str:
 
 
 def _intake_options(g: argparse.ArgumentParser) -> None:
-    from grader.intake.batch import KINDS
+    from grader.intake.batch import KINDS  # noqa: PLC0415 - intake.batch loads pandas, numpy (424 ms CPU), only on this path
 
     g.add_argument("--roster", type=Path, help="roster CSV (Canvas gradebook export, Gradescope roster, any "
                                                "CSV): each submission is matched to a student")
@@ -107,35 +106,6 @@ def _intake_options(g: argparse.ArgumentParser) -> None:
     g.add_argument("--due", metavar="DATE",
                    help="replaces the due date of the rubric's late policy, e.g. '2025-02-14 23:59'")
     g.add_argument("--timezone", metavar="ZONE", help="time zone of --due (default: the rubric's), e.g. America/New_York")
-
-
-def _time_scale_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--time-scale", type=_time_scale, default=None, metavar="K",
-                        help="run scenarios K times faster than real time on simulated time, each one "
-                             "that may: a node paced by the wall clock runs at 1x, and the result says "
-                             f"so (default {DEFAULT_TIME_SCALE:g} on a grader given {MIN_CPUS_FOR_DEFAULT:g} "
-                             "CPUs or more, else 1; 1: real time)")
-
-
-def _time_scale(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = 0.0
-    if not 1.0 <= value <= MAX_TIME_SCALE:
-        raise argparse.ArgumentTypeError(f"expected a speed-up between 1 and {MAX_TIME_SCALE:g} (e.g. 4), "
-                                         f"got {text!r}")
-    return value
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
 
 
 def _shard(text: str) -> tuple[int, int]:
@@ -227,7 +197,7 @@ def run_grade(args: argparse.Namespace) -> int:
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from grader.grading.outputs import print_check_table, print_contract
+    from grader.grading.outputs import print_check_table, print_contract  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
 
     if args.rubric is None and args.lab is None:
         raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
