@@ -181,7 +181,7 @@ def _load_file(path: str | Path) -> tuple[str, ...]:
     if not defined and not _defines_figures(module_name):
         sys.modules.pop(module_name, None)
         raise PluginError(f"{path.name} defines no analyzer and no figure (decorate a function with "
-                          "@register(\"name\", defaults={...}) from grader.analyze)")
+                          "@register(\"name\", params=MyParams) from grader.analyze)")
     _FILES[path] = LoadedFile(digest, module_name, defined, stamp)
     return defined
 
