@@ -39,13 +39,14 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Callable, Mapping
 
 import pandas as pd
+from pydantic import ValidationError
 
 from grader.analyze.plugins import load_builtin_and_installed
 from grader.analyze.registry import (_DEFAULTS, _EXPECT, _JUDGES, _LABELS, _ORIGIN, _PARAMS, _REGISTRY,
                                      _TIMING, DuplicateAnalyzer, _defining, forget)
 from grader.errors import GraderError
 from grader.contracts.jsonable import jsonable
-from grader.contracts.params import AnalyzerParams, default_values, problems
+from grader.contracts.params import AnalyzerParams, default_values, explained
 from grader.contracts.status import STATUSES
 
 __all__ = ["Finding", "register", "get", "names", "forget", "defaults", "required", "run", "jsonable", "STATUSES",
@@ -149,8 +150,8 @@ def register(name: str, defaults: Mapping[str, Any] | None = None, *,
         @functools.wraps(fn)
         def wrapper(frames: Frames, given_params: Mapping[str, Any] | None = None) -> Finding:
             given = dict(given_params or {})
-            merged = _checked(name, dflt, params, given)
-            finding = fn(frames, params.model_validate(given) if params is not None  # type: ignore[arg-type]
+            merged = _checked(name, dflt, given)
+            finding = fn(frames, _validated(name, params, given) if params is not None
                          else copy.deepcopy(merged))        # analyzers may not mutate shared defaults
             finding.params = jsonable(merged)            # every threshold that decided it
             if isinstance(finding, Finding) and "scenario_start" not in finding.evidence:
@@ -185,10 +186,9 @@ def _declared_defaults(model: type[AnalyzerParams]) -> dict[str, Any]:
     return {key: declared.get(key, REQUIRED) for key in model.model_fields}
 
 
-def _checked(name: str, dflt: Mapping[str, Any], model: type[AnalyzerParams] | None,
-             given: Mapping[str, Any]) -> dict[str, Any]:
+def _checked(name: str, dflt: Mapping[str, Any], given: Mapping[str, Any]) -> dict[str, Any]:
     """``given`` over the defaults, as the rubric wrote them; GraderError for an unknown or
-    missing parameter, or (with a model) a value it refuses."""
+    missing parameter."""
     unknown = sorted(set(given) - set(dflt))
     if unknown:
         raise GraderError(f"analyzer {name!r}: unknown parameter(s) {', '.join(unknown)}; "
@@ -196,10 +196,16 @@ def _checked(name: str, dflt: Mapping[str, Any], model: type[AnalyzerParams] | N
     missing = sorted(k for k, v in dflt.items() if v is REQUIRED and k not in given)
     if missing:
         raise GraderError(f"analyzer {name!r} needs the parameter(s) {', '.join(missing)}")
-    wrong = problems(model, given) if model is not None else []
-    if wrong:
-        raise GraderError(f"analyzer {name!r}: " + "; ".join(f"{key}: {why}" for key, why in wrong))
     return {**copy.deepcopy(dict(dflt)), **given}
+
+
+def _validated(name: str, model: type[AnalyzerParams], given: Mapping[str, Any]) -> AnalyzerParams:
+    """The model of ``given`` (validated once); GraderError naming each value it refuses."""
+    try:
+        return model.model_validate(dict(given))
+    except ValidationError as exc:
+        wrong = explained(model, exc)
+        raise GraderError(f"analyzer {name!r}: " + "; ".join(f"{key}: {why}" for key, why in wrong)) from None
 
 
 def _load_all() -> None:

@@ -21,7 +21,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 from pydantic.fields import FieldInfo
 from pydantic_core import ErrorDetails
 
-__all__ = ["AnalyzerParams", "bounds", "default_values", "problems", "type_words"]
+__all__ = ["AnalyzerParams", "bounds", "default_values", "explained", "problems", "type_words"]
 
 
 class AnalyzerParams(BaseModel):
@@ -84,9 +84,14 @@ def problems(model: type[AnalyzerParams], given: Mapping[str, object]) -> list[t
     try:
         model.model_validate(dict(given))
     except ValidationError as exc:
-        return [_problem(model, error) for error in exc.errors()
-                if error["type"] not in ("missing", "extra_forbidden")]
+        return explained(model, exc)
     return []
+
+
+def explained(model: type[AnalyzerParams], exc: ValidationError) -> list[tuple[str, str]]:
+    """:func:`problems` of an error the caller's own validation raised (it validated once)."""
+    return [_problem(model, error) for error in exc.errors()
+            if error["type"] not in ("missing", "extra_forbidden")]
 
 
 def _problem(model: type[AnalyzerParams], error: ErrorDetails) -> tuple[str, str]:
