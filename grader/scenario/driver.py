@@ -24,7 +24,7 @@ from typing import Any, Callable, Iterator
 from grader.executors import make_executor
 from grader.runner import ManagedProcess
 from grader.contracts.events import EVENTS_TOPIC, STDOUT_TOPIC, Event, EventRecord, build_event
-from grader.scenario.graph_queries import GRADER_NODE_PREFIX, GraphQueries
+from grader.scenario.graph_queries import GRADER_NODE_PREFIX
 from grader.scenario.watches import TopicWatches
 from grader.scenario.messages import import_type
 from grader.sim.clock import HOLD_SERVICE
@@ -34,7 +34,7 @@ from grader.sim import HOLD_TURTLES_SERVICE
 
 
 
-class Driver(GraphQueries, TopicWatches):
+class Driver(TopicWatches):
     """Owns an rclpy context on the scenario's domain and a background executor thread.
 
     ``time_scale`` > 1: the node runs with ``use_sim_time`` and ``clock`` measures scenario time

@@ -11,11 +11,13 @@ from __future__ import annotations
 import collections
 from typing import Any, Callable
 
+from grader.scenario.graph_queries import GraphQueries
 
-class TopicWatches:
-    """The driver's subscriptions (a base of :class:`grader.scenario.driver.Driver`)."""
 
-    node: Any
+class TopicWatches(GraphQueries):
+    """The driver's subscriptions (a base of :class:`grader.scenario.driver.Driver`; what it asks
+    the graph, ``topic_type``, is :class:`GraphQueries`')."""
+
     clock: Any
     watchdog: Any
     pose: Any
@@ -32,9 +34,6 @@ class TopicWatches:
     _subs: dict[str, Any]
 
     def _import(self, name: str) -> Any:
-        raise NotImplementedError
-
-    def topic_type(self, topic: str, wait_s: float = 0.0) -> str | None:
         raise NotImplementedError
 
     def pose_mark(self, topic: str) -> int:
