@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Annotated, Iterator, Mapping
+from typing import Annotated, Iterator, Mapping, overload
 
 from pydantic import Field, field_validator, model_validator
 
@@ -30,6 +30,10 @@ WHAT = {"packages": "package", "executables": "executable", "nodes": "node", "to
         "services": "service", "actions": "action", "launch_files": "launch file"}
 
 
+@overload
+def _short(value: str | dict[str, JsonValue]) -> dict[str, JsonValue]: ...
+@overload
+def _short(value: object) -> object: ...
 def _short(value: object) -> object:
     """``news: /robot_news`` is ``news: {name: /robot_news}``."""
     return {"name": value} if isinstance(value, str) else value

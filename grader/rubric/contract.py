@@ -24,7 +24,7 @@ import re
 from dataclasses import replace
 from typing import Any, Iterable, Iterator
 
-from grader.contracts.contract import KINDS, REF, TEXT_REF, WHAT, Contract, Mismatch, _a, node_name
+from grader.contracts.contract import KINDS, REF, TEXT_REF, WHAT, Contract, Mismatch, _a, _short, node_name
 from grader.contracts.text import suggest
 
 
@@ -65,7 +65,7 @@ def resolve_references(data: Any) -> tuple[Any, list[tuple[tuple, str]]]:
                 problems.append((("contract", kind, role), f"role {role!r} is already {_a(WHAT[table[role][0]])} "
                                  f"(contract.{table[role][0]}.{role}); a role names one thing"))
                 continue
-            table[role] = (kind, {"name": entry} if isinstance(entry, str) else entry if isinstance(entry, dict) else {})
+            table[role] = (kind, _short(entry) if isinstance(entry, (str, dict)) else {})
     out = dict(data)
     if contract:
         out["contract"] = _resolve_contract(contract, table, problems)
