@@ -1,4 +1,6 @@
-"""The `grader` command. Each subsystem registers its own subcommands (see SUBSYSTEMS)."""
+"""The `grader` command. Each front-end module registers its own subcommands (see SUBSYSTEMS);
+every one of them is in the front-end floor (``grader.commands``, ``grader.lms``, the doctor, set-up),
+none in the engine, which registers no command."""
 
 from __future__ import annotations
 
@@ -9,22 +11,22 @@ import sys
 
 from grader.errors import GraderError
 
-#: modules with a ``register(subparsers)`` function; missing ones are skipped so that a partial
-#: checkout still gives a working CLI for what it has.
+#: modules with a ``register(subparsers)`` function, in the order ``grader --help`` lists their
+#: commands; missing ones are skipped so that a partial checkout still gives a working CLI for
+#: what it has.
 SUBSYSTEMS = (
     "grader.bootstrap",
-    "grader.labs",
+    "grader.commands.labs",
     "grader.doctor",
-    "grader.workspace.cli",
-    "grader.sim.cli",
-    "grader.bag.cli",
+    "grader.commands.build",
+    "grader.commands.sim",
+    "grader.commands.bag",
     "grader.commands.grading",
-    "grader.grading.shards",
-    "grader.cache.cli",
+    "grader.commands.cache",
     "grader.commands.rubric",
-    "grader.scores.cli",
+    "grader.commands.scores",
     "grader.lms.cli",
-    "grader.similarity.cli",
+    "grader.commands.similarity",
 )
 
 

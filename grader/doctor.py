@@ -6,19 +6,12 @@ import argparse
 import importlib
 import os
 import sys
-import tempfile
-import time
 from pathlib import Path
 
 from grader import __version__
-from grader import rclpy_fix
-from grader.rosenv import ros_info
-from grader.sandbox import allotment, protections, sandbox_mode
+from grader.api.machine import (describe_allotment, executor_state, live_selftest, protections, require_complete,
+                                ros_info, sandbox_mode, sandbox_selftest)
 from grader.errors import GraderError
-from grader.runner import ProcessSpec, RosGraph, python_argv
-from grader.sandbox.scenario import require_complete
-from grader.sandbox.selftest import sandbox_selftest
-from grader.contracts.process import Limits
 
 INTERFACE_PACKAGES = ("turtlesim", "std_msgs", "geometry_msgs", "std_srvs", "action_msgs",
                       "rcl_interfaces", "service_msgs")
@@ -38,19 +31,6 @@ def _interface_location(pkg: str) -> str | None:
     return str(Path(mod.__file__).resolve().parent.parent)  # type: ignore[arg-type]  # (a package has a file)
 
 
-def live_selftest(timeout: float) -> tuple[bool, str]:
-    """Start a talker and a listener as separate processes in an isolated graph."""
-    with tempfile.TemporaryDirectory(prefix="grader-doctor-") as tmp, RosGraph(Path(tmp)) as graph:
-        t0 = time.monotonic()
-        graph.start(ProcessSpec("talker", python_argv("grader.selftest", "talk")))
-        listener = graph.start(ProcessSpec("listener", python_argv("grader.selftest", "listen", str(timeout)),
-                                           limits=Limits(wall_s=timeout + 5)))
-        rc = listener.wait(timeout + 10)
-        detail = (listener.output().strip() or listener.errors().strip().splitlines()[-1:] or ["no output"])
-        detail = detail if isinstance(detail, str) else detail[0]
-        return rc == 0, f"{detail} in {time.monotonic() - t0:.1f}s on ROS_DOMAIN_ID {graph.domain_id}"
-
-
 def run(args: argparse.Namespace) -> int:
     ok = True
     info = ros_info()
@@ -59,9 +39,9 @@ def run(args: argparse.Namespace) -> int:
     mode = {"wheels": "PyPI wheels in this venv", "system": "system install (sourced)",
             "missing": "NOT FOUND"}[info["mode"]]
     print(f"ROS 2    {info['distro']} from {mode}; rclpy {info['rclpy']}; RMW {info['rmw']}")
-    executor, sentence = rclpy_fix.state()
+    executor, sentence = executor_state()
     print(f"{'WARN' if executor == 'busy' else 'executor'} {sentence}")
-    print(f"machine  {allotment.describe()}")
+    print(f"machine  {describe_allotment()}")
     discovery = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE",
                                "SUBNET (default; runs use LOCALHOST, or SUBNET in a scenario's own network namespace)")
     print(f"network  discovery range {discovery}")

@@ -11,10 +11,7 @@ time, when only PyYAML is installed, so nothing here imports pandas or rclpy at 
 
 from __future__ import annotations
 
-import argparse
-import json
 import shutil
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -102,30 +99,3 @@ def stage_package_data(checkout: Path, dest: Path) -> list[Path]:
         for ref in referenced_paths(load_rubric(rubric, analyzers=None)):
             sources += sorted(p for p in ref.rglob("*") if p.is_file()) if ref.is_dir() else [ref]
     return sources
-
-
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("labs", help="list the labs this grader has rubrics for",
-                       description="Lists each known lab (id, points, title) and where its rubric is. "
-                                   "Use an id with `grader check --lab ID`.")
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.set_defaults(func=run_labs)
-
-
-def run_labs(args: argparse.Namespace) -> int:
-    labs, broken = known_labs()
-    if args.json:
-        print(json.dumps([{"id": lab.id, "title": lab.title, "points": lab.points,
-                           "auto_points": lab.auto_points, "rubric": str(lab.rubric)} for lab in labs],
-                         indent=1))
-    else:
-        width = max((len(lab.id) for lab in labs), default=2)
-        for lab in labs:
-            print(f"{lab.id:<{width}}  {lab.points:>4g} points ({lab.auto_points:g} automatic)  {lab.title}")
-        if not labs:
-            print(f"no labs found in {rubrics_dir()}")
-        else:
-            print(f"\nrubrics in {rubrics_dir()}; self-check with `grader check --lab {labs[0].id}`")
-    for line in broken:
-        print(f"grader: warning: rubric {line}", file=sys.stderr)
-    return 0 if labs else 1

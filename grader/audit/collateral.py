@@ -23,12 +23,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from grader import analyze
+from grader.api import load_rubric
+from grader.api.rubrics import item_roles, judges
 from grader.audit.aspects import ASPECT_OPERATORS, ASPECTS
 from grader.audit.outcome import AuditReport, Outcome
 from grader.audit.run import run_audit
-from grader.rubric.contract import item_roles
-from grader.rubric.load import load_rubric
 
 #: the contract kinds whose names each name aspect renames
 _NAME_KINDS = {"node names": ("nodes",), "ros names": ("topics", "services", "actions")}
@@ -91,7 +90,7 @@ def items_about(rubric: Any, aspect: str, original: str) -> list[str]:
     roles = roles_named(rubric, aspect, _renamed(original)) if aspect in _NAME_KINDS else set()
     out = []
     for item in rubric.items:
-        if not item.automatic or aspect not in analyze.judges(item.analyzer):
+        if not item.automatic or aspect not in judges(item.analyzer):
             continue
         if aspect in _NAME_KINDS and not roles & item_roles(rubric.contract, item):
             continue

@@ -36,15 +36,12 @@ from grader.audit.mutate import COPY_IGNORE, Mutant, mutants, sample, source_fil
 from grader.audit.outcome import AuditReport, Outcome
 from grader.audit.report import write_report
 from grader.errors import GraderError
-from grader.grading.timescale import machine_time_scale
-from grader.grading.batch import grade_batch
-from grader.grading.schedule import Slots
-from grader.rubric.load import display_path, load_rubric
-from grader.scenario.model import Scenario
-from grader.workspace.source import find_packages
+from grader.api import load_rubric
+from grader.api.batch import Slots, find_packages, grade_batch, machine_time_scale
+from grader.api.rubrics import Scenario, display_path
 
 if TYPE_CHECKING:
-    from grader.grading.graded import GradedSubmission
+    from grader.api.batch import GradedSubmission
 
 REFERENCE_ID = "reference"
 _EPS = 1e-6
@@ -100,7 +97,7 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     write ``audit.json`` and ``audit.md`` into ``out``. ``regrade``: grade the recordings
     already in ``out`` again with the rubric as it is now (offline: after changing items,
     parameters or analyzers; a mutant whose scenario changed must be run again)."""
-    from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
+    from grader.api.pipeline import grade_submission  # noqa: PLC0415 - api.pipeline loads grading.pipeline, pandas, numpy (424 ms CPU), only on this path
 
     time_scale = machine_time_scale(time_scale)
 
@@ -229,8 +226,7 @@ def _with_untouched_support(rubric: Any, reference: Path, chosen: list[Mutant]) 
 def _regrade_all(rubric: Any, graded: Path, ids: list[str], say: Callable[[str], None]) -> None:
     """Analyze and score the recorded mutants again (no ROS); refuse recordings of a scenario
     that is not the rubric's any more."""
-    from grader.grading.analysis import SCENARIOS_DIR  # noqa: PLC0415 - grading.analysis loads pandas, numpy (424 ms CPU), only on this path
-    from grader.grading.pipeline import regrade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
+    from grader.api.pipeline import SCENARIOS_DIR, regrade_submission  # noqa: PLC0415 - api.pipeline loads grading.pipeline, pandas, numpy (424 ms CPU), only on this path
 
     stale = []
     for sid in ids:

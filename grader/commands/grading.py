@@ -1,4 +1,5 @@
-"""`grader grade` (instructor batch), `grader check` (student self-check), `grader regrade` (offline)."""
+"""`grader grade` (instructor batch), `grader check` (student self-check), `grader regrade` (offline),
+`grader merge` (the shards of a batch graded on several machines)."""
 
 from __future__ import annotations
 
@@ -10,14 +11,13 @@ from typing import TYPE_CHECKING, Any
 
 from grader.errors import GraderError
 from grader import api
+from grader.api.batch import INTAKE_KINDS, by_other_grader, parse_size
+from grader.api.rubrics import rubric_for_lab
 from grader.commands.options import positive as _positive, time_scale_option as _time_scale_option
-from grader.cache.store import parse_size
-from grader.grading.provenance import by_other_grader
-from grader.labs import rubric_for_lab
-from grader.similarity.cli import add_grade_options, grade_settings
+from grader.commands.similarity import add_grade_options, grade_settings, say_comparison
 
 if TYPE_CHECKING:
-    from grader.grading.graded import GradedSubmission
+    from grader.api.batch import GradedSubmission
 
 
 #: `grader check`'s exit status when an item could not be measured because the machine was
@@ -77,6 +77,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--rubric", type=Path, required=True)
     r.set_defaults(func=run_regrade)
 
+    m = sub.add_parser("merge", help="combine the outputs of `grader grade --shard` runs",
+                       description="Copy the submissions of several grading outputs (shards) into one, "
+                                   "then rebuild grades.csv and index.html.")
+    m.add_argument("parts", type=Path, nargs="+", help="the shard outputs OUT_1 ... OUT_N")
+    m.add_argument("-o", "--out", type=Path, required=True)
+    m.add_argument("--rubric", type=Path, required=True, help="the rubric every shard was graded with")
+
+    add_grade_options(m)
+    m.set_defaults(func=run_merge)
+
 
 def _cache_cap_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache-max-size", type=_size, default=None, metavar="SIZE",
@@ -93,15 +103,13 @@ def _size(text: str) -> str:
 
 
 def _intake_options(g: argparse.ArgumentParser) -> None:
-    from grader.intake.batch import KINDS  # noqa: PLC0415 - intake.batch loads pandas, numpy (424 ms CPU), only on this path
-
     g.add_argument("--roster", type=Path, help="roster CSV (Canvas gradebook export, Gradescope roster, any "
                                                "CSV): each submission is matched to a student")
     g.add_argument("--map", action="append", default=[], metavar="FIELD=COLUMN[,...]",
                    help="which roster column holds what (as for `grader scores export`)")
     g.add_argument("--classroom-prefix", metavar="PREFIX",
                    help="GitHub Classroom clones: the assignment prefix (lab3- for lab3-alice -> alice)")
-    g.add_argument("--intake", choices=KINDS, default="auto",
+    g.add_argument("--intake", choices=INTAKE_KINDS, default="auto",
                    help="what SUBMISSIONS is (default: recognised by its shape)")
     g.add_argument("--due", metavar="DATE",
                    help="replaces the due date of the rubric's late policy, e.g. '2025-02-14 23:59'")
@@ -184,6 +192,7 @@ def run_grade(args: argparse.Namespace) -> int:
     finally:
         if progress is not None:
             progress.close()
+    say_comparison(args.out, batch.similarity)
     for sid, msg in batch.failures.items():
         print(f"grader: {sid}: {msg}", file=sys.stderr)
     for name, why in batch.refused.items():
@@ -197,24 +206,40 @@ def run_grade(args: argparse.Namespace) -> int:
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from grader.grading.outputs import print_check_table, print_contract  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
+    from grader.api.pipeline import check_table, contract_lines  # noqa: PLC0415 - api.pipeline loads grading.pipeline, pandas, numpy (424 ms CPU), only on this path
 
     if args.rubric is None and args.lab is None:
         raise GraderError("say which lab to check: --lab enee467-lab3 (or --rubric FILE).")
     rubric = api.load_rubric(args.rubric or rubric_for_lab(args.lab))
-    print_contract(rubric)
+    names = contract_lines(rubric)
+    if names:
+        print("\n".join(names))
     progress = Progress(1)
     graded = api.check(args.workspace, rubric=rubric, out=args.out, jobs=args.jobs, cache_dir=args.cache_dir,
                        reuse=not args.no_reuse, time_scale=args.time_scale, cache_max_size=args.cache_max_size,
-                       progress=progress.status)
+                       progress=progress.status, on_notice=_notice)
     progress.close()
-    ok = print_check_table(graded, rubric)
+    ok, table = check_table(graded, rubric)
+    print("\n".join(table))
     print(f"report: {graded.out / 'report.html'}")
     if graded.result.starved:
         print(f"not measured: {len(graded.result.starved)} item(s) ({', '.join(graded.result.starved)}) need a "
               "quieter machine: it was too busy to measure their timing; run `grader check` again when it is quiet")
         return STARVED_EXIT
     return 0 if ok else 1
+
+
+def _notice(text: str) -> None:
+    print(f"grader: {text}", file=sys.stderr)
+
+
+def run_merge(args: argparse.Namespace) -> int:
+    rubric = api.load_rubric(args.rubric)
+    similarity = grade_settings(args)
+    merged = api.merge(args.parts, args.out, rubric, similarity=similarity)
+    say_comparison(args.out, merged.similarity)
+    print(f"merged {len(merged.merged)} submissions from {len(args.parts)} outputs into {args.out}")
+    return 0
 
 
 def run_regrade(args: argparse.Namespace) -> int:

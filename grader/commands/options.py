@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from grader.contracts.speed import DEFAULT_TIME_SCALE, MIN_CPUS_FOR_DEFAULT
-from grader.sim.cli import MAX_TIME_SCALE
+from grader.contracts.speed import DEFAULT_TIME_SCALE, MAX_TIME_SCALE, MIN_CPUS_FOR_DEFAULT
 
 
 def time_scale_option(parser: argparse.ArgumentParser) -> None:

@@ -1,7 +1,7 @@
 """``grader rubric ...``: the rubric tools' command line. ``check``, ``schema`` and ``guide`` over
 ``grader.rubric`` (load, the JSON Schema, the guide's generated tables), ``audit`` and
 ``collateral`` over ``grader.audit.run`` and ``grader.audit.collateral``. A front-end: the
-rubric floor below it registers no command."""
+rubric floor below it registers no command, and this reaches it through ``grader.api``."""
 
 from __future__ import annotations
 
@@ -15,9 +15,8 @@ from grader.audit.mutate import OPERATORS
 from grader.audit.report import text_summary
 from grader.audit.run import choose, find_reference, run_audit
 from grader.commands.options import positive as _positive, time_scale_option as _time_scale_option
-from grader.labs import CHECKOUT
-from grader.rubric.guide import json_schema, refresh
-from grader.rubric.load import load_rubric, display_path
+from grader.api import load_rubric
+from grader.api.rubrics import CHECKOUT, display_path, json_schema, refresh_guide
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -48,7 +47,7 @@ def _run_schema(args: argparse.Namespace) -> int:
 
 def _run_guide(args: argparse.Namespace) -> int:
     readme = args.readme or CHECKOUT / "rubrics" / "README.md"
-    changed = refresh(readme, check=args.check)
+    changed = refresh_guide(readme, check=args.check)
     if args.check and changed:
         print(f"{readme}: stale generated part(s): {', '.join(changed)} (run grader rubric guide)")
         return 1

@@ -21,6 +21,9 @@ DEFAULT_TIME_SCALE = 4.0
 #: default container (0.5 CPU, 768 MB) every 4x recording of the Lab 3 reference starved (the
 #: simulator waited 0.72-0.94 s per second for a CPU) and went again at 1x, which only cost time
 MIN_CPUS_FOR_DEFAULT = 2.0
+#: the fastest ``--time-scale`` taken (``grader sim`` and the grading commands): beyond this a
+#: 16 ms tick lasts under 1 ms of wall time: no Python node keeps up
+MAX_TIME_SCALE = 16.0
 
 
 def default_time_scale(cpus: float) -> float:

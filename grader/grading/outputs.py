@@ -1,5 +1,5 @@
 """Writing a graded submission (result.json, report.html) and a batch (grades.csv, index.html),
-and the self-check table printed by `grader check`."""
+and the self-check table `grader check` prints (its lines: the engine prints nothing)."""
 
 from __future__ import annotations
 
@@ -104,18 +104,20 @@ def write_batch_outputs(out: Path, rubric: Rubric) -> None:
         write_batch(out, rubric)
 
 
-def print_check_table(graded: GradedSubmission, rubric: Rubric) -> bool:
-    """The self-check table; True when every public auto item passed."""
+def check_table(graded: GradedSubmission, rubric: Rubric) -> tuple[bool, list[str]]:
+    """The self-check table, as the lines ``grader check`` prints (the engine prints nothing);
+    True when every public auto item passed."""
+    out: list[str] = []
     result = graded.result
     rows = [i for i in result.items if i.kind != "manual"]
     width = max((len(i.id) for i in rows), default=10)
-    print(f"\n{rubric.title}: self-check ({result.auto_score:g}/{result.auto_max:g} points on public items)\n")
+    out.append(f"\n{rubric.title}: self-check ({result.auto_score:g}/{result.auto_max:g} points on public items)\n")
     for m in result.contract:
         blocks = f" Blocks: {', '.join(m.blocks)}." if m.blocks else ""
         for k, line in enumerate(_wrap(m.feedback + blocks, 92)):
-            print(f"  {'NAME' if k == 0 else '    '}  {line}")
+            out.append(f"  {'NAME' if k == 0 else '    '}  {line}")
     if result.contract:
-        print()
+        out.append("")
     ok = True
     marks = {"pass": "PASS", "partial": "PART", "fail": "FAIL", "error": "ERR "}
 
@@ -124,7 +126,7 @@ def print_check_table(graded: GradedSubmission, rubric: Rubric) -> bool:
         mark = marks.get(item.status, item.status.upper()[:4])
         pts = "" if item.kind in ("advisory", "integrity") else f"{(item.points or 0):g}/{item.max_points:g}"
         label = "warn" if item.kind == "advisory" and item.status != "pass" else mark
-        print(f"  {label:4}  {item.id:<{width}}  {pts:>7}  {item.title}")
+        out.append(f"  {label:4}  {item.id:<{width}}  {pts:>7}  {item.title}")
         if item.status != "pass":
             # what was measured against what was expected, then the feedback and the hint
             lead = measured_sentence(item, item_params(item, params.get(item.id)), student_view=True)
@@ -132,32 +134,35 @@ def print_check_table(graded: GradedSubmission, rubric: Rubric) -> bool:
             if item.hint:
                 text = (text + " Hint: " + item.hint).strip()
             for line in _wrap(text, 92):
-                print(f"        {line}")
+                out.append(f"        {line}")
         if item.kind == "auto" and item.status != "pass":
             ok = False
     for sc_id, src in (getattr(graded, "reused", {}) or {}).items():
-        print(f"\n  note: scenario {sc_id} was not run again: nothing it runs changed since "
-              f"{src.get('recorded', 'an earlier run')} (its recording was reused; --no-reuse runs it)")
+        out.append(f"\n  note: scenario {sc_id} was not run again: nothing it runs changed since "
+                   f"{src.get('recorded', 'an earlier run')} (its recording was reused; --no-reuse runs it)")
     for line in (time_scale_notes(getattr(graded, "time_scales", {}) or {})
                  + early_end_notes(getattr(graded, "ended_early", {}) or {})):
-        print(f"\n  note: {line}")
+        out.append(f"\n  note: {line}")
     for err in graded.errors:
-        print(f"\n  problem: {err.splitlines()[0]}")
-    print("\nAll public checks pass." if ok else "\nSome checks do not pass yet (see above).")
-    return ok
+        out.append(f"\n  problem: {err.splitlines()[0]}")
+    out.append("\nAll public checks pass." if ok else "\nSome checks do not pass yet (see above).")
+    return ok, out
 
 
-def print_contract(rubric: Rubric) -> None:
-    """What the lab fixes, before a self-check runs: the names to use exactly."""
+def contract_lines(rubric: Rubric) -> list[str]:
+    """What the lab fixes, before a self-check runs: the names to use exactly (the lines ``grader
+    check`` prints; none when the lab fixes no names)."""
+    out: list[str] = []
     lines = rubric.contract.lines()
     if not lines:
-        return
-    print(f"{rubric.title}\nNames this lab fixes (use them exactly; everything else is found by what it does):")
+        return out
+    out.append(f"{rubric.title}\nNames this lab fixes (use them exactly; everything else is found by what it does):")
     width = max(len(what) for what, _, _, _ in lines)
     names = max(len(name) for _, name, _, _ in lines)
     for what, name, use, _why in lines:
-        print(f"  {what:<{width}}  {name:<{names}}  {use}".rstrip())
-    print()
+        out.append(f"  {what:<{width}}  {name:<{names}}  {use}".rstrip())
+    out.append("")
+    return out
 
 
 def early_end_notes(ended_early: dict[str, list[dict]]) -> list[str]:

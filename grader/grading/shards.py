@@ -3,13 +3,13 @@
 ``grader grade ... --shard K/N`` grades the submissions whose id hashes to K (of N), so N jobs of
 a Slurm array, N Gradescope-free cluster nodes or N CI runners split a class without talking to
 each other; ``grader merge OUT_1 ... OUT_N -o OUT`` copies their submission folders into one
-output and rebuilds ``grades.csv`` and ``index.html``. The split is stable (sha-256 of the id):
+output and rebuilds ``grades.csv`` and ``index.html`` (``grader.api.merge``; the command is
+``grader.commands.grading``'s). The split is stable (sha-256 of the id):
 the same submission always lands in the same shard, whatever else is in the folder.
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import shutil
@@ -17,8 +17,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from grader.errors import GraderError
-from grader.rubric.load import load_rubric
-from grader.similarity.cli import add_grade_options, after_grading, grade_settings
 
 if TYPE_CHECKING:
     from grader.rubric.schema import Rubric
@@ -75,27 +73,3 @@ def merge_outputs(parts: list[Path], out: Path, rubric: Rubric) -> list[str]:
     for sid, sub in plan.items():
         shutil.copytree(sub, out / sid, symlinks=True)
     return sorted(plan)
-
-
-def register(sub: argparse._SubParsersAction) -> None:
-    m = sub.add_parser("merge", help="combine the outputs of `grader grade --shard` runs",
-                       description="Copy the submissions of several grading outputs (shards) into one, "
-                                   "then rebuild grades.csv and index.html.")
-    m.add_argument("parts", type=Path, nargs="+", help="the shard outputs OUT_1 ... OUT_N")
-    m.add_argument("-o", "--out", type=Path, required=True)
-    m.add_argument("--rubric", type=Path, required=True, help="the rubric every shard was graded with")
-
-    add_grade_options(m)
-    m.set_defaults(func=run_merge)
-
-
-def run_merge(args: argparse.Namespace) -> int:
-    from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
-
-    rubric = load_rubric(args.rubric)
-    similarity = grade_settings(args)
-    merged = merge_outputs(args.parts, args.out, rubric)
-    write_batch_outputs(args.out, rubric)
-    after_grading(args.out, rubric, similarity)
-    print(f"merged {len(merged)} submissions from {len(args.parts)} outputs into {args.out}")
-    return 0

@@ -38,11 +38,9 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from grader.errors import GraderError
-from grader.grading.starvation import REGRADE_TIME_SCALE
-from grader.rubric.load import load_rubric
-from grader.sandbox import protections
-from grader.workspace.build import build_support
-from grader.workspace.source import is_archive
+from grader.api import load_rubric
+from grader.api.batch import REGRADE_TIME_SCALE, build_support, is_archive
+from grader.api.machine import protections
 
 SCHEMA = Path(__file__).resolve().parent / "gradescope.schema.json"
 #: the folder under the autograder root where grader keeps its own outputs (result.json, bags)
@@ -63,7 +61,7 @@ def _measured(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:.4g}" if math.isfinite(value) else str(value)
     if isinstance(value, (dict, list, tuple)):
-        from grader.report.result import jsonable  # noqa: PLC0415 - report.result loads pandas, numpy (424 ms CPU), only on this path
+        from grader.contracts.jsonable import jsonable  # noqa: PLC0415 - contracts.jsonable loads pandas, numpy (424 ms CPU), only on this path
 
         text = json.dumps(jsonable(value), ensure_ascii=False)
         return text if len(text) <= 400 else text[:397] + "..."
@@ -164,7 +162,7 @@ def find_submission(folder: Path) -> Path:
 
 
 def write_json(path: Path, doc: Mapping[str, Any]) -> None:
-    from grader.report.result import atomic_write  # noqa: PLC0415 - report.result loads pandas, numpy (424 ms CPU), only on this path
+    from grader.api.pipeline import atomic_write  # noqa: PLC0415 - api.pipeline loads grading.pipeline, pandas, numpy (424 ms CPU), only on this path
 
     atomic_write(path, json.dumps(doc, indent=1, allow_nan=False, ensure_ascii=False) + "\n")
 
@@ -187,7 +185,7 @@ def prepare_image(root: Path, rubric_path: Path, *, cache_dir: Path | None = Non
 def run(root: Path, rubric_path: Path, *, cache_dir: Path | None = None) -> dict[str, Any]:
     """Grade ``root/submission`` and write ``root/results/results.json``; returns the document.
     ``cache_dir`` defaults to the image's ``root/grader-cache`` (support packages pre-built)."""
-    from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
+    from grader.api.pipeline import grade_submission  # noqa: PLC0415 - api.pipeline loads grading.pipeline, pandas, numpy (424 ms CPU), only on this path
 
     t0 = time.monotonic()
     root = Path(root)

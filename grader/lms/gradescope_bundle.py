@@ -28,10 +28,9 @@ from pathlib import Path
 
 from grader import __version__
 from grader.errors import GraderError
-from grader.labs import CHECKOUT, in_checkout
+from grader.api import load_rubric
+from grader.api.rubrics import CHECKOUT, in_checkout, stage_rubrics
 from grader.lms.gradescope import CACHE_DIR
-from grader.rubric.load import load_rubric
-from grader.rubric.stage import stage_rubrics
 
 BASE_IMAGE = "Ubuntu 22.04"
 PIP_VERSION = "25.1.1"      # the image's own pip (22.0, Ubuntu's python3.11-venv) predates the wheels' metadata

@@ -1,7 +1,7 @@
 """Manual scores and gradebooks: a TA's CSV merged into a graded batch (``merge``), and the
 batch exported for Canvas, Gradescope or a spreadsheet (``export``).
 
-The functions are the Python API; ``grader scores merge|export`` (grader.scores.cli) is a thin
+The functions are the Python API; ``grader scores merge|export`` (grader.commands.scores) is a thin
 front-end::
 
     from grader.scores import export_gradebook, merge_manual_scores, parse_mapping, read_roster

@@ -1,4 +1,6 @@
-"""``grader sim``: run the reference turtlesim in the foreground (Ctrl-C saves the canvas)."""
+"""The reference turtlesim's process options (``python -m grader.sim``, which a scenario starts),
+also those of ``grader sim`` in the foreground (Ctrl-C saves the canvas; the command itself is
+registered by ``grader.commands.sim``)."""
 
 from __future__ import annotations
 
@@ -7,10 +9,8 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from grader.contracts.speed import MAX_TIME_SCALE
 from grader.errors import GraderError
-
-#: beyond this a 16 ms tick lasts under 1 ms of wall time: no Python node keeps up
-MAX_TIME_SCALE = 16.0
 
 
 def _add_options(parser: argparse.ArgumentParser) -> None:
@@ -34,15 +34,6 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
                         help="with --time-scale: no turtles, only /clock (node grader_clock)")
     parser.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=[],
                         help="everything after this goes to ROS (remaps, -p name:=value, ...)")
-
-
-def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``grader sim`` (see grader.cli.SUBSYSTEMS)."""
-    parser = subparsers.add_parser(
-        "sim", help="run the reference headless turtlesim node",
-        description="Run the reference headless turtlesim (node /turtlesim) until Ctrl-C.")
-    _add_options(parser)
-    parser.set_defaults(func=run_from_args)
 
 
 def ros_argv(args: argparse.Namespace, prog: str = "grader-sim") -> list[str]:

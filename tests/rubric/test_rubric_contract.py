@@ -166,10 +166,10 @@ def test_the_contract_round_trips_through_result_json(write_rubric) -> None:
     assert result_from_dict(doc).contract == result.contract
 
 
-def test_the_contract_goes_to_the_report_and_the_check_table(write_rubric, capsys) -> None:
+def test_the_contract_goes_to_the_report_and_the_check_table(write_rubric) -> None:
     from types import SimpleNamespace
 
-    from grader.grading.outputs import print_check_table, print_contract
+    from grader.grading.outputs import check_table, contract_lines
     from grader.report.html import render_html
 
     r = load_rubric(write_rubric(BASE))
@@ -178,9 +178,9 @@ def test_the_contract_goes_to_the_report_and_the_check_table(write_rubric, capsy
     result = score(r, {"name": _finding("fail")}, contract=[m])
     page = render_html(result, "s")
     assert 'id="contract"' in page and "Your node is called /hello" in page and 'href="#item-name"' in page
-    print_contract(r)
-    print_check_table(SimpleNamespace(result=result.for_student(), errors=[]), r)
-    out = capsys.readouterr().out
+    ok, table = check_table(SimpleNamespace(result=result.for_student(), errors=[]), r)
+    out = "\n".join(contract_lines(r) + table)
+    assert not ok
     assert "executable  number_subscriber  ros2 run my_first_package number_subscriber" in out
     assert "NAME Your node is called /hello; this lab asks for /my_first_node. Blocks: greeting, name." in \
         " ".join(out.split())

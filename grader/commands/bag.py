@@ -1,45 +1,15 @@
-"""CLI registration of the bag layer: ``grader record``, ``grader bag info|repair|verify``, ``grader replay``."""
+"""``grader record``, ``grader bag info|repair|verify``, ``grader replay``: the bag tools' command
+line (it lived in ``grader.bag``; the engine is reached through ``grader.api.tools``)."""
 
 from __future__ import annotations
 
-import argparse
 from typing import Any
 
-from grader.bag import recorder
-from grader.bag.recorder import add_arguments as recorder_arguments
-
-
-def _record(args: argparse.Namespace) -> int:
-    return recorder.run(args)
-
-
-def _info(args: argparse.Namespace) -> int:
-    from grader.bag import info  # noqa: PLC0415 - bag.info loads numpy (147 ms CPU), only on this path
-
-    return info.run(args)
-
-
-def _repair(args: argparse.Namespace) -> int:
-    from grader.bag import repair  # noqa: PLC0415 - bag.repair loads numpy, mcap (147 ms CPU), only on this path
-
-    return repair.run(args)
-
-
-def _verify(args: argparse.Namespace) -> int:
-    from grader.bag import conformance  # noqa: PLC0415 - bag.conformance loads numpy (147 ms CPU), only on this path
-
-    return conformance.run(args)
-
-
-def _replay(args: argparse.Namespace) -> int:
-    from grader.bag import replay  # noqa: PLC0415 - bag.replay loads numpy (147 ms CPU), only on this path
-
-    return replay.run(args)
+from grader.api.tools import (bag_info as _info, bag_repair as _repair, bag_verify as _verify, record as _record,
+                               recorder_arguments, replay as _replay, replay_arguments)
 
 
 def register(subparsers: Any) -> None:
-    from grader.bag.replay import add_arguments as replay_arguments  # noqa: PLC0415 - bag.replay loads numpy (147 ms CPU), only on this path
-
     rec = subparsers.add_parser(
         "record", help="record topics of the live graph to a rosbag2 MCAP bag",
         description="Record topics (new ones are picked up while recording) until Ctrl-C.")

@@ -1,13 +1,20 @@
-"""``grader similarity OUT --rubric R``: source and behaviour similarity of a graded class."""
+"""``grader similarity OUT --rubric R``: source and behaviour similarity of a graded class; the
+options ``grader grade`` and ``grader merge`` share with it, and what they print of the comparison
+after a batch. A front-end (it lived in ``grader.similarity``): it reaches the engine through
+``grader.api`` (``grader.api.similarity``, which loads pandas, imported where it is used)."""
 
 from __future__ import annotations
 
 import sys
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from grader.api import load_rubric
 from grader.errors import GraderError
-from grader.rubric.load import load_rubric
+
+if TYPE_CHECKING:
+    from grader.api.similarity import ClassComparison, Settings
 
 
 def add_options(p: argparse.ArgumentParser) -> None:
@@ -34,26 +41,23 @@ def add_grade_options(p: argparse.ArgumentParser) -> None:
     add_options(p)
 
 
-def grade_settings(args: argparse.Namespace):
+def grade_settings(args: argparse.Namespace) -> Settings | None:
     """The similarity settings of `grader grade`/`grader merge`, checked before any grading (a
     wrong --known or --boilerplate folder is reported at once, not after an hour of grading);
     None with --no-similarity."""
     return None if getattr(args, "no_similarity", False) else settings_from(args)
 
 
-def after_grading(out: Path, rubric, settings) -> None:
-    """Similarity of the batch after `grader grade`/`grader merge` (seconds for a class): never
-    fails the grading; a problem is one line on stderr. ``settings``: ``grade_settings(args)``."""
-    from grader.similarity.run import graded_ids, run_similarity  # noqa: PLC0415 - similarity.run loads pandas, numpy (424 ms CPU), only on this path
-
-    if settings is None or len(graded_ids(out)) < 2:
+def say_comparison(out: Path, comparison: ClassComparison | None) -> None:
+    """What ``grader grade``/``grader merge`` print of the similarity they ran after the batch
+    (:func:`grader.api.similarity.compare_graded`): one line, on stderr when it was not computed."""
+    if comparison is None:
         return
-    try:
-        summary = run_similarity(out, rubric, settings)
-    except Exception as exc:  # noqa: BLE001 - the grades are written; similarity is extra
-        print(f"grader: similarity not computed ({type(exc).__name__}: {exc}); run `grader similarity "
+    if comparison.summary is None:
+        print(f"grader: similarity not computed ({comparison.error}); run `grader similarity "
               f"{out} --rubric ...` to retry", file=sys.stderr)
         return
+    summary = comparison.summary
     listed = sum(1 for p in summary["pairs"] if p["listed"])
     print(f"similarity: {summary['pairs_compared']} pairs in {summary['timings'].get('total_s', 0):.1f} s, "
           f"{listed} listed in {out / 'index.html'} (details: grader similarity)")
@@ -84,8 +88,8 @@ def _share(text: str) -> float:
     return value
 
 
-def settings_from(args: argparse.Namespace):
-    from grader.similarity.run import Settings  # noqa: PLC0415 - similarity.run loads pandas, numpy (424 ms CPU), only on this path
+def settings_from(args: argparse.Namespace) -> Settings:
+    from grader.api.similarity import Settings  # noqa: PLC0415 - api.similarity loads similarity.run, pandas, numpy (424 ms CPU), only on this path
 
     for d in args.boilerplate:
         if not Path(d).is_dir():
@@ -122,7 +126,7 @@ def print_summary(summary: dict, out: Path) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from grader.similarity.run import run_similarity  # noqa: PLC0415 - similarity.run loads pandas, numpy (424 ms CPU), only on this path
+    from grader.api.similarity import run_similarity  # noqa: PLC0415 - api.similarity loads similarity.run, pandas, numpy (424 ms CPU), only on this path
 
     if not args.out.is_dir():
         raise GraderError(f"{args.out} is not a folder (give the output folder of `grader grade`)")

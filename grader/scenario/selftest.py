@@ -1,6 +1,11 @@
-"""`grader doctor`'s proof that the sandbox works here: a real scenario (reference simulator,
-recorder, driver) with one sandboxed student-like rclpy node that must hear the simulator's
-poses over the scenario's loopback, and must not see or change anything it should not."""
+"""`grader doctor`'s two self-tests, run by the engine and printed by the doctor (through
+``grader.api.machine``): two ROS processes that must hear each other in an isolated graph
+(:func:`live_selftest`), and a real scenario (reference simulator, recorder, driver) with one
+sandboxed student-like rclpy node that must hear the simulator's poses over the scenario's
+loopback, and must not see or change anything it should not (:func:`sandbox_selftest`).
+
+It lived in ``grader.sandbox`` (floor 2) and ran a scenario (floor 4) from there; here it is on
+the scenario's floor, so no import runs up a floor."""
 
 from __future__ import annotations
 
@@ -10,6 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from grader.contracts.process import Limits
+from grader.runner import ProcessSpec, RosGraph, python_argv
 from grader.sandbox.probe import protections
 from grader.scenario import run_scenario
 from grader.scenario.model import Scenario
@@ -41,6 +48,19 @@ report["first_pose_s"] = round(got[0] - t0, 3) if got else None
 print("SELFTEST " + json.dumps(report), flush=True)
 sys.exit(0 if len(got) >= 10 else 1)
 """
+
+
+def live_selftest(timeout: float) -> tuple[bool, str]:
+    """Start a talker and a listener as separate processes in an isolated graph."""
+    with tempfile.TemporaryDirectory(prefix="grader-doctor-") as tmp, RosGraph(Path(tmp)) as graph:
+        t0 = time.monotonic()
+        graph.start(ProcessSpec("talker", python_argv("grader.selftest", "talk")))
+        listener = graph.start(ProcessSpec("listener", python_argv("grader.selftest", "listen", str(timeout)),
+                                           limits=Limits(wall_s=timeout + 5)))
+        rc = listener.wait(timeout + 10)
+        detail = (listener.output().strip() or listener.errors().strip().splitlines()[-1:] or ["no output"])
+        detail = detail if isinstance(detail, str) else detail[0]
+        return rc == 0, f"{detail} in {time.monotonic() - t0:.1f}s on ROS_DOMAIN_ID {graph.domain_id}"
 
 
 def sandbox_selftest(timeout_s: float = 30.0) -> tuple[bool, str]:

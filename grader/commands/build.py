@@ -1,4 +1,5 @@
-"""`grader build PATH`: build a submission and show per-package results."""
+"""`grader build PATH`: build a submission and show per-package results (a front-end: it lived in
+``grader.workspace``, which it reaches through ``grader.api.tools``)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
-from grader.workspace.build import build_workspace, default_cache_dir, _to_json
+from grader.api.tools import build_json as _to_json, build_workspace, default_cache_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -1,5 +1,6 @@
 """``grader cache info`` (what the cache holds, the last batch's hit rates) and ``grader cache
-prune`` (by age, by last use, by total size, or everything)."""
+prune`` (by age, by last use, by total size, or everything). A front-end (it lived in
+``grader.cache``): the cache is reached through ``grader.api.tools``."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ import re
 from pathlib import Path
 
 from grader.errors import GraderError
-from grader.cache import default_cache_dir
-from grader.cache.store import MAX_SIZE_ENV, hit_rate, human, info, max_size, KINDS, parse_size, prune
+from grader.api.batch import parse_size
+from grader.api.tools import (CACHE_KINDS as KINDS, MAX_SIZE_ENV, cache_info as info, default_cache_dir, hit_rate,
+                              human, max_size, prune)
 
 _AGE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([smhdw])\s*$")
 _AGE_S = {"s": 1, "m": 60, "h": 3600, "d": 86400, "w": 7 * 86400}

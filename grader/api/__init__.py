@@ -17,13 +17,25 @@ course's own script or a test gets exactly what the command line gets::
 
 User errors raise :class:`grader.errors.GraderError` (one actionable sentence), as the CLI
 reports them. Paths may be ``str`` or ``pathlib.Path``; a rubric may be a path or a loaded
-:class:`~grader.rubric.schema.Rubric`.
+:class:`~grader.rubric.schema.Rubric`. Nothing here prints: what a command says comes back as
+data (:attr:`BatchResult.similarity`, :attr:`MergeResult.similarity`) or through a callback
+(``check``'s ``on_notice``).
+
+Every front-end of the grader (the ``grader`` command and its subcommands, Gradescope, Classroom,
+the audit, the doctor) reaches the engine through this package and ``grader.contracts`` only
+(pyproject's import-linter contract "front-ends reach the engine through grader.api"). Beside the
+functions above, its modules hold what the front-ends compose themselves, each the engine's own
+typed, documented names: :mod:`grader.api.rubrics` (labs, the rubric's schema, guide, contract
+roles, staging), :mod:`grader.api.batch` (a batch's parts: ``grade_batch``, ``Slots``, the support
+build), :mod:`grader.api.pipeline` (one submission through the pipeline, ``grader check``'s
+table; loads pandas), :mod:`grader.api.similarity` (a class compared; loads pandas),
+:mod:`grader.api.machine` (what ``grader doctor`` reports, its self-tests) and
+:mod:`grader.api.tools` (the bag, cache, build, simulator, scores and labs commands' engine).
 """
 
 from __future__ import annotations
 
 import os
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
@@ -35,13 +47,12 @@ from grader.cache import default_cache_dir
 from grader.cache.store import end_batch
 from grader.grading.batch import grade_batch
 from grader.grading.schedule import Slots, default_jobs
-from grader.grading.shards import in_shard, write_shard_note
+from grader.grading.shards import in_shard, merge_outputs, write_shard_note
 from grader.grading.starvation import REGRADE_TIME_SCALE
 from grader.grading.timescale import machine_time_scale
 from grader.labs import rubric_for_lab
 from grader.rubric.load import load_rubric as load, display_path
 from grader.rubric.schema import Rubric
-from grader.similarity.cli import after_grading
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -52,9 +63,10 @@ if TYPE_CHECKING:
     from grader.intake.model import Arrival
     from grader.rubric.schema import Rubric
     from grader.scores.roster import Roster
-    from grader.similarity.run import Settings as SimilaritySettings
+    from grader.api.similarity import ClassComparison, Settings as SimilaritySettings
 
-__all__ = ["BatchResult", "PathLike", "analyze", "check", "grade", "load_rubric", "read_frames", "regrade"]
+__all__ = ["BatchResult", "MergeResult", "PathLike", "analyze", "check", "grade", "load_rubric", "merge", "read_frames",
+           "regrade"]
 
 PathLike = str | os.PathLike[str]
 
@@ -77,14 +89,17 @@ def _rubric(rubric: PathLike | Rubric) -> Rubric:
 @dataclass
 class BatchResult:
     """What :func:`grade` did: one GradedSubmission per graded submission (in finishing order),
-    the submissions that have no result and why, the ones the intake refused, and whether a
-    KeyboardInterrupt stopped the batch (finished submissions are saved; ``resume=True`` goes on)."""
+    the submissions that have no result and why, the ones the intake refused, whether a
+    KeyboardInterrupt stopped the batch (finished submissions are saved; ``resume=True`` goes on)
+    and what comparing the class afterwards gave (None when it was not asked for or had fewer
+    than two submissions to compare)."""
 
     out: Path
     graded: list[GradedSubmission] = field(default_factory=list)
     failures: dict[str, str] = field(default_factory=dict)
     refused: dict[str, str] = field(default_factory=dict)
     interrupted: bool = False
+    similarity: ClassComparison | None = None
 
     @property
     def ok(self) -> bool:
@@ -151,8 +166,39 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     _run_batch(batch, todo, loaded, out, jobs=jobs, cache_dir=cache_dir, reuse=reuse, time_scale=time_scale,
                override=override, cache_max_size=cache_max_size, on_done=on_done, progress=progress)
     if similarity is not None and not batch.interrupted and not shard:
-        after_grading(out, loaded, similarity)
+        batch.similarity = _compare(out, loaded, similarity)
     return batch
+
+
+def _compare(out: Path, loaded: Rubric, similarity: SimilaritySettings | None) -> ClassComparison | None:
+    """The class compared after grading (never raises: the grades are written)."""
+    from grader.api.similarity import compare_graded  # noqa: PLC0415 - api.similarity loads similarity.run, pandas, numpy (424 ms CPU), only on this path
+
+    return compare_graded(out, loaded, similarity)
+
+
+@dataclass
+class MergeResult:
+    """What :func:`merge` did: the ids merged, and what comparing the merged class gave."""
+
+    out: Path
+    merged: list[str]
+    similarity: ClassComparison | None = None
+
+
+def merge(parts: Sequence[PathLike], out: PathLike, rubric: PathLike | Rubric, *,
+          similarity: SimilaritySettings | None = None) -> MergeResult:
+    """``grader merge``: copy the submissions of the shard outputs ``parts`` (``grade(...,
+    shard=(k, n))``) into ``out``, rebuild ``grades.csv`` and ``index.html``, then compare the
+    class (``similarity``, as for :func:`grade`). Refuses a part graded with another rubric or a
+    submission two parts both hold (nothing is copied then)."""
+    from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
+
+    loaded = _rubric(rubric)
+    where = Path(out)
+    merged = merge_outputs([Path(p) for p in parts], where, loaded)
+    write_batch_outputs(where, loaded)
+    return MergeResult(where, merged, _compare(where, loaded, similarity))
 
 
 def _read_students(roster: PathLike | None, roster_map: Sequence[str]) -> Roster | None:
@@ -239,12 +285,16 @@ def graded_and_measured(sub_out: Path) -> bool:
 def check(workspace: PathLike = ".", *, lab: str | None = None, rubric: PathLike | Rubric | None = None,
           out: PathLike | None = None, jobs: int | None = None, cache_dir: PathLike | None = None,
           reuse: bool = True, time_scale: float | None = None, cache_max_size: str | None = None,
-          progress: Callable[[str], None] | None = None) -> GradedSubmission:
+          progress: Callable[[str], None] | None = None,
+          on_notice: Callable[[str], None] | None = None) -> GradedSubmission:
     """``grader check``: a student's self-check of ``workspace`` on the lab's public items.
 
     The rubric is ``rubric`` or the one of ``lab`` (an id of ``grader labs``). Writes the report
     to ``out`` (default ``WORKSPACE/.grader-check``). ``graded.result`` holds each item's status.
+    ``on_notice`` gets what the command says on stderr (recorded again in real time because the
+    machine was too busy; the cache's cap enforced): one sentence each.
     """
+    say = on_notice or (lambda _text: None)
     from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     if rubric is None and lab is None:
@@ -258,14 +308,14 @@ def check(workspace: PathLike = ".", *, lab: str | None = None, rubric: PathLike
                               slots=Slots(jobs or default_jobs(time_scale=machine_time_scale(time_scale))), reuse=reuse,
                               time_scale=time_scale)
     if graded.result.starved_faster:      # its 1x recordings were made already, three times if starved
-        print(f"grader: the machine was too busy to measure {', '.join(graded.result.starved_faster)} faster "
-              "than real time: recording again in real time", file=sys.stderr)
+        say(f"the machine was too busy to measure {', '.join(graded.result.starved_faster)} faster "
+            "than real time: recording again in real time")
         graded = grade_submission(ws, loaded, where, cache_dir=Path(cache_dir) if cache_dir else None,
                                   public_only=True, sid="check", progress=progress, slots=Slots(1), reuse=reuse,
                                   time_scale=REGRADE_TIME_SCALE)
     ended = end_batch(Path(cache_dir or default_cache_dir()), [graded.cache], cache_max_size)
     if ended.get("message"):
-        print(f"grader: {ended['message']}", file=sys.stderr)
+        say(str(ended["message"]))
     return graded
 
 

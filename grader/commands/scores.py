@@ -1,5 +1,6 @@
 """`grader scores merge` (TAs: manual scores into a batch) and `grader scores export`
-(instructors: the batch as a Canvas / Gradescope / spreadsheet gradebook)."""
+(instructors: the batch as a Canvas / Gradescope / spreadsheet gradebook). A front-end (it lived
+in ``grader.scores``, whose functions it calls through ``grader.api.tools``)."""
 
 from __future__ import annotations
 
@@ -8,10 +9,7 @@ import sys
 from pathlib import Path
 
 from grader.errors import GraderError
-from grader.intake.model import INTAKE_FILE
-from grader.scores.export import export_gradebook
-from grader.scores.merge import merge_manual_scores
-from grader.scores.roster import parse_mapping, read_roster
+from grader.api.tools import INTAKE_FILE, export_gradebook, merge_manual_scores, parse_mapping, read_roster
 
 
 def register(sub: argparse._SubParsersAction) -> None:
