@@ -45,7 +45,7 @@ sys.path.insert(0, str(REPO))
 
 from grader.rubric.load import load_rubric  # noqa: E402
 from grader.similarity import behaviour  # noqa: E402
-from grader.similarity.run import OUT_DIR, Settings, compute, write  # noqa: E402
+from grader.grading.similarity import OUT_DIR, Settings, compute, write  # noqa: E402
 from grader.testing.batch import LAB3_BAGS, recorded_batch  # noqa: E402
 from grader.testing.copies import disguise_tree  # noqa: E402
 

@@ -172,7 +172,7 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
 
 def _compare(out: Path, loaded: Rubric, similarity: SimilaritySettings | None) -> ClassComparison | None:
     """The class compared after grading (never raises: the grades are written)."""
-    from grader.api.similarity import compare_graded  # noqa: PLC0415 - api.similarity loads similarity.run, pandas, numpy (424 ms CPU), only on this path
+    from grader.api.similarity import compare_graded  # noqa: PLC0415 - api.similarity loads grading.similarity, pandas, numpy (424 ms CPU), only on this path
 
     return compare_graded(out, loaded, similarity)
 

@@ -1,7 +1,7 @@
 """Similarity across a graded class, for ``grader similarity`` and what ``grader grade`` and
 ``grader merge`` run after a batch (the engine is ``grader.similarity``; the commands print).
 
-This module loads ``grader.similarity.run``, hence pandas and numpy (424 ms CPU in a fresh
+This module loads ``grader.grading.similarity``, hence pandas and numpy (424 ms CPU in a fresh
 interpreter): a front-end imports it inside the function that compares, as before.
 
 :class:`Settings` says which pairs are listed; :func:`run_similarity` compares a batch and writes
@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from grader.rubric.schema import Rubric
-from grader.similarity.run import Settings, graded_ids, run_similarity
+from grader.grading.similarity import Settings, graded_ids, run_similarity
 
 __all__ = ["ClassComparison", "Settings", "compare_graded", "graded_ids", "run_similarity"]
 

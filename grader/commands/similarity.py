@@ -89,7 +89,7 @@ def _share(text: str) -> float:
 
 
 def settings_from(args: argparse.Namespace) -> Settings:
-    from grader.api.similarity import Settings  # noqa: PLC0415 - api.similarity loads similarity.run, pandas, numpy (424 ms CPU), only on this path
+    from grader.api.similarity import Settings  # noqa: PLC0415 - api.similarity loads grading.similarity, pandas, numpy (424 ms CPU), only on this path
 
     for d in args.boilerplate:
         if not Path(d).is_dir():
@@ -126,7 +126,7 @@ def print_summary(summary: dict, out: Path) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from grader.api.similarity import run_similarity  # noqa: PLC0415 - api.similarity loads similarity.run, pandas, numpy (424 ms CPU), only on this path
+    from grader.api.similarity import run_similarity  # noqa: PLC0415 - api.similarity loads grading.similarity, pandas, numpy (424 ms CPU), only on this path
 
     if not args.out.is_dir():
         raise GraderError(f"{args.out} is not a folder (give the output folder of `grader grade`)")

@@ -1,6 +1,6 @@
 """Where a class's similarity lands (``OUT/similarity/``) and how its summary is read back.
 
-The names both the computation (``grader.similarity.run``) and its readers (the pair pages, the
+The names both the computation (``grader.grading.similarity``) and its readers (the pair pages, the
 class view in ``grader.report``) need; here, the readers do not import the computation (which
 writes the class view: a circle through ``grader.grading.outputs``).
 """

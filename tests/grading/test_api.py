@@ -125,7 +125,7 @@ def test_the_api_is_typed_and_documented() -> None:
     from grader.analyze import Finding
     from grader.intake.batch import IntakeBatch
 
-    from grader.similarity.run import Settings as SimilaritySettings
+    from grader.api.similarity import Settings as SimilaritySettings
 
     names = {"pd": pd, "Finding": Finding, "GradedSubmission": GradedSubmission, "IntakeBatch": IntakeBatch,
              "Rubric": Rubric, "SimilaritySettings": SimilaritySettings}

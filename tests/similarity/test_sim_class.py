@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from grader.cli import main as grader_main
-from grader.similarity.run import KNOWN_PREFIX, OUT_DIR, SUMMARY
+from grader.similarity.summary import KNOWN_PREFIX, OUT_DIR, SUMMARY
 from grader.testing.browser import Browser, find_chromium
 from grader.testing.similarity_class import (COPIES, HONEST, KNOWN, TEST_STEP_TIMEOUT, build_class,
                                              controller_rubric)

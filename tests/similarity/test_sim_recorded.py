@@ -20,7 +20,7 @@ import pytest
 from grader.cli import main as grader_main
 from grader.rubric.load import load_rubric
 from grader.similarity.files import snapshot
-from grader.similarity.run import OUT_DIR, SUMMARY
+from grader.similarity.summary import OUT_DIR, SUMMARY
 from grader.testing.batch import LAB3_BAGS, recorded_batch
 from grader.testing.browser import Browser, find_chromium
 from grader.testing.copies import disguise_tree

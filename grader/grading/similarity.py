@@ -5,6 +5,11 @@ one side-by-side page per listed pair).
 Inputs are what ``grader grade`` left in OUT: ``<id>/source/`` (the counted source files, kept at
 grade time), ``<id>/scenarios/<sc>/fingerprint.json`` (behaviour features, made when the bag was
 analyzed; made here from the bag when missing) and ``<id>/result.json``. No student code runs.
+
+It is the batch's last step, on the grading floor: it reads recordings as the analysis does
+(``grading.analysis.scenario_frames``) and rewrites the class view (``grading.outputs``), so it
+lived in ``grader.similarity`` (``similarity.run``) with three imports up a floor; the
+fingerprints, the pair scores and the pages it composes stay in ``grader.similarity``.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from grader.errors import GraderError
 from grader.similarity import behaviour, code
@@ -31,6 +36,11 @@ from grader.grading.repeat import scenario_of
 from grader.report.result import atomic_write
 from grader.similarity.page import render_pair
 from grader.workspace.source import extract_archive, is_archive
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from grader.rubric.schema import Rubric
 
 MAX_FEATURES = 40            # shared features kept per listed pair (most telling first)
 
@@ -107,7 +117,7 @@ def _first_runs(sub_out: Path) -> list[Path]:
     return sorted(p for p in (Path(sub_out) / "scenarios").glob("*") if p.is_dir() and scenario_of(p.name) == p.name)
 
 
-def _labels(rubric) -> tuple[dict[str, list[str]], dict[str, dict]]:
+def _labels(rubric: Rubric) -> tuple[dict[str, list[str]], dict[str, dict]]:
     scenarios = {i.id: list(i.scenario) for i in rubric.items}
     labels = {}
     for item in rubric.items:
@@ -132,7 +142,7 @@ def _passing(docs: dict[str, dict], item_scenarios: dict[str, list[str]]) -> dic
     return {sc: subs - failed.get(sc, set()) for sc, subs in out.items()}
 
 
-def _known_sets(root: Path, boilerplate, work: Path) -> list[code.SourceSet]:
+def _known_sets(root: Path, boilerplate: np.ndarray, work: Path) -> list[code.SourceSet]:
     """Each folder or archive under ``root`` as one known solution."""
     root = Path(root)
     if not root.is_dir():
@@ -155,7 +165,7 @@ def _behaviour_worker(sub_out: str) -> tuple[str, list[dict]]:
     return Path(sub_out).name, [asdict(f) for f in feats]
 
 
-def compute(out: Path, rubric, settings: Settings, jobs: int = 2) -> dict[str, Any]:
+def compute(out: Path, rubric: Rubric, settings: Settings, jobs: int = 2) -> dict[str, Any]:
     """Every pair of the class (and against known solutions); the summary written to OUT/similarity."""
     out = Path(out)
     ids = graded_ids(out)
@@ -340,7 +350,7 @@ def write(out: Path, summary: dict[str, Any]) -> Path:
     return folder
 
 
-def run_similarity(out: Path, rubric, settings: Settings | None = None, jobs: int = 2) -> dict[str, Any]:
+def run_similarity(out: Path, rubric: Rubric, settings: Settings | None = None, jobs: int = 2) -> dict[str, Any]:
     """Compute, write OUT/similarity/ and rewrite the class view with it; the summary."""
     summary = compute(Path(out), rubric, settings or Settings(), jobs=jobs)
     write(Path(out), summary)
