@@ -1,5 +1,6 @@
 """The engine behind the tool commands: ``grader record``/``bag``/``replay`` (bags),
-``grader cache`` (the build and recording cache), ``grader build`` (one submission's build),
+``grader cache`` (the build and recording cache; a bag's info, repair and verification are in
+:mod:`grader.api.bags`), ``grader build`` (one submission's build),
 ``grader sim`` (the reference simulator in the foreground), ``grader scores`` (manual scores,
 gradebooks) and ``grader labs``. Their front-ends are in ``grader.commands``; they reach the
 engine through these names only.
@@ -8,8 +9,8 @@ Most are the engine's own typed, documented functions, re-exported. The bag tool
 simulator are entry points that take the parsed options (the same ones ``python -m
 grader.bag.recorder``/``grader.sim`` parse when a scenario starts them as processes): their
 options are added by :func:`recorder_arguments`, :func:`replay_arguments` and
-:func:`sim_arguments`, and each runs with ``(args) -> exit status``. The bag readers (numpy,
-147 ms CPU; rclpy for replay) are imported only when their command runs.
+:func:`sim_arguments`, and each runs with ``(args) -> exit status``. The bag replay (numpy,
+147 ms CPU; rclpy) is imported only when its command runs.
 """
 
 from __future__ import annotations
@@ -27,8 +28,7 @@ from grader.scores.roster import parse_mapping, read_roster
 from grader.sim.cli import _add_options as sim_arguments, run_from_args as run_sim
 from grader.workspace.build import BuildResult, _to_json, build_workspace
 
-__all__ = ["BuildResult", "CACHE_KINDS", "INTAKE_FILE", "MAX_SIZE_ENV", "bag_info", "bag_repair", "bag_verify",
-           "build_json", "build_workspace", "cache_info", "default_cache_dir", "export_gradebook", "hit_rate", "human",
+__all__ = ["BuildResult", "CACHE_KINDS", "INTAKE_FILE", "MAX_SIZE_ENV", "build_json", "build_workspace", "cache_info", "default_cache_dir", "export_gradebook", "hit_rate", "human",
            "max_size", "merge_manual_scores", "parse_mapping", "prune", "read_roster", "record", "recorder_arguments",
            "replay", "replay_arguments", "run_sim", "sim_arguments"]
 
@@ -36,27 +36,6 @@ __all__ = ["BuildResult", "CACHE_KINDS", "INTAKE_FILE", "MAX_SIZE_ENV", "bag_inf
 def build_json(result: BuildResult) -> dict[str, Any]:
     """``grader build --json``: a build's result as JSON (packages, executables, logs)."""
     return _to_json(result)
-
-
-def bag_info(args: argparse.Namespace) -> int:
-    """``grader bag info BAG [--json]``: duration, counts, types and rates of a bag."""
-    from grader.bag import info  # noqa: PLC0415 - bag.info loads numpy (147 ms CPU), only on this path
-
-    return info.run(args)
-
-
-def bag_repair(args: argparse.Namespace) -> int:
-    """``grader bag repair BAG``: recover a bag whose recorder was killed."""
-    from grader.bag import repair  # noqa: PLC0415 - bag.repair loads numpy, mcap (147 ms CPU), only on this path
-
-    return repair.run(args)
-
-
-def bag_verify(args: argparse.Namespace) -> int:
-    """``grader bag verify BAG...``: rosbags, mcap + mcap-ros2-support and the grader's reader agree."""
-    from grader.bag import conformance  # noqa: PLC0415 - bag.conformance loads numpy (147 ms CPU), only on this path
-
-    return conformance.run(args)
 
 
 def replay(args: argparse.Namespace) -> int:

@@ -307,24 +307,3 @@ def _summary_problems(files: list[Path], meta: BagMetadata) -> list[str]:
                  f" ns, MCAP statistics {start}/{end - start} ns")
     return p
 
-
-def run(args: Any) -> int:
-    """``grader bag verify BAG...``: one line per problem, exit 1 if any bag does not conform."""
-    for b in args.bags:
-        if not Path(b).is_dir():
-            raise GraderError(f"{b} is not a bag directory; pass the folder that holds "
-                              "metadata.yaml and the .mcap file(s).")
-    bad = 0
-    for b in args.bags:
-        res = verify(b)
-        if res.problems:
-            bad += 1
-            for problem in res.problems:
-                print(f"{b}: {problem}")
-        else:
-            counts = res.counts.get("grader", {})
-            print(f"{b}: conforms ({sum(counts.values())} messages on {len(counts)} topics; "
-                  "rosbags, mcap + mcap-ros2-support and grader agree with metadata.yaml)")
-            for note in res.notes:
-                print(f"{b}: note: {note}")
-    return 1 if bad else 0

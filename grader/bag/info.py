@@ -7,7 +7,6 @@ a crashed recording reports what is really readable, and says that it needs ``ba
 from __future__ import annotations
 
 import datetime as _dt
-import json
 from pathlib import Path
 from typing import Any
 
@@ -111,11 +110,3 @@ def format_info(info: dict[str, Any]) -> str:
                      f"Event Count: {t['count']} | Serialization Format: {t['serialization_format']}")
     return "\n".join(lines)
 
-
-def run(args: Any) -> int:
-    info = bag_info(args.bag)
-    if args.json:
-        print(json.dumps(info, indent=1))
-    else:
-        print(format_info(info))
-    return 0

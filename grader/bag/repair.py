@@ -15,7 +15,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import yaml
@@ -112,8 +111,3 @@ def repair_bag(bag_dir: Path | str, keep_damaged: bool = True) -> RepairReport:
     meta.write(bag_dir)
     return RepairReport(bag_dir, rewritten, meta.message_count, False)
 
-
-def run(args: Any) -> int:
-    report = repair_bag(args.bag, keep_damaged=not args.no_backup)
-    print(report.summary())
-    return 0

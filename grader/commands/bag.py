@@ -5,8 +5,54 @@ from __future__ import annotations
 
 from typing import Any
 
-from grader.api.tools import (bag_info as _info, bag_repair as _repair, bag_verify as _verify, record as _record,
-                               recorder_arguments, replay as _replay, replay_arguments)
+import json
+from pathlib import Path
+
+from grader.api.tools import record as _record, recorder_arguments, replay as _replay, replay_arguments
+from grader.errors import GraderError
+
+
+def _info(args: Any) -> int:
+    from grader.api.bags import bag_info, format_info  # noqa: PLC0415 - api.bags loads numpy (147 ms CPU), only on this path
+
+    info = bag_info(args.bag)
+    if args.json:
+        print(json.dumps(info, indent=1))
+    else:
+        print(format_info(info))
+    return 0
+
+
+def _repair(args: Any) -> int:
+    from grader.api.bags import repair_bag  # noqa: PLC0415 - api.bags loads numpy, mcap (147 ms CPU), only on this path
+
+    report = repair_bag(args.bag, keep_damaged=not args.no_backup)
+    print(report.summary())
+    return 0
+
+
+def _verify(args: Any) -> int:
+    """``grader bag verify BAG...``: one line per problem, exit 1 if any bag does not conform."""
+    from grader.api.bags import verify  # noqa: PLC0415 - api.bags loads numpy (147 ms CPU), only on this path
+
+    for b in args.bags:
+        if not Path(b).is_dir():
+            raise GraderError(f"{b} is not a bag directory; pass the folder that holds "
+                              "metadata.yaml and the .mcap file(s).")
+    bad = 0
+    for b in args.bags:
+        res = verify(b)
+        if res.problems:
+            bad += 1
+            for problem in res.problems:
+                print(f"{b}: {problem}")
+        else:
+            counts = res.counts.get("grader", {})
+            print(f"{b}: conforms ({sum(counts.values())} messages on {len(counts)} topics; "
+                  "rosbags, mcap + mcap-ros2-support and grader agree with metadata.yaml)")
+            for note in res.notes:
+                print(f"{b}: note: {note}")
+    return 1 if bad else 0
 
 
 def register(subparsers: Any) -> None:
