@@ -19,7 +19,7 @@ User errors raise :class:`grader.errors.GraderError` (one actionable sentence), 
 reports them. Paths may be ``str`` or ``pathlib.Path``; a rubric may be a path or a loaded
 :class:`~grader.rubric.schema.Rubric`. Nothing here prints: what a command says comes back as
 data (:attr:`BatchResult.similarity`, :attr:`MergeResult.similarity`) or through a callback
-(``check``'s ``on_notice``).
+(``grade``'s and ``check``'s ``on_notice``).
 
 Every front-end of the grader (the ``grader`` command and its subcommands, Gradescope, Classroom,
 the audit, the doctor) reaches the engine through this package and ``grader.contracts`` only
@@ -29,8 +29,10 @@ typed, documented names: :mod:`grader.api.rubrics` (labs, the rubric's schema, g
 roles, staging), :mod:`grader.api.batch` (a batch's parts: ``grade_batch``, ``Slots``, the support
 build), :mod:`grader.api.pipeline` (one submission through the pipeline, ``grader check``'s
 table; loads pandas), :mod:`grader.api.similarity` (a class compared; loads pandas),
-:mod:`grader.api.machine` (what ``grader doctor`` reports, its self-tests) and
-:mod:`grader.api.tools` (the bag, cache, build, simulator, scores and labs commands' engine).
+:mod:`grader.api.machine` (what ``grader doctor`` reports, its self-tests),
+:mod:`grader.api.bags` (a bag's info, repair, verification; loads numpy) and
+:mod:`grader.api.tools` (the recorder, replay, cache, build, simulator, scores and labs commands'
+engine).
 """
 
 from __future__ import annotations
@@ -134,7 +136,8 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
           on_intake: Callable[[IntakeBatch], None] | None = None,
           on_start: Callable[[int, int], None] | None = None,
           on_done: Callable[[str, GradedSubmission | None, str | None], None] | None = None,
-          progress: Callable[[str], None] | None = None) -> BatchResult:
+          progress: Callable[[str], None] | None = None,
+          on_notice: Callable[[str], None] | None = None) -> BatchResult:
     """``grader grade``: build each submission, record the rubric's scenarios, analyze, score.
 
     ``submissions``: a Canvas download, a Gradescope export, Classroom clones (``classroom_prefix``),
@@ -152,7 +155,8 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     ``grader merge`` compares once merged). ``on_intake`` gets what was found, ``on_start(selected, done)``
     how many submissions are to be graded and how many of them already are (``resume``) before
     grading starts, ``on_done(id, graded or None, error or None)`` each finished submission,
-    ``progress`` status lines of a single submission.
+    ``progress`` status lines of a single submission, ``on_notice`` what the command says on stderr
+    while the batch runs (a warning, the cache's cap enforced, starved submissions graded again).
     """
     loaded = _rubric(rubric)
     out = Path(out)
@@ -164,7 +168,8 @@ def grade(submissions: PathLike, rubric: PathLike | Rubric, out: PathLike, *,
     if on_start is not None:
         on_start(len(subs), len(subs) - len(todo))
     _run_batch(batch, todo, loaded, out, jobs=jobs, cache_dir=cache_dir, reuse=reuse, time_scale=time_scale,
-               override=override, cache_max_size=cache_max_size, on_done=on_done, progress=progress)
+               override=override, cache_max_size=cache_max_size, on_done=on_done, progress=progress,
+               on_notice=on_notice)
     if similarity is not None and not batch.interrupted and not shard:
         batch.similarity = _compare(out, loaded, similarity)
     return batch
@@ -246,7 +251,7 @@ def _run_batch(batch: BatchResult, todo: list[Arrival], loaded: Rubric, out: Pat
                cache_dir: PathLike | None, reuse: bool, time_scale: float | None,
                override: dict[str, str | None] | None, cache_max_size: str | None,
                on_done: Callable[[str, GradedSubmission | None, str | None], None] | None,
-               progress: Callable[[str], None] | None) -> None:
+               progress: Callable[[str], None] | None, on_notice: Callable[[str], None] | None) -> None:
     """Grade ``todo`` into ``batch``, writing the batch files even when interrupted, so finished ones are kept."""
     from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
 
@@ -260,7 +265,8 @@ def _run_batch(batch: BatchResult, todo: list[Arrival], loaded: Rubric, out: Pat
         batch.failures = grade_batch(todo, loaded, out, slots=Slots(jobs or default_jobs()),
                                      cache_dir=Path(cache_dir) if cache_dir else None, reuse=reuse,
                                      on_done=done, progress=progress, time_scale=time_scale,
-                                     due_override=override, cache_max_size=cache_max_size)
+                                     due_override=override, cache_max_size=cache_max_size,
+                                     on_notice=on_notice)
     except KeyboardInterrupt:
         batch.interrupted = True
     finally:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import filecmp
 import json
 import shutil
+import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
@@ -205,8 +206,14 @@ def _grade_mutants(todo: list[Path], total: int, rubric: Any, graded: Path, slot
     failures: dict[str, str] = {}
     if todo:
         failures = grade_batch(todo, rubric, graded, slots=slots, cache_dir=cache_dir, reuse=reuse,
-                               on_done=on_done, time_scale=time_scale)
+                               on_done=on_done, time_scale=time_scale, on_notice=_notice)
     return failures
+
+
+def _notice(text: str) -> None:
+    """What the batch of mutants says (the cache's cap, a starved mutant graded again): stderr, as
+    ``grader grade`` says it."""
+    print(f"grader: {text}", file=sys.stderr)
 
 
 def _with_untouched_support(rubric: Any, reference: Path, chosen: list[Mutant]) -> Any:

@@ -188,7 +188,7 @@ def run_grade(args: argparse.Namespace) -> int:
                           time_scale=args.time_scale, intake=args.intake, roster=args.roster, roster_map=args.map,
                           classroom_prefix=args.classroom_prefix, due=args.due, timezone=args.timezone,
                           cache_max_size=args.cache_max_size, similarity=similarity, on_intake=found,
-                          on_start=start, on_done=done, progress=status)
+                          on_start=start, on_done=done, progress=status, on_notice=_notice)
     finally:
         if progress is not None:
             progress.close()

@@ -14,11 +14,14 @@ batch is done, one submission and one scenario at a time, in real time (``rerun_
 can make it, and a stall is shortest in simulated time. With reuse on, its recordings made at
 1x and not starved are reused (a starved recording is never kept for reuse); the new result
 replaces the old.
+
+Nothing here prints: what ``grader grade`` says on stderr while a batch runs (the class view
+not rewritten, the cache's cap enforced, the starved submissions graded again) goes to
+``on_notice``, one sentence each.
 """
 
 from __future__ import annotations
 
-import sys
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any, Callable
@@ -36,7 +39,8 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
                 cache_dir: Path | None = None, reuse: bool = True,
                 on_done: Callable[[str, Any, str | None], None] | None = None,
                 progress: Callable[[str], None] | None = None, time_scale: float | None = None,
-                due_override: dict | None = None, cache_max_size: str | None = None) -> dict[str, str]:
+                due_override: dict | None = None, cache_max_size: str | None = None,
+                on_notice: Callable[[str], None] | None = None) -> dict[str, str]:
     """Grade ``submissions`` (paths, or grader.intake Arrivals with their ids and records) into
     ``out``; returns ``{submission id: why it has no result}``.
 
@@ -45,8 +49,10 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
     ``grade_submission``; ``due_override``: ``--due`` (replaces the late policy's due date).
     ``grades.csv``/``index.html`` are rewritten after each submission, so they are current even
     if the batch is interrupted. ``cache_max_size``: the cache's cap (``5G``; default
-    ``$GRADER_CACHE_MAX_SIZE`` or 5 GB).
+    ``$GRADER_CACHE_MAX_SIZE`` or 5 GB). ``on_notice`` gets what the batch has to say (a warning,
+    the cache's cap enforced, a regrade of starved submissions), one sentence each.
     """
+    say = on_notice or _quiet
     from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
     from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
@@ -82,33 +88,39 @@ def grade_batch(submissions: list, rubric: Any, out: Path, *, slots: Slots,
                 try:
                     write_batch_outputs(out, rubric)
                 except GraderError as exc:      # the class view waits; grading goes on
-                    print(f"grader: warning: grades.csv/index.html not updated: {exc}", file=sys.stderr)
+                    say(f"warning: grades.csv/index.html not updated: {exc}")
         except KeyboardInterrupt:
             for f in futures:
                 f.cancel()
             cancel_all()          # running scenarios finalize their bags and stop
             raise
     failures.update(rerun_starved(graded_now, todo, rubric, out, cache_dir=cache_dir, reuse=reuse,
-                                  due_override=due_override, on_done=on_done))
+                                  due_override=due_override, on_done=on_done, on_notice=say))
     ended = end_batch(Path(cache_dir or default_cache_dir()), uses, cache_max_size)
     if ended.get("message"):
-        print(f"grader: {ended['message']}", file=sys.stderr)
+        say(str(ended["message"]))
     return failures
+
+
+def _quiet(_text: str) -> None:
+    """No one listens to a batch's notices."""
 
 
 def rerun_starved(graded: dict[str, Any], todo: list[tuple[str, Any, Any]], rubric: Any, out: Path, *,
                   cache_dir: Path | None, reuse: bool, due_override: dict | None,
-                  on_done: Callable[[str, Any, str | None], None] | None) -> dict[str, str]:
+                  on_done: Callable[[str, Any, str | None], None] | None,
+                  on_notice: Callable[[str], None] | None = None) -> dict[str, str]:
     """Grade again, one at a time, each submission of ``graded`` whose result has starved timing
     items; returns ``{id: why it has no result}`` for those that could not be graded again (their
     earlier result went with the new attempt). The class view is rewritten after each."""
     from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
     from grader.grading.pipeline import grade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
+    say = on_notice or _quiet
     again = [(sid, path, record) for sid, path, record in todo if sid in graded and graded[sid].result.starved]
     if again:
-        print(f"grader: {len(again)} submission(s) had timing items the grading machine was too busy to measure; "
-              "recording their scenarios again, one at a time, in real time", file=sys.stderr)
+        say(f"{len(again)} submission(s) had timing items the grading machine was too busy to measure; "
+            "recording their scenarios again, one at a time, in real time")
     failures: dict[str, str] = {}
     for sid, path, record in again:
         try:
@@ -121,8 +133,8 @@ def rerun_starved(graded: dict[str, Any], todo: list[tuple[str, Any, Any]], rubr
                 on_done(sid, None, failures[sid])
             continue
         if regraded.result.starved:
-            print(f"grader: {sid}: still not measured on a starved machine: {', '.join(regraded.result.starved)} "
-                  "(the class view lists it; `grader grade --only " + sid + "` later)", file=sys.stderr)
+            say(f"{sid}: still not measured on a starved machine: {', '.join(regraded.result.starved)} "
+                "(the class view lists it; `grader grade --only " + sid + "` later)")
         if on_done:
             on_done(sid, regraded, None)
         write_batch_outputs(out, rubric)
