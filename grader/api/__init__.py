@@ -2,7 +2,8 @@
 
 Each function is the engine behind one command (as otter-grader's ``grade_submission`` is behind
 ``otter grade``): ``grader grade`` is :func:`grade`, ``grader check`` is :func:`check`, ``grader
-regrade`` is :func:`regrade`; the CLI only parses its arguments and prints. So a notebook, a
+regrade`` is :func:`regrade`, ``grader merge`` is :func:`merge`; the CLI only parses its
+arguments and prints. So a notebook, a
 course's own script or a test gets exactly what the command line gets::
 
     from grader import api
