@@ -29,9 +29,11 @@ report = {"uid": os.getuid(), "wrote": [],
           "sees": [p for p in sys.argv[1:] if os.path.exists(p) and (not os.path.isdir(p) or os.listdir(p))]}
 for p in sys.argv[1:]:
     try:
-        with open(os.path.join(p, "sandbox-selftest"), "w") as f:
+        probe = os.path.join(p, "sandbox-selftest")
+        with open(probe, "w") as f:
             f.write("x")
         report["wrote"].append(p)
+        os.remove(probe)   # proof taken: leave nothing behind where the sandbox let it write
     except OSError:
         pass
 import rclpy
