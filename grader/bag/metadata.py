@@ -6,7 +6,14 @@ place keeps the field names and the Jazzy spellings (``keep_last``, ``reliable``
 
 Parsed with PyYAML's libyaml loader when PyYAML has it (the same safe loader in C: on the 14
 committed Lab 3 scenario bags 0.031 s instead of 0.225 s of CPU, identical results), since every
-analysis reads each bag's metadata twice.
+analysis reads each bag's metadata twice. Written with libyaml's safe dumper too (:func:`safe_dump`):
+every scenario's recorder writes each channel's offered QoS and, when it finalizes the bag, the
+metadata twice (``metadata.yaml`` and the MCAP record): for Lab 3's ``ex2_controller`` bag (21
+topics) 38.4 ms of CPU in Python, 8.7 ms with libyaml, and the QoS of its 18 offered topics 12.0
+ms, 2.8 ms. What is written loads back the same (734 documents checked: every metadata.yaml of
+the fixtures and of six Lab 3 self-checks, both maps, each topic's QoS list, the late offers);
+the text differs only where libyaml folds a long quoted string (the late offers kept under
+``custom_data``) at other points of the line than PyYAML.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ ROS_DISTRO = "jazzy"
 #: RMW_DURATION_INFINITE as rosbag2 Jazzy writes it (sec, nsec)
 INFINITE = {"sec": 9223372036, "nsec": 854775807}
 _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_SAFE_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 
 
 def safe_load(text: str) -> Any:
@@ -34,6 +42,12 @@ def safe_load(text: str) -> Any:
         return yaml.load(text, Loader=_SAFE_LOADER)  # noqa: S506 - a safe loader
     except yaml.YAMLError:
         return yaml.safe_load(text)
+
+
+def safe_dump(data: Any) -> str:
+    """``yaml.safe_dump(data, sort_keys=False, default_flow_style=False)``, with libyaml when
+    available (see the module docstring)."""
+    return yaml.dump(data, Dumper=_SAFE_DUMPER, sort_keys=False, default_flow_style=False)
 
 
 def default_qos() -> dict[str, Any]:
@@ -91,7 +105,7 @@ def qos_yaml(profiles: list[dict[str, Any]]) -> str:
     """
     if not profiles:
         return "[]\n"
-    return yaml.safe_dump(profiles, sort_keys=False, default_flow_style=False)
+    return safe_dump(profiles)
 
 
 def rosbags_safe_hash(type_name: str, type_hash: str) -> str:
@@ -169,8 +183,7 @@ class BagMetadata:
 
     def to_yaml(self) -> str:
         """metadata.yaml text: the map under ``rosbag2_bagfile_information`` (MetadataIo)."""
-        return yaml.safe_dump({"rosbag2_bagfile_information": self.to_dict()}, sort_keys=False,
-                              default_flow_style=False)
+        return safe_dump({"rosbag2_bagfile_information": self.to_dict()})
 
     def serialized(self) -> str:
         """``serialized_metadata`` of the MCAP Metadata record ``rosbag2``: the *bare* map.
@@ -178,7 +191,7 @@ class BagMetadata:
         rosbag2_storage_mcap (Jazzy) writes ``YAML::convert<BagMetadata>::encode`` there and
         decodes it the same way on open, so, unlike metadata.yaml, there is no wrapper key.
         """
-        return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=False)
+        return safe_dump(self.to_dict())
 
     def write(self, bag_dir: Path) -> None:
         """Write atomically: a reader never sees half a metadata file."""

@@ -25,11 +25,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO, cast
 
-import yaml
 from mcap.writer import CompressionType, Writer
 
 from grader.bag.metadata import (LATE_QOS_KEY, BagMetadata, FileInfo, TopicInfo, qos_from_any,
-                                 qos_yaml, rosbags_safe_hash)
+                                 qos_yaml, rosbags_safe_hash, safe_dump)
 from grader.errors import GraderError
 
 PROFILE = "ros2"
@@ -182,7 +181,7 @@ class BagWriter:
         custom = dict(self.custom_data)
         late = {n: t.late_offers for n, t in self.topics.items() if t.late_offers}
         if late:
-            custom[LATE_QOS_KEY] = yaml.safe_dump(late, sort_keys=False)
+            custom[LATE_QOS_KEY] = safe_dump(late)
         topics = []
         for t in self.topics.values():
             channel = t.metadata_map()
