@@ -366,7 +366,7 @@ def select(frames: Frames, p: BoxMullerInputParams, sources: list[Source] | None
     return made
 
 
-def _memo_for(frames: Frames) -> dict | None:
+def _memo_for(frames: Frames) -> dict[tuple, Selection] | None:
     """The thread's selections made on ``frames`` (emptied when the frames are others), or None
     when frames cannot be told apart (no ``__meta__`` table)."""
     meta = frames.get("__meta__")
@@ -377,7 +377,7 @@ def _memo_for(frames: Frames) -> dict | None:
     if held is None or held[0] != tables or held[1]() is not meta:
         _RECENT.frames = (tables, weakref.ref(meta))
         _RECENT.memo = {}
-    memo: dict = _RECENT.memo
+    memo: dict[tuple, Selection] = _RECENT.memo
     return memo
 
 
