@@ -6,16 +6,17 @@ DataFrames, the analyzers, the contract check, the behaviour fingerprint, the re
 scoring, result.json, report.html (its figures apart), the self-check table. Each run is a fresh
 interpreter (``--child``), as a real ``grader check`` is, so the imports and matplotlib's set-up
 are counted where they are paid (with the modules' bytecode cached, as in an installed grader:
-compiling grader's ~180 modules again in every run costs ~0.25 s more); its total is the child's whole CPU (``RUSAGE_CHILDREN``), so
-what no phase names is the remainder. The submission's committed bags
+compiling grader's ~180 modules again in every run costs ~0.25 s more); its total is the
+child's whole CPU (``RUSAGE_CHILDREN``), so what no phase names is the remainder (the
+interpreter's start and exit among it). The submission's committed bags
 (``fixtures/bags/lab3/<submission>``) stand in for its scenarios; the post-scenario calls are
 those of ``grader.grading.pipeline.grade_submission`` in the student's view (public items).
 
-``--baseline FILE`` prints a run saved with ``--json`` (another checkout, e.g. before a change)
-side by side with this one.
+``--against DIR`` runs another checkout's grader (e.g. the branch point, ``git worktree add``)
+through the same path, its runs interleaved with this one's, and prints both side by side.
 
     PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_post.py [--runs 5] [--submission reference]
-        [--json OUT] [--baseline OLD.json]
+        [--against OTHER_CHECKOUT] [--bags WORKSPACE/.grader-check/check/scenarios]
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
+#: the checkout measured: this one, or (in a child run for ``--against``) the other one
+REPO = Path(os.environ.get("BENCH_POST_CHECKOUT") or Path(__file__).resolve().parents[1])
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
@@ -80,12 +82,14 @@ class Clock:
         self.cpu[name] = self.cpu.get(name, 0.0) + time.process_time() - t0
 
 
-def child(submission: str, dump: Path | None) -> None:
+def child(submission: str, dump: Path | None, bags: Path | None = None) -> None:
     """One post-scenario path in this (fresh) interpreter; prints the phases' CPU as JSON."""
     clock = Clock()
     with clock.phase("start-up (CLI, imports)"):
-        from grader.cli import build_parser  # noqa: PLC0415 - timed: what `grader check` imports
-        build_parser()
+        from grader import cli  # noqa: PLC0415 - timed: what `grader check` imports
+        cli.build_parser()
+        freeze = getattr(cli, "freeze_heap", lambda: None)        # as the program does (absent before it)
+        freeze()
         from grader.grading import analysis, outputs, pipeline  # noqa: PLC0415 - timed, as run_check imports them
         from grader.report import html  # noqa: PLC0415 - timed
         from grader.testing.batch import LAB3_BAGS, layout  # noqa: PLC0415 - timed
@@ -102,7 +106,13 @@ def child(submission: str, dump: Path | None) -> None:
         rubric = api.load_rubric(REPO / "rubrics" / "enee467_lab3.yaml")
     with tempfile.TemporaryDirectory(prefix="bench-post-") as tmp:
         out = Path(tmp)
-        sid = layout(LAB3_BAGS, out, [submission])[0]
+        root = LAB3_BAGS
+        if bags is not None:              # a graded folder's scenarios/ (e.g. WORKSPACE/.grader-check/check/scenarios)
+            root = out / "bags"
+            root.mkdir()
+            (root / submission).symlink_to(bags.resolve())
+        sid = layout(root, out / "graded", [submission])[0]
+        out = out / "graded"
         sub_out = out / sid
         # grade_submission after its scenarios, in the student's view (grader check)
         items = pipeline.selected_items(rubric, True)
@@ -124,60 +134,57 @@ def child(submission: str, dump: Path | None) -> None:
             (dump / "report.html").write_text((sub_out / "report.html").read_text())
             (dump / "result.json").write_text((sub_out / "result.json").read_text())
     print(json.dumps(clock.cpu), flush=True)
-    from grader import cli  # noqa: PLC0415 - as `grader` ends (absent before the change: nothing done)
-    getattr(cli, "leave_heap_to_exit", lambda: None)()
+    freeze()                                                     # as the program ends
 
 
-def run_once(submission: str, dump: Path | None = None) -> dict[str, float]:
-    """One fresh interpreter through the path; its phases, the remainder and the total."""
-    argv = [sys.executable, __file__, "--child", "--submission", submission] + (["--dump", str(dump)] if dump else [])
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+def run_once(checkout: Path, submission: str, bags: Path | None = None) -> dict[str, float]:
+    """One fresh interpreter through the path with ``checkout``'s grader; its phases, the
+    remainder and the total."""
+    argv = [sys.executable, __file__, "--child", "--submission", submission] + (["--bags", str(bags)] if bags else [])
+    env = {**os.environ, "BENCH_POST_CHECKOUT": str(checkout), "PYTHONPATH": str(checkout)}
     env.pop("PYTHONDONTWRITEBYTECODE", None)        # as installed: compiled once (the warm-up), not every run
     c0 = children_cpu()
-    proc = subprocess.run(argv, capture_output=True, text=True, env=env, check=False, cwd=REPO)
+    proc = subprocess.run(argv, capture_output=True, text=True, env=env, check=False, cwd=checkout)
     total = children_cpu() - c0
     if proc.returncode != 0:
-        sys.exit(f"child failed:\n{proc.stderr}")
+        sys.exit(f"child failed ({checkout}):\n{proc.stderr}")
     phases = json.loads(proc.stdout.strip().splitlines()[-1])
     phases["rest (not named)"] = total - sum(phases.values())
     phases["total"] = total
     return phases
 
 
-def summary(runs: list[dict[str, float]]) -> dict[str, float]:
-    return {k: statistics.median(r.get(k, 0.0) for r in runs) for k in (*PHASES, "total")}
-
-
-def print_table(now: dict[str, float], before: dict[str, float] | None, label: str) -> None:
-    head = f"{'phase':<28} {'before':>9} {'after':>9}" if before else f"{'phase':<28} {label:>9}"
-    print(head)
-    for phase in (*PHASES, "total"):
-        cell = f"{now.get(phase, 0.0):8.3f}s"
-        print(f"{phase:<28} {before.get(phase, 0.0):8.3f}s {cell}" if before else f"{phase:<28} {cell}")
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--submission", default="reference", help="a folder of fixtures/bags/lab3")
-    ap.add_argument("--json", type=Path, help="save the runs here")
-    ap.add_argument("--baseline", type=Path, help="a --json file of another checkout, printed beside")
+    ap.add_argument("--against", type=Path, help="another checkout (e.g. `git worktree add /tmp/base main`): "
+                    "its runs interleaved with this one's, printed beside them")
+    ap.add_argument("--bags", type=Path, help="grade these recordings instead: a graded folder's scenarios/ "
+                    "(e.g. WORKSPACE/.grader-check/check/scenarios of a real grader check)")
     ap.add_argument("--dump", type=Path, help="(with --child) write the report, result and table here")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(args.submission, args.dump)
+        child(args.submission, args.dump, args.bags)
         return 0
-    run_once(args.submission)              # warm-up: the OS page cache, matplotlib's font cache
-    runs = [run_once(args.submission) for _ in range(args.runs)]
-    load = os.getloadavg()[0]
-    now = summary(runs)
-    print(f"grader check's post-scenario path, {args.submission}, median CPU of {args.runs} fresh "
-          f"processes (load {load:.1f}; totals {min(r['total'] for r in runs):.2f}-{max(r['total'] for r in runs):.2f} s)\n")
-    before = summary(json.loads(args.baseline.read_text())["runs"]) if args.baseline else None
-    print_table(now, before, "CPU")
-    if args.json:
-        args.json.write_text(json.dumps({"submission": args.submission, "load": load, "runs": runs}, indent=1))
+    checkouts = ([args.against.resolve()] if args.against else []) + [REPO]
+    runs: dict[Path, list[dict[str, float]]] = {c: [] for c in checkouts}
+    for c in checkouts:
+        run_once(c, args.submission, args.bags)        # warm-up: bytecode, page cache, matplotlib's font cache
+    for _ in range(args.runs):                          # interleaved: the machine's load hits both alike
+        for c in checkouts:
+            runs[c].append(run_once(c, args.submission, args.bags))
+    what = args.bags or f"fixtures/bags/lab3/{args.submission}"
+    print(f"grader check's post-scenario path on {what}: median CPU s of {args.runs} fresh processes "
+          f"per checkout (load {os.getloadavg()[0]:.1f})\n")
+    names = [("against" if c != REPO else "this checkout") for c in checkouts]
+    print(f"{'phase':<26}" + "".join(f"{n:>15}" for n in names))
+    for phase in (*PHASES, "total"):
+        print(f"{phase:<26}" + "".join(f"{statistics.median(r[phase] for r in runs[c]):15.3f}" for c in checkouts))
+    for c, n in zip(checkouts, names):
+        totals = [r["total"] for r in runs[c]]
+        print(f"  {n}: {c} (totals {min(totals):.2f}-{max(totals):.2f} s)")
     return 0
 
 
