@@ -127,7 +127,10 @@ def child(submission: str, dump: Path | None, bags: Path | None = None) -> None:
         pipeline.write_outputs(graded, rubric, public_only=True)
         table = io.StringIO()
         with clock.phase("self-check table"), contextlib.redirect_stdout(table):
-            outputs.print_check_table(graded, rubric)
+            if hasattr(outputs, "check_table"):          # the table's lines (newer grader)
+                print("\n".join(outputs.check_table(graded, rubric)[1]))
+            else:                                        # printed (older grader)
+                outputs.print_check_table(graded, rubric)
         if dump is not None:
             dump.mkdir(parents=True, exist_ok=True)
             (dump / "table.txt").write_text(table.getvalue())
