@@ -267,3 +267,21 @@ def test_a_crash_traceback_is_not_printed_output() -> None:
     f = check(get("boxmuller")(_frames(kind="stdout", drop=range(60), extra=crash), {}))
     assert f.status == "fail" and f.fraction == 0.0, f.feedback
     assert f.evidence.get("matched", 0) == 0, f.evidence
+
+
+def test_a_selection_is_made_once_per_frames_and_again_for_other_frames() -> None:
+    """boxmuller and normality ask select() the same question of the same frames: the second
+    gets the first's selection; frames with a table replaced (or other params) get a new one,
+    equal to what a fresh selection finds."""
+    from grader.analyze.boxmuller import BoxMullerParams, NormalityParams
+    from grader.analyze.boxmuller_pairing import select
+
+    fr = _frames()
+    first = select(fr, BoxMullerParams(), tail_grace_s=2.0)
+    assert select(fr, NormalityParams(), tail_grace_s=2.0) is first
+    assert select(fr, BoxMullerParams(max_lag_s=1.0), tail_grace_s=2.0) is not first
+    wrong = _frames("sin_for_cos")
+    fr["/rosout"], fr["/grader/stdout"] = wrong["/rosout"], wrong["/grader/stdout"]   # same dict and __meta__
+    again = select(fr, BoxMullerParams(), tail_grace_s=2.0)
+    assert again is not first and again.best is not None and again.best.formula == "sin_for_cos"
+    assert first.best is not None and first.best.formula == "correct"
