@@ -225,6 +225,25 @@ def install_grader_itself(t: Target) -> None:
     launcher.chmod(0o755)
 
 
+def compile_own_code(t: Target) -> None:
+    """Write the byte code of the checkout's own modules, as pip does for what it installs.
+
+    A shell with ``PYTHONDONTWRITEBYTECODE=1`` (this project's development machines have it) never
+    writes ``__pycache__`` for the checkout, so every grader process compiled the ~180 modules it
+    imports again: 0.29 s CPU to import the scenario child's modules without byte code, 0.23 s with
+    it; every scenario starts two or three such processes. Incremental (an unchanged module is
+    skipped), so a second bootstrap pays ~0.3 s.
+    """
+    sources = [str(d) for d in (ROOT / "grader", ROOT / "rubrics") if d.is_dir()]
+    if not sources:
+        return
+    done = subprocess.run([str(t.python), "-m", "compileall", "-q", "-j", "0", *sources],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if done.returncode != 0:     # e.g. an installed grader in a folder we may not write: only slower
+        log("could not write the byte code of every grader module (start-up is slower, nothing else): "
+            + (done.stdout.strip().splitlines() or ["no output"])[-1])
+
+
 def repair_cmake_exports(t: Target, state: dict) -> None:
     """The wheels' exported targets name include dirs of the machine that built them."""
     if state.get("cmake_repair") == "done":
@@ -334,6 +353,7 @@ def prepare(t: Target, mode: str) -> None:
         repair_cmake_exports(t, state)
         fix_executor(t, state)
     build_interfaces(t, mode, state)
+    compile_own_code(t)
     state["mode"] = mode
     t.stamp.write_text(json.dumps(state, indent=1))
     log(f"ready ({mode} ROS 2; python {t.python})")
