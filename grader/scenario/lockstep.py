@@ -14,10 +14,10 @@ path every time, where on the wall clock a command one tick late sends it elsewh
 The cost is the wall time of the calls and the quiet checks, and their CPU. The two calls go
 over a socket of their own to the simulator (:mod:`grader.sim.stepchannel`), not through its DDS
 services: on Lab 3's ``ex3_action`` (2,117 ticks, the same poses byte for byte) the stepping
-thread's CPU in them fell from 1.3-1.9 s to 0.14-0.26 s, their wall time (``call_wall_s``) from
-4.4-6.5 s to 2.5-3.7 s at load 2-6 (7.7 s in one run at 5.9), and the scenario's CPU (its process
-and its children) from 13.7-19.8 s to 11.0-13.7 s at load 2-5; at load 5-10 the load's noise hides
-the difference (benchmarks/README.md, "A cheaper lockstep tick"). What the stepping thread
+thread's CPU in them fell from 1.3-1.9 s to 0.10-0.26 s, their wall time (``call_wall_s``) from
+4.4-7.2 s to 2.5-3.9 s at load 1.5-6 (7.7 s in one run at 5.9), and the scenario's CPU (its
+process and its children) from 13.3-19.8 s to 11.0-13.7 s at load 1.5-5; at load 5-10 the load's
+noise hides the difference (benchmarks/README.md, "A cheaper lockstep tick"). What the stepping thread
 spends now is the quiet checks (``tick_cpu_s`` less ``call_cpu_s`` in the record: 3.7-5.6 s), a
 ``stat`` and two ``schedstat`` reads per waited thread and pass.
 
