@@ -63,6 +63,7 @@ class ProcessSpec:
     stop_grace_s: float = 3.0                    # SIGINT -> SIGTERM after this
     term_grace_s: float = 2.0                    # SIGTERM -> SIGKILL after this
     untrusted: bool = False                      # student code: the graph's sandbox, capped logs
+    pass_fds: tuple[int, ...] = ()               # descriptors this process alone inherits (never untrusted)
 
 
 def python_argv(module: str, *args: str) -> list[str]:
@@ -135,7 +136,8 @@ class ManagedProcess:
                 cwd=prepared.cwd if prepared is not None else spec.cwd,
                 stdin=subprocess.PIPE if spec.stdin is not None else subprocess.DEVNULL,
                 stdout=stdout, stderr=stderr,
-                preexec_fn=lambda: _preexec(spec, prepared), close_fds=True)
+                preexec_fn=lambda: _preexec(spec, prepared), close_fds=True,
+                pass_fds=() if spec.untrusted else spec.pass_fds)
         except OSError as exc:
             self._out.close()
             self._err.close()

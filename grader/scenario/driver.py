@@ -16,6 +16,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import json
+import socket
 import threading
 import time
 from pathlib import Path
@@ -41,7 +42,8 @@ class Driver(TopicWatches):
     on the ``/clock`` of ``clock_node`` (see :mod:`grader.scenario.simtime`). ``lockstep``: the
     simulator's clock advances only when this driver's waits step it
     (:mod:`grader.scenario.lockstep`); the callable gives the processes each tick waits for,
-    ``lockstep_exclude`` threads of this process it does not.
+    ``lockstep_exclude`` threads of this process it does not, ``lockstep_channel`` the socket
+    it steps the simulator over (:mod:`grader.sim.stepchannel`; None: its DDS services).
     """
 
     def __init__(self, domain_id: int, processes: dict[str, ManagedProcess], sim_node: str = "turtlesim",
@@ -50,7 +52,8 @@ class Driver(TopicWatches):
                  recording_matched: Callable[[str, int], bool] | None = None,
                  recorded_count: Callable[[str], int | None] | None = None,
                  lockstep: Callable[[], list[int]] | None = None,
-                 lockstep_exclude: Callable[[], set[int]] = set) -> None:
+                 lockstep_exclude: Callable[[], set[int]] = set,
+                 lockstep_channel: socket.socket | None = None) -> None:
         import rclpy  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
         from rclpy.clock import Clock, ClockType  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
         from rclpy.parameter import Parameter  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
@@ -58,7 +61,7 @@ class Driver(TopicWatches):
         from std_msgs.msg import String  # noqa: PLC0415 - std_msgs: ROS, imported where it is used, so this module loads without a ROS install
 
         self._open_node(rclpy, Parameter, domain_id, sim_node, time_scale > 1 or lockstep is not None)
-        self._make_clock(time_scale, clock_node, lockstep, lockstep_exclude)
+        self._make_clock(time_scale, clock_node, lockstep, lockstep_exclude, lockstep_channel)
         self.String = String
         self._keep_recorder_hooks(sink, recording_matched, recorded_count)
         from rclpy.serialization import serialize_message  # noqa: PLC0415 - rclpy: ROS, imported where it is used, so this module loads without a ROS install
@@ -81,12 +84,12 @@ class Driver(TopicWatches):
         self.node = rclpy.create_node("grader_driver", context=self.ctx, parameter_overrides=overrides)
 
     def _make_clock(self, time_scale: float, clock_node: str | None, lockstep: Callable[[], list[int]] | None,
-                    lockstep_exclude: Callable[[], set[int]]) -> None:
+                    lockstep_exclude: Callable[[], set[int]], lockstep_channel: socket.socket | None = None) -> None:
         """Make the scenario clock (and lockstep's stepper) right after the node, so its entities come first."""
         # its service clients are made here, before the executor spins, and send while it is paused
         stepper = None
         if lockstep is not None:
-            stepper = Stepper(self.ctx, self.sim_node, lockstep, lockstep_exclude)
+            stepper = Stepper(self.ctx, self.sim_node, lockstep, lockstep_exclude, lockstep_channel)
         self.clock = ScenarioClock(time_scale, self.node,
                                    f"/{clock_node.strip('/')}/{HOLD_SERVICE}" if clock_node else None,
                                    paused=self.executor_paused, stepper=stepper)

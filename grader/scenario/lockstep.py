@@ -11,7 +11,17 @@ the machine is: a chaotic controller (a missing angle wrap, a wall it touches) d
 path every time, where on the wall clock a command one tick late sends it elsewhere
 (``benchmarks/bench_flake.py``, issue 22).
 
-The cost is the wall time of the calls and the quiet checks. Measured on this project's 2-core
+The cost is the wall time of the calls and the quiet checks, and their CPU. The two calls go
+over a socket of their own to the simulator (:mod:`grader.sim.stepchannel`), not through its DDS
+services: on Lab 3's ``ex3_action`` (2,117 ticks, the same poses byte for byte) the stepping
+thread's CPU in them fell from 1.3-1.9 s to 0.10-0.26 s, their wall time (``call_wall_s``) from
+4.4-7.2 s to 2.5-3.9 s at load 1.5-6 (7.7 s in one run at 5.9), and the scenario's CPU (its
+process and its children) from 13.3-19.8 s to 11.0-13.7 s at load 1.5-5; at load 5-10 the load's
+noise hides the difference (benchmarks/README.md, "A cheaper lockstep tick"). What the stepping thread
+spends now is the quiet checks (``tick_cpu_s`` less ``call_cpu_s`` in the record: 3.7-5.6 s), a
+``stat`` and two ``schedstat`` reads per waited thread and pass.
+
+Measured earlier on this project's 2-core
 machine: a no-wrap chaser's 400 ticks took 13.5 ms of wall time each with the test suite running
 beside it (4 ms in the two calls, 9.5 ms waiting for quiet), the same 400 ticks hashed alike in
 every run, while two runs on the free-running clock differed (416 and 419 poses, other paths);
@@ -31,6 +41,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import os
+import socket
 import threading
 import time
 from collections import Counter
@@ -40,6 +51,7 @@ from grader.scenario.cpuwait import TreeCpu
 from grader.scenario.quiescence import Quiescence
 from grader.scenario.simtime import LOCKSTEP_WALL_FACTOR
 from grader.sim.clock import HOLD_SERVICE, STEP_CLOCK_SERVICE, STEP_WORLD_SERVICE, TICK_NS, hold_point
+from grader.sim.stepchannel import STEP_CLOCK, STEP_WORLD, StepChannelError, StepClient
 
 #: wall seconds a tick waits for every process to be quiet before it goes on regardless
 QUIET_WAIT_S = 2.0
@@ -109,19 +121,24 @@ class CpuBudget:
 
 
 class Stepper:
-    """Advances the simulator's lockstep clock from a node of its own in the driver's context.
+    """Advances the simulator's lockstep clock, over its step channel, or from a node of its own
+    in the driver's context.
 
     The node is spun only by the thread that steps, while it waits for the simulator's answer:
     through the driver's executor (spinning in another thread with a 50 ms timeout, and paused
-    for each request) a tick of wall_pen's drive took 106 ms of wall time; spun here, 20 ms.
+    for each request) a tick of wall_pen's drive took 106 ms of wall time; spun here, 20 ms (on
+    the channel, nothing spins: one ``send``, one blocking ``recv``).
     ``pids()``: the processes to wait for (the simulator's and the students'); the driver's own
     process is always waited for too, except the calling thread and ``exclude()`` (the
     recorder's writing thread, whose work changes nothing anyone receives): its subscriptions
-    must have taken what a tick sent before a condition is checked.
+    must have taken what a tick sent before a condition is checked. ``channel``: the socket the
+    ticks' two calls go over (:mod:`grader.sim.stepchannel`); without one, the simulator's DDS
+    services. The probes before the first tick (:meth:`ready`) and the hold service's questions
+    always go over DDS: the probes wait for discovery, as they did before the channel.
     """
 
     def __init__(self, context: Any, sim_node: str, pids: Callable[[], list[int]],
-                 exclude: Callable[[], set[int]] = set) -> None:
+                 exclude: Callable[[], set[int]] = set, channel: socket.socket | None = None) -> None:
         import rclpy  # noqa: PLC0415 - rclpy: ROS, imported where it is used (this module loads in processes that never use it)
         from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415 - rclpy.executors: ROS, imported where it is used (this module loads in processes that never use it)
         from std_srvs.srv import SetBool, Trigger  # noqa: PLC0415 - std_srvs.srv: ROS, imported where it is used (this module loads in processes that never use it)
@@ -135,6 +152,7 @@ class Stepper:
         self._world = node.create_client(Trigger, f"/{sim_node}/{STEP_WORLD_SERVICE}")
         self._request = Trigger.Request()
         self._step = SetBool.Request(data=True)
+        self._channel = None if channel is None else StepClient(channel)
         self._pids = pids
         self._exclude = exclude
         self.now_ns = 0
@@ -146,6 +164,10 @@ class Stepper:
         self._ticked = threading.Condition()
         self.tick_wall_s = 0.0          # wall time spent in ticks
         self.call_wall_s = 0.0          # ... of which waiting for the simulator's two answers
+        #: CPU of this (the stepping) thread in ticks, and of it in the two calls (the rest: the
+        #: quiet checks and the actions due)
+        self.tick_cpu_s = 0.0
+        self.call_cpu_s = 0.0
         #: waits that ended by their wall-time limit before their simulated time (ScenarioClock)
         self.wall_cuts = 0
         #: (time, order, action): what :meth:`schedule` asked to run at a tick boundary
@@ -159,6 +181,8 @@ class Stepper:
     def close(self) -> None:
         for quiet in self.quiet.values():
             quiet.close()
+        if self._channel is not None:
+            self._channel.close()
         self._executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
 
@@ -193,6 +217,24 @@ class Stepper:
             raise LockstepError(f"the simulator did not answer {client.srv_name} within {wait_s:g} s")
         return str(future.result().message)
 
+    def _step_clock(self) -> int:
+        """A tick of time on ``/clock``; the new time."""
+        if self._channel is None:
+            return int(self._call(self._clock, self._step).split()[0])
+        try:
+            return int(self._channel.call(STEP_CLOCK, STEP_WAIT_S).split()[0])
+        except StepChannelError as exc:
+            raise LockstepError(str(exc)) from exc
+
+    def _step_world(self) -> None:
+        if self._channel is None:
+            self._call(self._world)
+            return
+        try:
+            self._channel.call(STEP_WORLD, STEP_WAIT_S)
+        except StepChannelError as exc:
+            raise LockstepError(str(exc)) from exc
+
     def _settle(self, own: bool) -> None:
         """Wait until the processes are quiet; ``own``: this process too (its subscriptions),
         which only the world's step concerns (nobody here answers ``/clock``)."""
@@ -219,18 +261,21 @@ class Stepper:
 
     def tick(self) -> int:
         """One tick: time on ``/clock``, quiet, the world's step, quiet. Returns the new time."""
-        t0 = time.monotonic()
-        self.now_ns = int(self._call(self._clock, self._step).split()[0])
-        t1 = time.monotonic()
+        t0, c0 = time.monotonic(), time.thread_time()
+        self.now_ns = self._step_clock()
+        t1, c1 = time.monotonic(), time.thread_time()
         self._settle(own=False)
-        t2 = time.monotonic()
-        self._call(self._world)
-        self.call_wall_s += (t1 - t0) + (time.monotonic() - t2)
+        t2, c2 = time.monotonic(), time.thread_time()
+        self._step_world()
+        t3, c3 = time.monotonic(), time.thread_time()
+        self.call_wall_s += (t1 - t0) + (t3 - t2)
         self._settle(own=True)
         if self._run_due():
             self._settle(own=True)
         self.ticks += 1
         self.tick_wall_s += time.monotonic() - t0
+        self.tick_cpu_s += time.thread_time() - c0
+        self.call_cpu_s += (c1 - c0) + (c3 - c2)
         if self.ticks == 1:
             self.cpu.start(self.now_ns)
         elif self.ticks >= SLOW_AFTER_TICKS and self.ticks % CPU_CHECK_TICKS == 0:
@@ -310,7 +355,9 @@ class Stepper:
         both = self.quiet.values()
         blockers = sum((q.blockers for q in both), Counter())
         return {"ticks": self.ticks, "sim_s": round(self.now_ns / 1e9, 3),
+                "channel": "dds" if self._channel is None else "socket",
                 "tick_wall_s": round(self.tick_wall_s, 3), "call_wall_s": round(self.call_wall_s, 3),
+                "tick_cpu_s": round(self.tick_cpu_s, 3), "call_cpu_s": round(self.call_cpu_s, 3),
                 "cpu_per_sim_s": None if (rate := self.cpu.rate(self.now_ns)) is None else round(rate, 3),
                 "quiet_waits": sum(q.waits for q in both), "quiet_scans": sum(q.scans for q in both),
                 "quiet_timeouts": self.quiet_timeouts, "wall_cuts": self.wall_cuts,

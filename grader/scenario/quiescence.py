@@ -13,6 +13,13 @@ time reads ``R``. (Earlier, two full passes in a row had to read idle with equal
 least 5 ms a check on Lab 3's action scenario, where the counts-states-counts check through
 :class:`TaskFiles` takes ~0.4 ms.)
 
+A scan stops reading states at the first thread awake (the one found the scan before is read
+first), and the pause between scans doubles from 0.2 ms to 1 ms while they find work: a scan
+that finds a thread awake is not quiet whatever the rest read, and a node that takes longer is
+polled less. Microbenchmarked (4 processes of 16 threads, one thread working 0.5/2/8 ms after
+each poke, load 9-13): 1.27/1.49/2.88 ms of CPU per wait instead of 1.33/2.37/3.32, the wait
+ending 4.0/5.7/6.6 ms after the work instead of 6.0/8.4/9.3 (medians).
+
 A message in flight wakes its reader's receive thread before the writer's ``publish`` returns
 (loopback and shared-memory transports hand the data over in the writer's call), so a tree read
 quiet after a publish has nothing of it left to do. Periodic DDS housekeeping (heartbeats,
@@ -154,14 +161,28 @@ def counts(tasks: list[tuple[int, int]], files: TaskFiles,
     return out
 
 
+def _is_awake(files: TaskFiles, pid: int, tid: int) -> bool:
+    stat = files.read(pid, tid, 0)
+    return stat is not None and chr(stat[stat.rindex(b")") + 2]) not in _IDLE_STATES
+
+
 def awake(tasks: list[tuple[int, int]], files: TaskFiles) -> list[tuple[int, int]]:
     """The threads not asleep (running, waiting for a CPU, in uninterruptible I/O)."""
-    out: list[tuple[int, int]] = []
+    return [(pid, tid) for pid, tid in tasks if _is_awake(files, pid, tid)]
+
+
+def first_awake(tasks: list[tuple[int, int]], files: TaskFiles,
+                hint: tuple[int, int] | None = None) -> tuple[int, int] | None:
+    """A thread not asleep, or None: ``hint`` (the one found last time) first, then in order,
+    stopping at the first. A scan that finds one is not quiet whatever the rest read, and the
+    ``stat`` reads are most of a scan's cost (64 threads: 260 us of ``stat``, 100 us of
+    ``schedstat``); the thread found awake is most often the one found the time before."""
+    if hint is not None and hint in tasks and _is_awake(files, *hint):
+        return hint
     for pid, tid in tasks:
-        stat = files.read(pid, tid, 0)
-        if stat is not None and chr(stat[stat.rindex(b")") + 2]) not in _IDLE_STATES:
-            out.append((pid, tid))
-    return out
+        if (pid, tid) != hint and _is_awake(files, pid, tid):
+            return (pid, tid)
+    return None
 
 
 @dataclass
@@ -184,6 +205,8 @@ class Quiescence:
     starved_s: float = 0.0
     _pids: list[int] = field(default_factory=list)
     _files: TaskFiles = field(default_factory=TaskFiles)
+    #: the thread the last scan found awake, read first in the next (:func:`first_awake`)
+    _hint: tuple[int, int] | None = None
 
     def close(self) -> None:
         """Close the threads' files (they are reopened on the next wait)."""
@@ -194,7 +217,7 @@ class Quiescence:
         self._pids = descendants(self.roots)
         self.processes = max(self.processes, len(self._pids))
 
-    def wait(self, timeout_s: float = 1.0, pause_s: float = 0.0002) -> bool:
+    def wait(self, timeout_s: float = 1.0, pause_s: float = 0.0002, max_pause_s: float = 0.001) -> bool:
         """Block until quiet (True) or not quiet after ``timeout_s`` of wall time in which the
         trees' threads also ran ``timeout_s * CPU_SHARE`` seconds on a CPU (False, counted).
 
@@ -213,12 +236,14 @@ class Quiescence:
         self._files.keep_only(set(tasks))
         first: dict[int, int] = {}
         previous = counts(tasks, self._files, first)
+        pause = pause_s
         while True:
-            busy = awake(tasks, self._files)
+            busy = first_awake(tasks, self._files, self._hint)
+            self._hint = busy or self._hint
             cpu: dict[int, int] = {}
             now_counts = counts(tasks, self._files, cpu)
             self.scans += 1
-            if not busy and now_counts == previous:
+            if busy is None and now_counts == previous:
                 return True
             previous = now_counts
             now = time.monotonic()
@@ -226,8 +251,9 @@ class Quiescence:
             if now >= cap or (now >= end and ran_s >= timeout_s * CPU_SHARE):
                 self.starved_s = max(self.starved_s, now - start - timeout_s)
                 self.timeouts += 1
-                for pid, tid in busy:
+                for pid, tid in awake(tasks, self._files):
                     self.blockers[f"{_comm(pid, pid)}/{_comm(pid, tid)}"] += 1
                 return False
-            time.sleep(pause_s)
+            time.sleep(pause)
+            pause = min(2 * pause, max_pause_s)
             tasks = threads(self._pids, self.exclude)

@@ -24,6 +24,7 @@ import contextlib
 import json
 import os
 import signal
+import socket
 import sys
 import time
 import traceback
@@ -42,6 +43,7 @@ from grader.scenario.watchdog import RateWatchdog
 from grader.sim.clock import CLOCK_NODE, CLOCK_TOPIC
 from grader.rosenv import simulator_env, add_interface_paths
 from grader.sim import truth_pose_topic, sim_argv
+from grader.sim.stepchannel import make_pair
 
 RECORDER_READY_S = 10.0
 SIM_READY_S = 15.0
@@ -91,6 +93,8 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
     t_start = time.monotonic()
     students: dict[str, ManagedProcess] = {}
     driver = recorder = sim = None
+    #: lockstep with our simulator: the stepper's end of the step channel, the simulator's end
+    steps = make_pair() if run.lockstep and spec.sim else None
     # the students' processes get their build's environment (as its setup.bash gives it), the
     # grader's processes the trusted one (rosenv.trusted_env)
     with RosGraph(out, prefixes=[Path(p) for p in run.prefixes],
@@ -108,8 +112,9 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             except GraderError as exc:
                 record["errors"].append(str(exc))
             if not scale:
-                sim = _start_clock_owner(graph, run, out, record, scale)
-            driver = _driver(run, graph, students, recorder, sim, scale, clock_node)
+                sim = _start_clock_owner(graph, run, out, record, scale, steps[1] if steps else None)
+            driver = _driver(run, graph, students, recorder, sim, scale, clock_node,
+                             steps[0] if steps else None)
             start_hold = _bring_up(run, driver, recorder, sim, record, scale, clock_node)
             launcher = Launcher(run, graph, driver, students)
             rt = Runtime(driver, run, launcher.start, launcher.members)
@@ -160,9 +165,11 @@ def _recorder(run: ScenarioRun, out: Path, graph: RosGraph, scale: float | None,
 
 
 def _driver(run: ScenarioRun, graph: RosGraph, students: dict[str, ManagedProcess], recorder: RecorderThread,
-            sim: ManagedProcess | None, scale: float | None, clock_node: str | None) -> Any:
+            sim: ManagedProcess | None, scale: float | None, clock_node: str | None,
+            steps: socket.socket | None = None) -> Any:
     """The scenario's driver, told what the recorder has matched and recorded, and in lockstep
-    which processes to wait for (the simulator's and the students', not the recorder's thread)."""
+    which processes to wait for (the simulator's and the students', not the recorder's thread)
+    and the step channel to the simulator (``steps``, :mod:`grader.sim.stepchannel`)."""
     from grader.scenario.driver import Driver  # noqa: PLC0415 - scenario.run loads in every scenario child process; scenario.driver only on this path
 
     driver = Driver(graph.domain_id, students, sim_node=run.sim_node, time_scale=scale or 1.0,
@@ -171,7 +178,8 @@ def _driver(run: ScenarioRun, graph: RosGraph, students: dict[str, ManagedProces
                     recorded_count=lambda t: recorder.recorded(t) if recorder.records(t) else None,
                     lockstep=(lambda: [p.pid for p in [sim, *students.values()]
                                        if p is not None and p.alive()]) if run.lockstep else None,
-                    lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None})
+                    lockstep_exclude=lambda: {t for t in (recorder.native_id,) if t is not None},
+                    lockstep_channel=steps)
     graph.limits.on_limit = lambda **hit: driver.event(Event.LIMIT_HIT, **hit)
     return driver
 
@@ -315,15 +323,23 @@ def _wait_recorded(driver: Any, recorder: RecorderThread | None, record: dict[st
 
 
 def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dict[str, Any],
-                       scale: float | None) -> ManagedProcess | None:
+                       scale: float | None, steps: socket.socket | None = None) -> ManagedProcess | None:
     """The reference simulator (with the clock on simulated time), or without one on simulated
-    time ``grader_clock``; returns the simulator's process (None without a simulator)."""
+    time ``grader_clock``; returns the simulator's process (None without a simulator).
+    ``steps``: the simulator's end of lockstep's step channel, which it alone inherits (closed
+    here once it has it)."""
     if run.scenario.sim:
         canvas = out / "canvas.png"
         record["canvas"] = str(canvas)
-        return graph.start(ProcessSpec("turtlesim", sim_argv(
-            canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale,
-            pose_record=out / SIM_RECORD, lockstep=run.lockstep), env=simulator_env(graph.env)))
+        fds = () if steps is None else (steps.fileno(),)
+        try:
+            return graph.start(ProcessSpec("turtlesim", sim_argv(
+                canvas_out=canvas, ros_args=["-r", f"__node:={run.sim_node}"], time_scale=scale,
+                pose_record=out / SIM_RECORD, lockstep=run.lockstep, step_fd=fds[0] if fds else None),
+                env=simulator_env(graph.env), pass_fds=fds))
+        finally:
+            if steps is not None:
+                steps.close()
     if scale:
         graph.start(ProcessSpec(CLOCK_NODE, sim_argv(time_scale=scale, clock_only=True)))
     return None

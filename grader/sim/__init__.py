@@ -72,15 +72,18 @@ def sim_args(canvas_out: str | Path | None = None, *, holonomic: bool = False,
              background: Sequence[int] | None = None,
              ros_args: Sequence[str] = (), time_scale: float | None = None,
              clock_only: bool = False, pose_record: str | Path | None = None,
-             lockstep: bool = False) -> list[str]:
+             lockstep: bool = False, step_fd: int | None = None) -> list[str]:
     """Command-line arguments of ``python -m grader.sim`` (without the interpreter part).
 
     ``time_scale``: the simulator owns simulated time and publishes ``/clock`` (see
     :mod:`grader.sim.clock`); ``clock_only``: only that clock, no turtles; ``pose_record``: where
     the simulator writes its own record of the poses it publishes (:mod:`grader.sim.record`);
-    ``lockstep``: simulated time advances only when the scenario driver steps it.
+    ``lockstep``: simulated time advances only when the scenario driver steps it, over the
+    inherited socket ``step_fd`` when given (:mod:`grader.sim.stepchannel`).
     """
     args: list[str] = ["--lockstep"] if lockstep else []
+    if step_fd is not None:
+        args += ["--step-fd", str(step_fd)]
     if pose_record is not None:
         args += ["--pose-record", str(pose_record)]
     if time_scale is not None:
@@ -102,7 +105,7 @@ def sim_argv(canvas_out: str | Path | None = None, extra: Sequence[str] = (), *,
              holonomic: bool = False, background: Sequence[int] | None = None,
              ros_args: Sequence[str] = (), time_scale: float | None = None,
              clock_only: bool = False, pose_record: str | Path | None = None,
-             lockstep: bool = False) -> list[str]:
+             lockstep: bool = False, step_fd: int | None = None) -> list[str]:
     """argv that starts the simulator as a separate process with this interpreter.
 
     ``extra`` is appended verbatim (e.g. ``["--ros-args", "-r", "__ns:=/sim1"]``).
@@ -110,7 +113,7 @@ def sim_argv(canvas_out: str | Path | None = None, extra: Sequence[str] = (), *,
     return [sys.executable, "-m", "grader.sim",
             *sim_args(canvas_out, holonomic=holonomic, background=background, ros_args=ros_args,
                       time_scale=time_scale, clock_only=clock_only, pose_record=pose_record,
-                      lockstep=lockstep),
+                      lockstep=lockstep, step_fd=step_fd),
             *extra]
 
 

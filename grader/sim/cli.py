@@ -30,6 +30,9 @@ def _add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lockstep", action="store_true",
                         help="own simulated time and advance it only when asked: ~/step_clock "
                              "(a tick of time on /clock), then ~/step_world (the world's step, poses)")
+    parser.add_argument("--step-fd", type=int, metavar="FD", default=None,
+                        help="with --lockstep: the inherited socket the scenario driver steps over "
+                             "(grader.sim.stepchannel); the two services then only answer")
     parser.add_argument("--clock-only", action="store_true",
                         help="with --time-scale: no turtles, only /clock (node grader_clock)")
     parser.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=[],
@@ -65,7 +68,8 @@ def run_from_args(args: argparse.Namespace) -> int:
     from grader.sim.process import run  # noqa: PLC0415 - rclpy only when actually running
 
     return run(ros_argv(args), canvas_out=args.canvas_out, time_scale=args.time_scale,
-               clock_only=args.clock_only, pose_record=args.pose_record, lockstep=args.lockstep)
+               clock_only=args.clock_only, pose_record=args.pose_record, lockstep=args.lockstep,
+               step_fd=args.step_fd)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -25,7 +25,10 @@ pair of calls: ``~/step_clock`` (16 ms more, published on ``/clock``), then, onc
 has handled that (:mod:`grader.scenario.quiescence`), ``~/step_world`` (the world's step at
 that time with the commands taken so far, its poses published), then again once they are
 handled. Each node sees the same messages at the same simulated times in every run, however
-busy the machine: the same code draws the same path (:mod:`grader.scenario.lockstep`).
+busy the machine: the same code draws the same path (:mod:`grader.scenario.lockstep`). A
+scenario's driver makes both calls over a socket the simulator alone inherits (``--step-fd``,
+:mod:`grader.sim.stepchannel`: a DDS call cost ten times its CPU); the two services then only
+answer (the driver's probes before the first tick), so no other node can move the clock.
 
 The sim-time run starts at 0 (like Gazebo and ``ros2 bag play --clock``), so a node that kept a
 ``now()`` from before its first ``/clock`` (which reads 0) is off by seconds, not by decades.

@@ -53,6 +53,7 @@ from grader.sim import HOLD_TURTLES_SERVICE, truth_pose_topic
 from grader.sim.canvas import Canvas
 from grader.sim.clock import STEP_CLOCK_SERVICE, STEP_WORLD_SERVICE, SimClock
 from grader.sim.record import PoseRecord, record_topic
+from grader.sim.stepchannel import STEP_CLOCK, STEP_WORLD
 from grader.sim.physics import DEFAULT_BACKGROUND, METER, TICK_MS, RotateGoal, Turtle, World
 
 #: cmd_vel / pose / color_sensor profile of turtlesim/qos.hpp: KEEP_LAST 7, RELIABLE, VOLATILE
@@ -143,6 +144,8 @@ class TurtlesimNode(Node):
             self.sim_clock.attach(self)
             # no timer: the driver steps the world (grader.sim.clock, "Lockstep")
             self._world_ns = 0
+            #: the driver steps over its channel (grader.sim.stepchannel), the services only answer
+            self.steps_by_channel = False
             self.create_service(SetBool, f"~/{STEP_CLOCK_SERVICE}", self._on_step_clock)
             self.create_service(Trigger, f"~/{STEP_WORLD_SERVICE}", self._on_step_world)
         elif self.sim_clock is not None:
@@ -373,29 +376,50 @@ class TurtlesimNode(Node):
         self.sim_clock.publish()
 
     def _on_step_clock(self, req: SetBool.Request, res: SetBool.Response) -> Any:
-        """Lockstep, first half of a tick: simulated time advances 16 ms (not while held) and
-        goes out on ``/clock``; ``message``: "<time, ns> <matched /clock readers>". ``data``
-        false: only the answer (the driver's probe that the reply reaches it)."""
-        assert self.sim_clock is not None
-        res.success = True
-        if req.data:
-            res.success = self.sim_clock.tick() is not None
-            self.sim_clock.publish()
-        res.message = f"{self.sim_clock.now_ns} {self.sim_clock.readers()}"
+        """Lockstep, first half of a tick over DDS (:meth:`step_clock`); ``data`` false: only the
+        answer (the driver's probe that the reply reaches it). While the driver steps over its
+        channel (:attr:`steps_by_channel`) this service only answers: no other node can tick."""
+        res.success, res.message = self.step_clock(bool(req.data) and not self.steps_by_channel)
         return res
 
     def _on_step_world(self, _req: Trigger.Request, res: Trigger.Response) -> Any:
+        """Lockstep, second half over DDS (:meth:`step_world`); only the answer while the driver
+        steps over its channel."""
+        res.success = True
+        res.message = str(self._world_ns) if self.steps_by_channel else self.step_world()
+        return res
+
+    def step_clock(self, advance: bool) -> tuple[bool, str]:
+        """Lockstep, first half of a tick: simulated time advances 16 ms (not while held) and
+        goes out on ``/clock``; the answer: whether it advanced and "<time, ns> <matched /clock
+        readers>". ``advance`` false: only the answer."""
+        assert self.sim_clock is not None
+        ok = True
+        if advance:
+            ok = self.sim_clock.tick() is not None
+            self.sim_clock.publish()
+        return ok, f"{self.sim_clock.now_ns} {self.sim_clock.readers()}"
+
+    def step_world(self) -> str:
         """Lockstep, second half: the world's step at that time with the commands taken so far
-        (those the nodes sent on its ``/clock`` included), its poses published."""
+        (those the nodes sent on its ``/clock`` included), its poses published; the answer: the
+        world's time, ns (once per time: asked again, it answers the same)."""
         assert self.sim_clock is not None
         self._debug = self._sim_logger.is_enabled_for(LoggingSeverity.DEBUG)
         if self.sim_clock.now_ns > self._world_ns:
             self._world_ns = self.sim_clock.now_ns
             if self.world.tick(self._world_ns, self._publish) and self._sim_graveyard:
                 self._bury()
-        res.success = True
-        res.message = str(self._world_ns)
-        return res
+        return str(self._world_ns)
+
+    def serve_step(self, request: bytes) -> str:
+        """A request of the driver's step channel (:mod:`grader.sim.stepchannel`), answered as
+        its service would."""
+        if request == STEP_CLOCK:
+            return self.step_clock(True)[1]
+        if request == STEP_WORLD:
+            return self.step_world()
+        raise ValueError(f"unknown step request {request!r}")
 
     def _missed_ticks(self) -> int:
         """Timer periods skipped since the previous callback (rcl drops periods when a callback

@@ -27,6 +27,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from grader.executors import make_executor as shared_make_executor
 from grader.sim.clock import make_clock_node
+from grader.sim.stepchannel import StepServer
 
 
 def make_executor(context: rclpy.context.Context) -> Any:
@@ -40,13 +41,14 @@ def make_executor(context: rclpy.context.Context) -> Any:
 
 def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = None,
         time_scale: float | None = None, clock_only: bool = False,
-        pose_record: str | Path | None = None, lockstep: bool = False) -> int:
+        pose_record: str | Path | None = None, lockstep: bool = False, step_fd: int | None = None) -> int:
     """Run the node until SIGINT/SIGTERM or ROS shutdown; save the canvas; return 0.
 
     ``args`` is the full argv for rclpy (ROS arguments after ``--ros-args``). ``time_scale``:
     simulated time K times faster than the wall clock, published on ``/clock``;
     ``clock_only``: no turtles, only the clock (node ``grader_clock``); ``pose_record``: the
-    file of :mod:`grader.sim.record`.
+    file of :mod:`grader.sim.record`; ``step_fd``: with ``lockstep``, the descriptor of the
+    driver's step channel (:mod:`grader.sim.stepchannel`), over which it then steps.
     """
     context = rclpy.Context()
     rclpy.init(args=list(args) if args is not None else None, context=context,
@@ -59,6 +61,7 @@ def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = No
     previous = {sig: signal.signal(sig, _request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     node = None
     executor = None
+    steps: StepServer | None = None
     try:
         if clock_only:
             node = make_clock_node(context, time_scale or 1.0)
@@ -69,11 +72,17 @@ def run(args: Sequence[str] | None = None, *, canvas_out: str | Path | None = No
                                  pose_record=pose_record, lockstep=lockstep)
         executor = make_executor(context)
         executor.add_node(node)
+        if step_fd is not None and lockstep and not clock_only:
+            node.steps_by_channel = True
+            steps = StepServer(step_fd, node.serve_step, executor.create_task)
+            steps.start()
         while not stop["flag"] and context.ok():
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if steps is not None:
+            steps.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         if node is not None and not clock_only:     # the simulator (a TurtlesimNode)

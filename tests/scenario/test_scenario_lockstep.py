@@ -47,6 +47,35 @@ def test_a_sleeping_process_is_quiet_and_a_busy_one_is_not() -> None:
             p.wait()
 
 
+def test_a_scan_finds_the_thread_awake_first_where_it_was_last() -> None:
+    """A scan stops at the first thread awake, the one found the scan before read first: it
+    finds the busy loop among sleeping threads wherever it is listed, and none in a quiet tree."""
+    from grader.scenario.quiescence import TaskFiles, first_awake, threads
+
+    sleeper = subprocess.Popen([sys.executable, "-c", "import threading, time\n"
+                                "for _ in range(8): threading.Thread(target=time.sleep, args=(30,)).start()\n"
+                                "time.sleep(30)\n"])
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    files = TaskFiles()
+    try:
+        deadline = time.monotonic() + 20
+        while len(threads([sleeper.pid])) < 9 and time.monotonic() < deadline:
+            time.sleep(0.05)                  # its threads started (a loaded machine is slow to)
+        time.sleep(0.3)
+        asleep = threads([sleeper.pid])
+        assert len(asleep) == 9 and first_awake(asleep, files) is None
+        assert first_awake(asleep, files, hint=asleep[3]) is None
+        both = asleep + threads([busy.pid])
+        found = first_awake(both, files, hint=asleep[0])
+        assert found is not None and found[0] == busy.pid
+        assert first_awake(both, files, hint=found) == found
+    finally:
+        files.close()
+        for p in (sleeper, busy):
+            p.kill()
+            p.wait()
+
+
 def test_a_starved_thread_is_waited_for_and_a_busy_one_is_not() -> None:
     """A thread that cannot get a CPU (here: SCHED_IDLE beside a busy thread on the same core) is
     not "busy": the wait goes on past its limit, to ``STARVED_CAP`` times it, while the tree has
@@ -157,6 +186,8 @@ def _stepper_stand_in(call: Callable[..., str], settle: Callable[[bool], None], 
 
     stepper = object.__new__(Stepper)
     stepper.now_ns, stepper.ticks, stepper.tick_wall_s, stepper.call_wall_s = 0, 0, 0.0, 0.0
+    stepper.tick_cpu_s = stepper.call_cpu_s = 0.0
+    stepper._channel = None                    # the DDS path: its calls are ``call``
     stepper._ticking, stepper._ticked = threading.Lock(), threading.Condition()
     stepper._due, stepper._order = [], itertools.count()
     stepper.cpu = cpu
