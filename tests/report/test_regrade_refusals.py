@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from grader.contracts.result_document import ResultDocument
 from grader.grading.pipeline import regrade_submission
 from grader.rubric import load_rubric
 from grader.testing.batch import recorded_batch
@@ -65,10 +66,10 @@ def test_a_cut_bag_is_not_regraded(graded: Path) -> None:
     mcap = next((graded / "scenarios" / "ex3_action" / "bag").glob("*.mcap"))
     mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
     # the cut also changes its digest; make the seal agree so the finalisation check is what refuses
-    doc = json.loads((graded / "result.json").read_text())
+    doc = ResultDocument.read(graded / "result.json")
     from grader.report.result import dumps
     from grader.report.seal import input_digests, sealed
-    (graded / "result.json").write_text(dumps(sealed(doc, input_digests(graded))))
+    (graded / "result.json").write_text(dumps(sealed(doc, input_digests(graded)).to_json()))
     regrade_submission(graded, load_rubric(RUBRIC))
     got = items(graded)
     assert got["ex3.goals_succeed"]["status"] == "error"
