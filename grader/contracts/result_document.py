@@ -169,6 +169,19 @@ class ResultDocument(Document):
                              "wrote it, or it is not a result.json)")
         return data
 
+    @classmethod
+    def grade_keys(cls) -> tuple[str, ...]:
+        """The JSON keys of the grade itself: every field up to ``versions`` (the rest is the
+        run's records and the seal)."""
+        keys = tuple(info.alias or name for name, info in cls.model_fields.items())
+        return keys[: keys.index("versions") + 1]
+
+    def run_records(self) -> dict[str, JsonValue]:
+        """The keys that are neither the grade nor the seal (build, errors, timings, ..., and any
+        a newer grader added), in their order: what a rewrite of the grade keeps."""
+        grade = self.grade_keys()
+        return {k: v for k, v in self.to_json().items() if k not in grade and k != "seal"}
+
     def without_seal(self) -> dict[str, JsonValue]:
         """The JSON object the seal's MAC covers (everything but the seal)."""
         body = self.to_json()

@@ -63,12 +63,6 @@ def _notice_to_dict(notice: Notice) -> dict[str, Any]:
             "feedback": notice.feedback}
 
 
-#: the keys of result.json that are the grade itself (the rest is the run's, or the seal)
-GRADE_KEYS = ("schema", "submission", "lab", "title", "view", "score", "auto_score", "auto_max", "max_score",
-              "manual_max", "pending_max", "total", "complete", "hidden", "sections", "items", "late_penalty",
-              "late", "contract", "integrity_flags", "warnings", "versions")
-
-
 def result_document(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
                     extra: Mapping[str, Any] | None = None) -> ResultDocument:
     """The result.json document of ``result`` (``grader.contracts.result_document``). ``extra``:
@@ -102,7 +96,7 @@ def result_document(result: Result, submission: str, *, versions: Mapping[str, s
         "versions": dict(versions or {}),
     })
     for key, value in (extra or {}).items():
-        if key in doc or key in GRADE_KEYS or key == "seal":
+        if key in doc or key in ResultDocument.grade_keys() or key == "seal":
             raise ValueError(f"extra key {key!r} would replace a result.json field")
         doc[key] = jsonable(value)
     return ResultDocument.parse(doc, f"result.json of {submission}")
@@ -112,12 +106,6 @@ def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, st
                    extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The JSON object of :func:`result_document` (what result.json holds, before its seal)."""
     return result_document(result, submission, versions=versions, extra=extra).to_json()
-
-
-def run_records(doc: ResultDocument) -> dict[str, Any]:
-    """The keys of ``doc`` that are not the grade nor the seal (build, errors, timings, ..., and
-    any a newer grader added), in their order: what a rewrite of the grade keeps."""
-    return {k: v for k, v in doc.to_json().items() if k not in GRADE_KEYS and k != "seal"}
 
 
 def late_fields(result: Result) -> dict[str, Any]:

@@ -21,7 +21,7 @@ from grader.errors import GraderError
 from grader.report.html import write_html
 from grader.report.index import read_docs, write_index
 from grader.contracts.result_document import ResultDocument
-from grader.report.result import read_document, result_from_document, run_records, write_grades_csv, write_result
+from grader.report.result import read_document, result_from_document, write_grades_csv, write_result
 from grader.report.seal import check_doc
 from grader.rubric.result import Result
 from grader.scores import transaction
@@ -177,7 +177,7 @@ def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
         (stage / g.sid).mkdir(parents=True, exist_ok=True)
         (stage / g.sid / MANUAL_SCORES).write_text(manual_scores_text(result.lab, g.sid, scores, late),
                                                     encoding="utf-8")
-    extra = run_records(g.doc)
+    extra = g.doc.run_records()
     versions = g.doc.versions
     # the grade still rests on the bags that were graded: keep their recorded digests
     inputs = g.doc.seal.inputs if g.doc.seal is not None else {}
