@@ -233,8 +233,14 @@ def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = Fal
                           "written by `grader grade`.")
 
     items = selected_items(rubric, public_only)
-    old = read_document(sub_out / "result.json") if (sub_out / "result.json").exists() else None
+    old, unreadable = None, []
+    if (sub_out / "result.json").exists():
+        try:
+            old = read_document(sub_out / "result.json")
+        except GraderError as exc:     # damaged, or not a result.json: the bags are what a grade comes from
+            unreadable = [f"{exc}; regraded from the bags as they are"]
     unusable, notes = recordings_to_refuse(sub_out, old)
+    notes = unreadable or notes
     findings, problems = analyze_bags(rubric, items, sub_out, unusable, on_frames=write_replay)
     result, kept = apply_saved_manual_scores(sub_out, score(rubric, findings))   # merged manual scores
     result, late_notes = apply_intake(sub_out, rubric, result)                   # late policy, again
