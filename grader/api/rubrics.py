@@ -20,8 +20,9 @@ from grader.rubric.load import display_path
 from grader.rubric.schema import Rubric
 from grader.rubric.stage import stage_rubrics
 from grader.scenario.model import Scenario
+from grader.scenario.runspec import ScenarioRun
 
-__all__ = ["CHECKOUT", "Lab", "Rubric", "Scenario", "display_path", "in_checkout", "item_roles", "json_schema",
+__all__ = ["CHECKOUT", "Lab", "Rubric", "Scenario", "ScenarioRun", "display_path", "in_checkout", "item_roles", "json_schema",
            "judges", "known_labs", "refresh_guide", "rubric_for_lab", "rubrics_dir", "stage_rubrics"]
 
 

@@ -26,7 +26,6 @@ class view of the mutants), ``audit.json`` and ``audit.md``.
 from __future__ import annotations
 
 import filecmp
-import json
 import shutil
 import sys
 import time
@@ -36,10 +35,11 @@ from typing import TYPE_CHECKING, Any, Callable
 from grader.audit.mutate import COPY_IGNORE, Mutant, mutants, sample, source_files
 from grader.audit.outcome import AuditReport, Outcome
 from grader.audit.report import write_report
+from grader.contracts.result_document import ResultDocument
 from grader.errors import GraderError
 from grader.api import load_rubric
 from grader.api.batch import Slots, find_packages, grade_batch, machine_time_scale
-from grader.api.rubrics import Scenario, display_path
+from grader.api.rubrics import ScenarioRun, display_path
 
 if TYPE_CHECKING:
     from grader.api.batch import GradedSubmission
@@ -167,12 +167,12 @@ def _plan_line(lab: str, made: int, ref: Path, given: list[str], n_chosen: int, 
                f"; grading {n_chosen} at --jobs {jobs}, --time-scale {time_scale:g}"))
 
 
-def _check_reference(baseline: dict[str, Any], ref: Path, graded: Path) -> None:
+def _check_reference(baseline: ResultDocument, ref: Path, graded: Path) -> None:
     """Refuse a reference short of full automatic marks: a mutant's lost point would mean nothing."""
     lost = _lost(baseline)
     if lost:
         raise GraderError(f"the reference solution {ref} does not earn every automatic point "
-                          f"({baseline['auto_score']:g}/{baseline['auto_max']:g}: "
+                          f"({baseline.auto_score:g}/{baseline.auto_max:g}: "
                           + ", ".join(f"{k} -{v:g}" for k, v in lost.items())
                           + f"; see {graded / REFERENCE_ID / 'report.html'}); a mutation audit needs a reference "
                           "at full marks: fix the rubric or the reference first")
@@ -243,7 +243,7 @@ def _regrade_all(rubric: Any, graded: Path, ids: list[str], say: Callable[[str],
         for sc_id, scenario in rubric.scenarios.items():
             run_json = folder / SCENARIOS_DIR / sc_id / "run.json"
             if run_json.is_file():
-                recorded = Scenario.model_validate_json(json.dumps(json.loads(run_json.read_text())["scenario"]))
+                recorded = ScenarioRun.model_validate_json(run_json.read_text()).scenario
                 if recorded != scenario:
                     stale.append(f"{sid} ({sc_id})")
     if stale:
@@ -262,21 +262,24 @@ def _fresh_copy(src: Path, dest: Path) -> None:
     shutil.copytree(src, dest, ignore=shutil.ignore_patterns(*COPY_IGNORE), symlinks=True)
 
 
-def _read_result(folder: Path) -> dict[str, Any]:
+def _read_result(folder: Path) -> ResultDocument:
     path = folder / "result.json"
     if not path.is_file():
         raise GraderError(f"{folder.name} has no result.json (grading did not finish)")
-    return json.loads(path.read_text())
+    try:
+        return ResultDocument.read(path)
+    except (OSError, ValueError) as exc:
+        raise GraderError(str(exc)) from None
 
 
-def _lost(doc: dict[str, Any]) -> dict[str, float]:
+def _lost(doc: ResultDocument) -> dict[str, float]:
     """Automatic points an item did not earn, by item id."""
     out = {}
-    for item in doc.get("items", []):
-        if item.get("kind") == "auto":
-            gone = float(item.get("max_points") or 0) - float(item.get("points") or 0)
+    for item in doc.items:
+        if item.kind == "auto":
+            gone = float(item.max_points or 0) - float(item.points or 0)
             if gone > _EPS:
-                out[item["id"]] = round(gone, 3)
+                out[item.id] = round(gone, 3)
     return out
 
 
@@ -287,9 +290,9 @@ def _outcome(m: Mutant, folder: Path, failure: str | None, equivalents: dict[str
     except GraderError as exc:
         base.error = failure or str(exc)
         return base
-    timings = doc.get("timings") or {}
+    timings = doc.timings
     base.wall_s = round(float(timings.get("build_s", 0)) + float(timings.get("scenarios_wall_s", 0)), 1)
-    base.auto_score, base.auto_max = doc.get("auto_score"), doc.get("auto_max")
+    base.auto_score, base.auto_max = doc.auto_score, doc.auto_max
     base.lost = _lost(doc)
     if base.lost:
         base.status = "killed"

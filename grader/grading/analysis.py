@@ -9,11 +9,11 @@ started, crashed, returned) as its reason; an item on several scenarios takes th
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence, cast
 
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.analyze import timing, Finding
 from grader.analyze._common import events, own_exits, stdout_lines
 from grader.errors import GraderError
@@ -44,12 +44,12 @@ def scenario_frames(scenario_dir: Path) -> dict:
     if not bag.exists():
         return {"__meta__": pd.DataFrame(columns=["topic", "type", "count", "publishers"])}
     record_file = scenario_dir / "scenario.json"
-    record = json.loads(record_file.read_text()) if record_file.exists() else None
+    record = ScenarioRecord.read(record_file) if record_file.exists() else None
     # a run on simulated time is read in simulated seconds (grader.bag.timebase): the bag's own
     # metadata says so (sealed with it); the record speaks only for a bag never finalised
-    used = ((record or {}).get("time_scale") or {}).get("used")
+    used = record.time_scale.used if record is not None and record.time_scale is not None else None
     finalized = (bag / "metadata.yaml").exists()
-    locked = not finalized and bool(((record or {}).get("lockstep") or {}).get("used"))
+    locked = not finalized and record is not None and record.lockstep is not None and bool(record.lockstep.used)
     frames = load_frames(bag, time_scale=None if finalized or not used or locked else float(used),
                          lockstep=locked)
     meta = load_bag_meta(bag)
@@ -64,7 +64,7 @@ def scenario_frames(scenario_dir: Path) -> dict:
     if canvas.exists():
         frames["__canvas__"] = canvas_frame(canvas)
     if record is not None:
-        frames["__meta__"].attrs["scenario"] = record
+        frames["__meta__"].attrs["scenario"] = record.to_json()     # the starvation checks read the working form
     return frames
 
 

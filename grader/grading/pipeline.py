@@ -6,7 +6,6 @@
 
 from __future__ import annotations
 
-import json
 import resource
 import shutil
 import time
@@ -31,7 +30,8 @@ from grader.grading.reuse import record_or_reuse
 from grader.grading.schedule import Slots
 from grader.intake.apply import apply_intake
 from grader.intake.model import public_record, write_record
-from grader.report.result import previous_summary
+from grader.contracts.result_document import ResultDocument
+from grader.report.result import previous_summary, read_document
 from grader.report.seal import input_digests, mac_ok, changed_inputs
 from grader.rubric.score import score
 from grader.scores.store import apply_saved_manual_scores, manual_scores_kept
@@ -233,37 +233,41 @@ def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = Fal
                           "written by `grader grade`.")
 
     items = selected_items(rubric, public_only)
-    old: dict = {}
+    old, unreadable = None, []
     if (sub_out / "result.json").exists():
-        old = json.loads((sub_out / "result.json").read_text())
+        try:
+            old = read_document(sub_out / "result.json")
+        except GraderError as exc:     # damaged, or not a result.json: the bags are what a grade comes from
+            unreadable = [f"{exc}; regraded from the bags as they are"]
     unusable, notes = recordings_to_refuse(sub_out, old)
+    notes = unreadable or notes
     findings, problems = analyze_bags(rubric, items, sub_out, unusable, on_frames=write_replay)
     result, kept = apply_saved_manual_scores(sub_out, score(rubric, findings))   # merged manual scores
     result, late_notes = apply_intake(sub_out, rubric, result)                   # late policy, again
     problems = notes + problems + kept + late_notes
     # the seal keeps the digests of what was graded; a result without one is sealed as it is now
-    recorded = (old.get("seal") or {}).get("inputs")
-    inputs = recorded if recorded is not None and mac_ok(old) else input_digests(sub_out)
+    inputs = old.seal.inputs if old is not None and old.seal is not None and mac_ok(old) else input_digests(sub_out)
 
     # the run's build/scenario problems and timings still describe the bags; keep them, and
     # which grader made each recording (provenance: another grader's are named in the report)
-    graded = GradedSubmission(sub_out.name, sub_out, result, build_ok=old.get("build", {}).get("ok", True),
-                              build_failed=old.get("build", {}).get("failed", []),
-                              errors=list(dict.fromkeys([*old.get("errors", []), *problems])),
-                              timings=old.get("timings", {}), previous=previous_summary(old),
-                              time_scales=old.get("time_scale", {}), ended_early=old.get("ended_early", {}),
+    graded = GradedSubmission(sub_out.name, sub_out, result, build_ok=old is None or old.build_ok,
+                              build_failed=old.build.failed if old is not None and old.build is not None else [],
+                              errors=list(dict.fromkeys([*(old.errors if old is not None else []), *problems])),
+                              timings=old.timings if old is not None else {}, previous=previous_summary(old),
+                              time_scales=old.time_scale if old is not None else {},
+                              ended_early=old.ended_early if old is not None else {},
                               recordings=scenario_recordings(sub_out),
-                              reused=old.get("scenarios_reused") or {}, intake=public_record(sub_out))
+                              reused=old.scenarios_reused if old is not None else {}, intake=public_record(sub_out))
     write_outputs(graded, rubric, public_only=public_only, inputs=inputs)
     return graded
 
 
-def recordings_to_refuse(sub_out: Path, old: dict) -> tuple[dict[str, str], list[str]]:
+def recordings_to_refuse(sub_out: Path, old: ResultDocument | None) -> tuple[dict[str, str], list[str]]:
     """Scenarios whose recordings a regrade must not grade (changed since they were graded, or
     a bag that was not finalised cleanly), with why; and notes about the seal itself."""
     refuse: dict[str, str] = {}
     notes: list[str] = []
-    if old.get("seal") is None:
+    if old is None or old.seal is None:
         notes.append("result.json had no seal (an older grader wrote it): regraded from the bags as they are")
     elif not mac_ok(old):
         notes.append("result.json's seal does not match this grader's key (changed, or sealed on another "

@@ -13,10 +13,10 @@ shows them, so an instructor knows which grades rest on recordings another grade
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
+from grader.contracts.scenario_record import RecordingNote, ScenarioRecord
 from grader.grading.reuse import made_by
 
 
@@ -28,15 +28,14 @@ def scenario_recordings(sub_out: Path) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {}
     for record_file in sorted(Path(sub_out).glob(f"{SCENARIOS_DIR}/*/scenario.json")):
         try:
-            record = json.loads(record_file.read_text())
+            record = ScenarioRecord.read(record_file)
         except (OSError, ValueError):
             continue
-        noted = record.get("recording") or {}
-        reused = record.get("reused") or None
-        entry: dict[str, Any] = {"key": noted.get("key") or (reused or {}).get("key"),
-                                 "made_by": noted.get("made_by") or (reused or {}).get("made_by")}
+        noted, reused = record.recording or RecordingNote(), record.reused
+        entry: dict[str, Any] = {"key": noted.key or (reused.key if reused else None),
+                                 "made_by": noted.made_by or (reused.made_by if reused else None)}
         if reused:
-            entry["reused_from"] = {k: reused.get(k) for k in ("from", "recorded")}
+            entry["reused_from"] = {"from": reused.from_, "recorded": reused.recorded}
         out[record_file.parent.name] = entry
     return out
 

@@ -27,13 +27,13 @@ Folders: run 1 is ``scenarios/<id>/`` as for any scenario; run k is ``scenarios/
 
 from __future__ import annotations
 
-import json
 import re
 from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.rubric.score import _RANK
 
 RUN_SUFFIX = ".run"
@@ -83,15 +83,13 @@ def settled(outcomes_per_item: Iterable[Sequence[tuple[str, float]]], planned: i
 def lockstep_record_exact(record: dict) -> bool:
     """A record of a lockstep run with every tick quiet and no wait cut short by its wall-time
     limit: running it again repeats it exactly."""
-    ls = record.get("lockstep") or {}
-    return (bool(ls.get("used")) and not ls.get("quiet_timeouts") and not ls.get("wall_cuts")
-            and not record.get("errors"))
+    return ScenarioRecord.from_working(record, "scenario record").exact_lockstep
 
 
 def exact_lockstep(folder: Path) -> bool:
     """Whether the recorded run in ``folder`` (its scenario.json) was an exact lockstep run."""
     try:
-        return lockstep_record_exact(json.loads((Path(folder) / "scenario.json").read_text()))
+        return ScenarioRecord.read(Path(folder) / "scenario.json").exact_lockstep
     except (OSError, ValueError):
         return False
 

@@ -36,6 +36,7 @@ import time
 from pathlib import Path
 from typing import Any, Iterator
 
+from grader.contracts.scenario_record import ScenarioRecord
 from grader import __version__
 from grader.cache import locks
 from grader.cache.code import recording_code
@@ -157,11 +158,7 @@ def _note_recording(folder: Path, record: dict[str, Any], key: str | None) -> di
     """Keep the recording's key and maker in the record and its ``scenario.json`` (a copy made
     from the cache carries the maker of the original)."""
     record["recording"] = {"key": key, "made_by": made_by()}
-    path = folder / "scenario.json"
-    if path.is_file():
-        saved = json.loads(path.read_text())
-        saved["recording"] = record["recording"]
-        path.write_text(json.dumps(saved, indent=1, default=str))
+    ScenarioRecord.amend(folder / "scenario.json", {"recording": record["recording"]})
     return record
 
 
@@ -185,12 +182,12 @@ def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder
         t0 = time.monotonic()
         source = cache.get(key, folder)
         if source is not None:
-            record: dict[str, Any] = json.loads((folder / "scenario.json").read_text())
-            record.update(reused={"from": source.get("submission"), "key": key,
-                                  "recorded": source.get("recorded"), "made_by": source.get("made_by")},
-                          parent_wall_s=round(time.monotonic() - t0, 3))
-            (folder / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
-            return record
+            reused = ScenarioRecord.read(folder / "scenario.json").amended(
+                {"reused": {"from": source.get("submission"), "key": key, "recorded": source.get("recorded"),
+                            "made_by": source.get("made_by")},
+                 "parent_wall_s": round(time.monotonic() - t0, 3)}, str(folder / "scenario.json"))
+            reused.write(folder / "scenario.json")
+            return reused.to_json()
         record = _note_recording(folder, make(), key)
         if reusable(record):
             cache.put(key, folder, sid)

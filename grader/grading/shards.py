@@ -16,6 +16,7 @@ import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from grader.contracts.result_document import ResultDocument
 from grader.errors import GraderError
 
 if TYPE_CHECKING:
@@ -56,7 +57,11 @@ def merge_outputs(parts: list[Path], out: Path, rubric: Rubric) -> list[str]:
                 problems.append(f"{part} was graded with another rubric (lab {meta.get('lab')}, rubric "
                                 f"{meta.get('rubric')}; this one is {rubric.lab} {digest})")
         for sub in sorted(p for p in part.iterdir() if (p / "result.json").is_file()):
-            lab = json.loads((sub / "result.json").read_text()).get("lab")
+            try:
+                lab = ResultDocument.read(sub / "result.json").lab
+            except (OSError, ValueError) as exc:
+                problems.append(str(exc))     # names the file
+                continue
             if lab != rubric.lab:
                 problems.append(f"{sub}: graded for lab {lab!r}, not {rubric.lab!r}")
             if sub.name in plan:

@@ -33,7 +33,8 @@ from grader import analyze
 from grader.grading.analysis import scenario_frames
 from grader.grading.outputs import write_batch_outputs
 from grader.grading.repeat import scenario_of
-from grader.report.result import atomic_write
+from grader.contracts.result_document import ResultDocument
+from grader.report.result import atomic_write, read_document
 from grader.similarity.page import render_pair
 from grader.workspace.source import extract_archive, is_archive
 
@@ -129,15 +130,15 @@ def _labels(rubric: Rubric) -> tuple[dict[str, list[str]], dict[str, dict]]:
     return scenarios, labels
 
 
-def _passing(docs: dict[str, dict], item_scenarios: dict[str, list[str]]) -> dict[str, set[str]]:
+def _passing(docs: dict[str, ResultDocument], item_scenarios: dict[str, list[str]]) -> dict[str, set[str]]:
     """scenario -> submissions whose every item on it passed."""
     out: dict[str, set[str]] = {}
     failed: dict[str, set[str]] = {}
     for sid, doc in docs.items():
-        for item in doc.get("items") or ():
-            for sc in item_scenarios.get(str(item.get("id")), []):
+        for item in doc.items:
+            for sc in item_scenarios.get(item.id, []):
                 out.setdefault(sc, set()).add(sid)
-                if item.get("kind") in ("auto", "advisory") and item.get("status") != "pass":
+                if item.kind in ("auto", "advisory") and item.status != "pass":
                     failed.setdefault(sc, set()).add(sid)
     return {sc: subs - failed.get(sc, set()) for sc, subs in out.items()}
 
@@ -174,7 +175,7 @@ def compute(out: Path, rubric: Rubric, settings: Settings, jobs: int = 2) -> dic
                           "(or --known)")
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    docs = {sid: json.loads((out / sid / "result.json").read_text(encoding="utf-8")) for sid in ids}
+    docs = {sid: read_document(out / sid / "result.json") for sid in ids}
     feats, item_scenarios = _behaviour_features(out, ids, docs, rubric, jobs)
     timings["behaviour_features_s"] = time.perf_counter() - t0
 
@@ -200,7 +201,7 @@ def compute(out: Path, rubric: Rubric, settings: Settings, jobs: int = 2) -> dic
     ranked = sorted(pairs.values(), key=lambda p: (not p.listed, -p.strength(settings), p.a, p.b))
     timings["total_s"] = time.perf_counter() - t0
     return {
-        "schema": 1, "lab": next(iter(docs.values())).get("lab") if docs else None,
+        "schema": 1, "lab": next(iter(docs.values())).lab if docs else None,
         "submissions": ids, "class_size": len(ids), "pairs_compared": len(ids) * (len(ids) - 1) // 2,
         "known": [k.id[len(KNOWN_PREFIX):] for k in known_sets],
         "settings": {**asdict(settings), "noise_chars": code.NOISE, "guarantee_chars": code.GUARANTEE,
@@ -216,7 +217,7 @@ def compute(out: Path, rubric: Rubric, settings: Settings, jobs: int = 2) -> dic
     }
 
 
-def _behaviour_features(out: Path, ids: list[str], docs: dict[str, dict], rubric: Any,
+def _behaviour_features(out: Path, ids: list[str], docs: dict[str, ResultDocument], rubric: Any,
                         jobs: int) -> tuple[dict[str, list[behaviour.Feature]], dict[str, list[str]]]:
     """Behaviour features per submission (bags read, on ``jobs`` processes, only where none are stored)."""
     missing = [sid for sid in ids if any((d / "bag").exists() and not (d / behaviour.FINGERPRINT_FILE).exists()
@@ -230,7 +231,7 @@ def _behaviour_features(out: Path, ids: list[str], docs: dict[str, dict], rubric
     for sid in ids:
         if sid not in feats:
             feats[sid] = _scenario_features(out / sid)
-        feats[sid] += behaviour.result_features(docs[sid], item_scenarios, labels)
+        feats[sid] += behaviour.result_features(docs[sid].items, item_scenarios, labels)
     return feats, item_scenarios
 
 

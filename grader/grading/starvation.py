@@ -46,13 +46,13 @@ it is an ``error`` saying so, and ``grader grade`` records it again at the end o
 
 from __future__ import annotations
 
-import json
 import shutil
 import time
 from pathlib import Path
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.sandbox import allotment
 
 RETRIES = 2
@@ -221,9 +221,6 @@ def record_unstarved(record_once: Callable[[], dict[str, Any]], folder: Path,
 
 def _save(folder: Path, record: dict[str, Any], *keys: str) -> None:
     """Copy ``keys`` of the record (those it has) into the folder's ``scenario.json``."""
-    path = Path(folder) / "scenario.json"
-    present = [k for k in keys if k in record]
-    if present and path.is_file():
-        saved = json.loads(path.read_text())
-        saved.update({k: record[k] for k in present})
-        path.write_text(json.dumps(saved, indent=1, default=str))
+    present = {k: record[k] for k in keys if k in record}
+    if present:
+        ScenarioRecord.amend(Path(folder) / "scenario.json", present)

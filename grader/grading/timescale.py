@@ -23,12 +23,12 @@ from __future__ import annotations
 
 import ast
 import functools
-import json
 import shutil
 import sys
 from pathlib import Path
 from typing import Any, Iterable
 
+from grader.contracts.scenario_record import ScenarioRecord
 from grader import rclpy_fix
 from grader.grading.scenario_packages import packages_run, workspace_packages
 from grader.grading.starvation import starvation
@@ -287,11 +287,7 @@ def _note(folder: Path, record: dict[str, Any], time_scale: dict[str, Any],
           key: str = "time_scale") -> dict[str, Any]:
     """Keep the decision in the record and in scenario.json (a reuse or a regrade reads it)."""
     record[key] = time_scale
-    path = Path(folder) / "scenario.json"
-    if path.is_file():
-        saved = json.loads(path.read_text())
-        saved[key] = time_scale
-        path.write_text(json.dumps(saved, indent=1, default=str))
+    ScenarioRecord.amend(Path(folder) / "scenario.json", {key: time_scale})
     return record
 
 

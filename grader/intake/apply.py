@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Mapping
 
+from grader.contracts.intake_record import IntakeRecord
 from grader.intake.late import LatePenalty, SubmissionTime, assess
 from grader.intake.model import read_record
 from grader.scores.store import load_late_override
@@ -21,18 +21,18 @@ from grader.scores.store import load_late_override
 BY_HAND = "set by hand (grader scores merge)"
 
 
-def policy_for(rubric, record: Mapping[str, Any] | None):
+def policy_for(rubric, record: IntakeRecord | None):
     """The rubric's late policy, with the due date the batch was graded with (``--due``)."""
     policy = getattr(rubric, "late", None)
-    due = (record or {}).get("due_override")
-    if policy is not None and isinstance(due, Mapping) and due.get("due"):
+    due = record.due_override if record is not None else None
+    if policy is not None and due is not None and due.get("due"):
         policy = policy.with_due(str(due["due"]), due.get("timezone"))
     return policy
 
 
-def days_left(record: Mapping[str, Any]) -> tuple[int | None, list[str]]:
+def days_left(record: IntakeRecord) -> tuple[int | None, list[str]]:
     """The roster's ``late_days`` (days the student has left), or None (the whole budget)."""
-    text = str(((record.get("student") or {}).get("late_days")) or "").strip()
+    text = str(((record.student or {}).get("late_days")) or "").strip()
     if not text:
         return None, []
     try:
@@ -45,7 +45,7 @@ def days_left(record: Mapping[str, Any]) -> tuple[int | None, list[str]]:
                       "budget of late days was used"]
 
 
-def apply_intake(sub_out: Path, rubric, result, record: Mapping[str, Any] | None = None):
+def apply_intake(sub_out: Path, rubric, result, record: IntakeRecord | None = None):
     """``result`` with the late policy's verdict (``Result.late``), and notes for the problems
     list. ``record``: the arrival record (default: read from ``sub_out``)."""
     record = record if record is not None else read_record(sub_out)
@@ -53,7 +53,7 @@ def apply_intake(sub_out: Path, rubric, result, record: Mapping[str, Any] | None
     override = load_late_override(sub_out)
     if record is None or policy is None:
         return with_late_override(replace(result, late=None), override), []
-    time = SubmissionTime.from_dict(record["time"]) if record.get("time") else None
+    time = SubmissionTime.from_dict(record.time) if record.time else None
     left, notes = days_left(record)
     return with_late_override(replace(result, late=assess(policy, time, left)), override), notes
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
+from grader.contracts.intake_record import INTAKE_SCHEMA, IntakeRecord
 from grader.intake.late import SubmissionTime
 from grader.errors import GraderError
 from grader.report.result import atomic_write
@@ -19,7 +20,6 @@ if TYPE_CHECKING:
     from grader.scores.roster import Student
 
 INTAKE_FILE = "intake.json"
-INTAKE_SCHEMA = 1
 #: the kinds of input ``grader grade`` reads, in the words the table uses
 SOURCES = {"canvas": "Canvas download", "gradescope": "Gradescope export",
            "classroom": "GitHub Classroom clones", "folder": "folder of submissions",
@@ -65,19 +65,19 @@ def write_record(sub_out: Path, record: Mapping[str, Any], due_override: Mapping
     doc = dict(record)
     if due_override:
         doc["due_override"] = dict(due_override)
-    atomic_write(Path(sub_out) / INTAKE_FILE, json.dumps(doc, indent=1, default=str) + "\n")
+    path = Path(sub_out) / INTAKE_FILE
+    # through JSON first: the record's values JSON has no form for are text, as they always were
+    intake = IntakeRecord.parse_text(json.dumps(doc, default=str), str(path))
+    atomic_write(path, json.dumps(intake.to_json(), indent=1) + "\n")
 
 
-def read_record(sub_out: Path) -> dict[str, Any] | None:
+def read_record(sub_out: Path) -> IntakeRecord | None:
     """The arrival record of a graded submission, or None (graded without intake)."""
     path = Path(sub_out) / INTAKE_FILE
     if not path.exists():
         return None
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        if not isinstance(doc, dict) or doc.get("schema") != INTAKE_SCHEMA:
-            raise ValueError(f"schema {doc.get('schema') if isinstance(doc, dict) else None!r}")
-        return doc
+        return IntakeRecord.read(path)
     except (OSError, ValueError) as exc:
         raise GraderError(f"{path} is not a readable intake record ({exc}); grade the submission "
                           "again to rewrite it") from None
@@ -86,4 +86,4 @@ def read_record(sub_out: Path) -> dict[str, Any] | None:
 def public_record(sub_out: Path) -> dict[str, Any] | None:
     """result.json's ``intake``: the arrival record as kept in intake.json."""
     record = read_record(sub_out)
-    return None if record is None else {k: v for k, v in record.items() if k != "schema"}
+    return None if record is None else record.public()

@@ -24,29 +24,30 @@ import json
 from pathlib import Path
 from typing import Any
 
+from grader.contracts.result_document import ItemEntry, ResultDocument
 from grader.errors import GraderError
 
 RUNNER_FORMAT_VERSION = 1
 
 
-def _message(item: dict) -> str:
-    lines = [item.get("feedback") or ""]
-    if item.get("hint") and item.get("status") != "pass":
-        lines.append(f"Hint: {item['hint']}")
+def _message(item: ItemEntry) -> str:
+    lines = [item.feedback or ""]
+    if item.hint and item.status != "pass":
+        lines.append(f"Hint: {item.hint}")
     return "\n".join(line for line in lines if line).strip()
 
 
-def runner_result(doc: dict[str, Any], *, execution_time: float | None = None) -> dict[str, Any]:
+def runner_result(doc: ResultDocument, *, execution_time: float | None = None) -> dict[str, Any]:
     """The runner document for a ``result.json`` document (``grader check``'s, or any)."""
-    scored = [i for i in doc.get("items", []) if i.get("kind") == "auto" and float(i.get("max_points") or 0) > 0]
+    scored = [i for i in doc.items if i.kind == "auto" and float(i.max_points or 0) > 0]
     if not scored:
         return error_result("grader graded no automatic item: see the grader check step's log")
-    tests = [{"name": f"{i['id']}: {i['title']}", "status": "pass" if i["status"] == "pass" else "fail",
-              "score": float(i.get("points") or 0), "message": _message(i), "test_code": "",
+    tests = [{"name": f"{i.id}: {i.title}", "status": "pass" if i.status == "pass" else "fail",
+              "score": float(i.points or 0), "message": _message(i), "test_code": "",
               "filename": "", "line_no": 0, "execution_time": ""} for i in scored]
     return {"version": RUNNER_FORMAT_VERSION,
             "status": "pass" if all(t["status"] == "pass" for t in tests) else "fail",
-            "max_score": sum(float(i["max_points"]) for i in scored),
+            "max_score": sum(float(i.max_points) for i in scored),
             "execution_time": f"{execution_time:.1f}s" if execution_time is not None else "",
             "tests": tests}
 
@@ -70,7 +71,7 @@ def step_output(result_json: Path | None) -> tuple[str, dict[str, Any]]:
         runner = error_result(f"no {result_json}: grader check did not finish (see its step's log)")
     else:
         try:
-            doc = json.loads(Path(result_json).read_text())
+            doc = ResultDocument.read(result_json)
         except (OSError, ValueError) as exc:
             raise GraderError(f"{result_json} is not a grader result.json: {exc}") from None
         runner = runner_result(doc)

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any, Mapping
 
+from grader.contracts.result_document import ResultDocument
 from grader.errors import GraderError
 from grader.report.index import read_docs, write_index
 from grader.report.result import read_result, write_grades_csv
@@ -42,6 +44,6 @@ def write_batch(out_dir: str | os.PathLike[str], rubric: Rubric | None = None) -
             write_index(out_dir, results, docs=docs, similarity=read_summary(Path(out_dir))))
 
 
-def intake_docs(docs: dict[str, dict]) -> dict[str, dict]:
+def intake_docs(docs: Mapping[str, ResultDocument]) -> dict[str, dict[str, Any]]:
     """Each submission's result.json ``intake`` (who it is, from which LMS download), if any."""
-    return {sid: doc["intake"] for sid, doc in docs.items() if isinstance(doc.get("intake"), dict)}
+    return {sid: doc.intake for sid, doc in docs.items() if doc.intake is not None}

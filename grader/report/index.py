@@ -9,7 +9,6 @@ The page reads completely without JavaScript; the inline script only adds sortin
 
 from __future__ import annotations
 
-import json
 import os
 import statistics
 from dataclasses import dataclass
@@ -18,6 +17,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from grader.contracts.late import late_by_text
+from grader.contracts.result_document import ResultDocument
 from grader.report.result import atomic_write, check_submission_id
 from grader.report.style import CSS, INDEX_JS
 from grader.rubric.result import ItemResult, Result
@@ -39,15 +39,13 @@ class Submission:
     previous: Mapping[str, Any] | None = None
 
     @classmethod
-    def from_doc(cls, sid: str, result: Result, doc: Mapping[str, Any]) -> "Submission":
-        build = doc.get("build") or {}
-        failed = tuple(str(p) for p in build.get("failed") or ()) if build.get("ok") is False else ()
-        timings = doc.get("timings") or {}
+    def from_doc(cls, sid: str, result: Result, doc: ResultDocument | None) -> "Submission":
+        failed = tuple(doc.build.failed) if doc is not None and not doc.build_ok and doc.build else ()
+        timings = doc.timings if doc is not None else {}
         spent = [float(v) for k, v in timings.items() if isinstance(v, (int, float))
                  and (k == "build_s" or k.endswith(":wall_s"))]
-        prev = doc.get("previous")
-        return cls(sid, result, failed, crashes_of(result), round(sum(spent), 1) if spent else None,
-                   prev if isinstance(prev, Mapping) else None)
+        prev = doc.previous.model_dump(mode="json") if doc is not None and doc.previous is not None else None
+        return cls(sid, result, failed, crashes_of(result), round(sum(spent), 1) if spent else None, prev)
 
     @property
     def delta(self) -> float | None:
@@ -309,7 +307,7 @@ def _similar(summary: Mapping[str, Any] | None) -> str:
 
 
 def render_index(results: Mapping[str, Result], *, title: str | None = None,
-                 docs: Mapping[str, Mapping[str, Any]] | None = None,
+                 docs: Mapping[str, ResultDocument] | None = None,
                  similarity: Mapping[str, Any] | None = None) -> str:
     """The class view. ``docs``: each submission's result.json (build status, timings, previous
     grading), optional. ``similarity``: ``OUT/similarity/similarity.json`` (grader.similarity), for
@@ -317,7 +315,7 @@ def render_index(results: Mapping[str, Result], *, title: str | None = None,
     subs = []
     for sid in sorted(results):
         check_submission_id(sid)
-        subs.append(Submission.from_doc(sid, results[sid], (docs or {}).get(sid) or {}))
+        subs.append(Submission.from_doc(sid, results[sid], (docs or {}).get(sid)))
     first = subs[0].result if subs else None
     heading = title or (f"{first.title}: class view" if first else "Class view")
     if subs:
@@ -348,14 +346,15 @@ def write_index(out_dir: str | os.PathLike[str], results: Mapping[str, Result], 
     return path
 
 
-def read_docs(out_dir: str | os.PathLike[str], ids: Sequence[str]) -> dict[str, dict[str, Any]]:
-    """Each submission's result.json as a plain dict (build, timings, previous)."""
+def read_docs(out_dir: str | os.PathLike[str], ids: Sequence[str]) -> dict[str, ResultDocument]:
+    """Each submission's result.json (build, timings, previous, intake); one that cannot be read
+    is left out (the class view shows its Result without them)."""
     docs = {}
     for sid in ids:
         try:
-            docs[sid] = json.loads((Path(out_dir) / sid / "result.json").read_text(encoding="utf-8"))
+            docs[sid] = ResultDocument.read(Path(out_dir) / sid / "result.json")
         except (OSError, ValueError):
-            docs[sid] = {}
+            continue
     return docs
 
 

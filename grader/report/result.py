@@ -22,8 +22,8 @@ from grader.rubric.result import ItemResult, Notice, Result
 from grader.contracts.jsonable import jsonable
 from grader.contracts.contract import Mismatch
 from grader.contracts.late import LatePenalty, late_by_text
-
-RESULT_SCHEMA = 1
+from grader.contracts.document import DocumentError
+from grader.contracts.result_document import RESULT_SCHEMA, PreviousEntry, PreviousItem, ResultDocument
 SUBMISSION_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@+-]{0,127}$")
 
 
@@ -63,10 +63,11 @@ def _notice_to_dict(notice: Notice) -> dict[str, Any]:
             "feedback": notice.feedback}
 
 
-def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
-                   extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The result.json document (see tests/report for its shape). ``extra``: further top-level
-    keys from the caller (build status, scenario errors, timings); they cannot replace ours."""
+def result_document(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
+                    extra: Mapping[str, Any] | None = None) -> ResultDocument:
+    """The result.json document of ``result`` (``grader.contracts.result_document``). ``extra``:
+    further top-level keys from the caller (build status, scenario errors, timings); they cannot
+    replace ours. Built as the JSON object, then validated: what is written is what a reader parses."""
     doc = jsonable({
         "schema": RESULT_SCHEMA,
         "submission": submission,
@@ -95,10 +96,16 @@ def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, st
         "versions": dict(versions or {}),
     })
     for key, value in (extra or {}).items():
-        if key in doc:
+        if key in doc or key in ResultDocument.grade_keys() or key == "seal":
             raise ValueError(f"extra key {key!r} would replace a result.json field")
         doc[key] = jsonable(value)
-    return doc
+    return ResultDocument.parse(doc, f"result.json of {submission}")
+
+
+def result_to_dict(result: Result, submission: str, *, versions: Mapping[str, str] | None = None,
+                   extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The JSON object of :func:`result_document` (what result.json holds, before its seal)."""
+    return result_document(result, submission, versions=versions, extra=extra).to_json()
 
 
 def late_fields(result: Result) -> dict[str, Any]:
@@ -109,50 +116,59 @@ def late_fields(result: Result) -> dict[str, Any]:
     return {"late_penalty": result.late_penalty, "late": result.late.to_dict()}
 
 
-def result_from_dict(doc: Mapping[str, Any]) -> Result:
+def _section(key: Mapping[str, int | str | None]) -> Section:
+    (kind, number), = key.items()
+    return Section(kind=kind, number=number)
+
+
+def result_from_document(doc: ResultDocument) -> Result:
     """Rebuild a Result from result.json, so batch outputs (grades.csv, index.html) can be
     regenerated from disk after submissions were graded in separate runs."""
-    if not isinstance(doc, Mapping) or doc.get("schema") != RESULT_SCHEMA:
-        got = doc.get("schema") if isinstance(doc, Mapping) else None
-        raise GraderError(f"result.json schema {got!r} is not {RESULT_SCHEMA}")
-
-    def section(d: Mapping[str, Any]) -> Section:
-        (kind, number), = d.items()
-        return Section(kind=kind, number=number)
-
     items = tuple(ItemResult(
-        id=i["id"], title=i["title"], section=section(i["section"]), kind=i["kind"],
-        public=i["public"], points=i["points"], max_points=i["max_points"], status=i["status"],
-        feedback=i["feedback"], hint=i.get("hint"), value=i.get("value"),
-        fraction=i.get("fraction"), evidence=i.get("evidence") or {}, params=i.get("params") or {},
-        hidden_params=tuple(i.get("hidden_params") or ()), requires=tuple(i.get("requires") or ()),
-        analyzer=i.get("analyzer"), decided=i.get("decided") or {}) for i in doc["items"])
-    specs = tuple(SectionSpec(section=section(s["section"]), title=s.get("name")) for s in doc.get("sections", []))
-    hidden = doc.get("hidden") or {}
-    late = None
-    if isinstance(doc.get("late"), Mapping):
-        late = LatePenalty.from_dict(doc["late"])
-
-    return Result(lab=doc["lab"], title=doc["title"], items=items, section_specs=specs,
-                  contract=tuple(Mismatch.from_dict(m) for m in doc.get("contract") or () if isinstance(m, Mapping)),
-                  student_view=doc.get("view") == "student",
-                  hidden_items=int(hidden.get("items", 0)), hidden_points=float(hidden.get("points", 0)),
+        id=i.id, title=i.title, section=_section(i.section), kind=i.kind,
+        public=i.public, points=i.points, max_points=i.max_points, status=i.status,
+        feedback=i.feedback, hint=i.hint, value=i.value,
+        fraction=i.fraction, evidence=i.evidence or {}, params=i.params or {},
+        hidden_params=tuple(i.hidden_params), requires=tuple(i.requires),
+        analyzer=i.analyzer, decided=i.decided or {}) for i in doc.items)
+    specs = tuple(SectionSpec(section=_section(s.section), title=s.name) for s in doc.sections)
+    late = LatePenalty.from_dict(doc.late) if doc.late is not None else None
+    return Result(lab=doc.lab, title=doc.title, items=items, section_specs=specs,
+                  contract=tuple(Mismatch.from_dict(m) for m in doc.contract),
+                  student_view=doc.view == "student",
+                  hidden_items=doc.hidden.items, hidden_points=float(doc.hidden.points),
                   late=late)
 
 
-def previous_summary(doc: Mapping[str, Any]) -> dict[str, Any] | None:
+def result_from_dict(doc: Any) -> Result:
+    """:func:`result_from_document` of a parsed JSON object (a GraderError when it is not one)."""
+    try:
+        return result_from_document(ResultDocument.parse(doc, "result.json"))
+    except DocumentError as exc:
+        raise GraderError(str(exc)) from None
+
+
+def previous_summary(doc: ResultDocument | None) -> dict[str, Any] | None:
     """What a regrade keeps of the result.json it replaces (stored as its ``previous`` key), so
     the class view can show who changed and by how much: totals and each item's points and
-    status. None when ``doc`` is not a result."""
-    items = doc.get("items") if isinstance(doc, Mapping) else None
-    if not isinstance(items, list):
+    status. None when there is no result."""
+    if doc is None:
         return None
-    return jsonable({
-        "auto_score": doc.get("auto_score"), "score": doc.get("score"), "total": doc.get("total"),
-        "versions": doc.get("versions") or {},
-        "items": {str(i.get("id")): {"points": i.get("points"), "status": i.get("status")}
-                  for i in items if isinstance(i, Mapping) and i.get("id") is not None},
-    })
+    return PreviousEntry(
+        auto_score=doc.auto_score, score=doc.score, total=doc.total, versions=doc.versions,
+        items={i.id: PreviousItem(points=i.points, status=i.status) for i in doc.items},
+    ).model_dump(mode="json")
+
+
+def read_document(path: str | os.PathLike[str]) -> ResultDocument:
+    """The result.json at ``path``, unverified; a GraderError naming the file when it cannot be
+    read or is not a result.json (``path: field: what is wrong``)."""
+    try:
+        return ResultDocument.read(path)
+    except OSError as exc:
+        raise GraderError(f"cannot read {path}: {exc}") from None
+    except DocumentError as exc:
+        raise GraderError(str(exc)) from None
 
 
 def read_result(path: str | os.PathLike[str], *, verify: bool = True) -> tuple[str, Result]:
@@ -160,19 +176,10 @@ def read_result(path: str | os.PathLike[str], *, verify: bool = True) -> tuple[s
     shows the grader wrote it as it is (a GraderError naming the file otherwise)."""
     from grader.report.seal import check_doc  # noqa: PLC0415 - at the head it would close a circle: report.result -> report -> report.result
 
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise GraderError(f"cannot read {path}: {exc}") from None
+    doc = read_document(path)
     if verify:
         check_doc(doc, Path(path))
-    try:
-        result = result_from_dict(doc)
-        return str(doc["submission"]), result
-    except GraderError as exc:
-        raise GraderError(f"{path}: {exc}") from None
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise GraderError(f"{path} is not a grader result.json (bad or missing {exc})") from None
+    return doc.submission, result_from_document(doc)
 
 
 def atomic_write(path: Path, text: str) -> None:
@@ -195,10 +202,10 @@ def write_result(out_dir: str | os.PathLike[str], submission: str, result: Resul
 
     check_submission_id(submission)
     path = Path(out_dir) / submission / plain_file_name(filename)
-    doc = result_to_dict(result, submission, versions=versions, extra=extra)
+    doc = result_document(result, submission, versions=versions, extra=extra)
     if inputs is None:
         inputs = input_digests(path.parent)
-    atomic_write(path, dumps(sealed(doc, inputs)))
+    atomic_write(path, dumps(sealed(doc, inputs).to_json()))
     return path
 
 

@@ -25,6 +25,7 @@ import secrets
 from pathlib import Path
 from typing import Any, Mapping
 
+from grader.contracts.result_document import ResultDocument, SealEntry
 from grader.errors import GraderError
 
 #: what a grade is computed from, inside a submission's output folder
@@ -66,29 +67,26 @@ def input_digests(sub_out: Path) -> dict[str, str]:
     return out
 
 
-def _mac(doc: Mapping[str, Any]) -> str:
-    body = json.dumps({k: v for k, v in doc.items() if k != "seal"}, sort_keys=True, separators=(",", ":"))
-    return hmac.new(_key(), body.encode(), hashlib.sha256).hexdigest()
+def _mac(body: Mapping[str, Any]) -> str:
+    text = json.dumps({k: v for k, v in body.items() if k != "seal"}, sort_keys=True, separators=(",", ":"))
+    return hmac.new(_key(), text.encode(), hashlib.sha256).hexdigest()
 
 
-def sealed(doc: dict[str, Any], inputs: Mapping[str, str]) -> dict[str, Any]:
-    """``doc`` with its seal; the MAC covers the document and the input digests."""
-    body = {k: v for k, v in doc.items() if k != "seal"}
-    mac = _mac({**body, "seal_inputs": dict(inputs)})
-    return {**body, "seal": {"inputs": dict(inputs), "mac": mac}}
+def sealed(doc: ResultDocument, inputs: Mapping[str, str]) -> ResultDocument:
+    """``doc`` with its seal; the MAC covers the document's JSON and the input digests."""
+    mac = _mac({**doc.without_seal(), "seal_inputs": dict(inputs)})
+    return doc.with_seal(SealEntry(inputs=dict(inputs), mac=mac))
 
 
-def mac_ok(doc: Mapping[str, Any]) -> bool:
-    seal = doc.get("seal")
-    if not isinstance(seal, Mapping) or "mac" not in seal:
+def mac_ok(doc: ResultDocument) -> bool:
+    if doc.seal is None:
         return False
-    body = {k: v for k, v in doc.items() if k != "seal"}
-    return hmac.compare_digest(str(seal["mac"]), _mac({**body, "seal_inputs": seal.get("inputs", {})}))
+    return hmac.compare_digest(doc.seal.mac, _mac({**doc.without_seal(), "seal_inputs": doc.seal.inputs}))
 
 
-def check_doc(doc: Mapping[str, Any], path: Path) -> None:
+def check_doc(doc: ResultDocument, path: Path) -> None:
     """Raise naming ``path`` unless its seal was made by this grader's key for this content."""
-    if "seal" not in doc:
+    if doc.seal is None:
         raise GraderError(f"{path} has no seal: it was not written by this grader (or by a version "
                           "before seals); regrade it (`grader regrade`) to seal it")
     if not mac_ok(doc):
@@ -96,9 +94,9 @@ def check_doc(doc: Mapping[str, Any], path: Path) -> None:
                           f"sealed with another key (set GRADER_SEAL_KEY to the grading machine's {key_path().name})")
 
 
-def changed_inputs(doc: Mapping[str, Any], sub_out: Path) -> list[str]:
+def changed_inputs(doc: ResultDocument, sub_out: Path) -> list[str]:
     """Inputs that differ from what was graded (missing, added or changed), as relative paths."""
-    recorded = dict((doc.get("seal") or {}).get("inputs") or {})
+    recorded = dict(doc.seal.inputs) if doc.seal is not None else {}
     now = input_digests(sub_out)
     return sorted(p for p in set(recorded) | set(now) if recorded.get(p) != now.get(p))
 
@@ -106,8 +104,7 @@ def changed_inputs(doc: Mapping[str, Any], sub_out: Path) -> list[str]:
 def recorded_inputs(result_json: Path) -> dict[str, str] | None:
     """The input digests an existing result.json recorded (None when there is none)."""
     try:
-        doc = json.loads(Path(result_json).read_text(encoding="utf-8"))
+        doc = ResultDocument.read(result_json)
     except (OSError, ValueError):
         return None
-    seal = doc.get("seal") if isinstance(doc, dict) else None
-    return dict(seal.get("inputs") or {}) if isinstance(seal, dict) else None
+    return dict(doc.seal.inputs) if doc.seal is not None else None

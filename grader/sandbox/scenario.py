@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.errors import GraderError
 from grader.sandbox import allotment, cgroups
 from grader.sandbox.capture import DEFAULT_CAP_BYTES
@@ -257,11 +258,11 @@ def recorded_summary(scenario_dirs: Sequence[Path]) -> dict[str, Any] | None:
     seen = []
     for d in scenario_dirs:
         try:
-            record = json.loads((Path(d) / "scenario.json").read_text())
+            record = ScenarioRecord.read(Path(d) / "scenario.json")
         except (OSError, ValueError):
             continue
-        if isinstance(record.get("sandbox"), dict):
-            seen.append(record["sandbox"])
+        if record.sandbox is not None:
+            seen.append(record.sandbox)
     if not seen:
         return None
     missing = sorted({m for s in seen for m in s.get("missing", [])})

@@ -8,7 +8,6 @@ wall-clock limit.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -18,6 +17,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.errors import GraderError
 from grader.scenario.model import Scenario
 from grader.scenario.runspec import LaunchedProcess, PackageFacts, ScenarioRun
@@ -172,16 +172,17 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
     if CANCELLED.is_set():
         raise KeyboardInterrupt
     record_path = out / "scenario.json"
-    if record_path.exists():
-        record = json.loads(record_path.read_text())
-    else:
+    try:
+        record = ScenarioRecord.read(record_path).to_json()
+    except (OSError, ValueError) as exc:       # none (killed before it wrote one), or cut short
         tail = (out / "scenario.log").read_text(errors="replace")[-1500:]
+        what = "a record" if isinstance(exc, FileNotFoundError) else f"a readable record ({exc})"
         record = {"scenario": run.id, "steps": [], "processes": {}, "bag": str(out / "bag"),
-                  "errors": [f"scenario process ended with code {proc.returncode} without a record:\n{tail}"]}
+                  "errors": [f"scenario process ended with code {proc.returncode} without {what}:\n{tail}"]}
     record["sandbox"] = sandbox.report(record)
     record["limits_hit"] = [hit["detail"] for hit in record["sandbox"]["limits_hit"]]
     record["parent_wall_s"] = round(time.monotonic() - t0, 3)
-    record_path.write_text(json.dumps(record, indent=1, default=str))
+    ScenarioRecord.from_working(record, str(record_path)).write(record_path)
     return record
 
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import faulthandler
 import contextlib
-import json
 import os
 import signal
 import socket
@@ -31,6 +30,7 @@ import traceback
 from pathlib import Path
 from typing import Any, Iterator, cast
 
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import ManagedProcess, ProcessSpec, RosGraph
@@ -146,7 +146,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             _wind_down(record, graph, out, driver, recorder, sim, students, scale)
     record["active_s"] = round(sum(s["duration_s"] for s in record["steps"]), 3)
     record["wall_s"] = round(time.monotonic() - t_start, 3)
-    (out / "scenario.json").write_text(json.dumps(record, indent=1, default=str))
+    ScenarioRecord.from_working(record, str(out / "scenario.json")).write(out / "scenario.json")
     return record
 
 

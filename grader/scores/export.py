@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping
 
+from grader.contracts.result_document import ResultDocument
 from grader.errors import GraderError
 from grader.report.batch import intake_docs, load_results
 from grader.report.index import read_docs
@@ -210,7 +211,7 @@ def _by_identity(roster: Roster, kept: Mapping[str, str]) -> Student | None:
 
 
 def _canvas(pairs, results, *, report: ExportReport, assignment: str | None, source: str,
-            docs: Mapping[str, Mapping]) -> list[list[str]]:
+            docs: Mapping[str, ResultDocument]) -> list[list[str]]:
     first = next(iter(results.values()))
     title = (assignment or first.title).strip()
     if not _CANVAS_ID.search(title):
@@ -238,7 +239,7 @@ def _scored_items(result: Result) -> list:
 
 
 def _gradescope(pairs, results, *, report: ExportReport, assignment: str | None,
-                source: str, docs: Mapping[str, Mapping]) -> list[list[str]]:
+                source: str, docs: Mapping[str, ResultDocument]) -> list[list[str]]:
     problems = [f"line {s.line}: no Email or SID value, Gradescope could not match the row ({sid})"
                 for s, sid in pairs if not (s.get("email") or s.get("sid"))]
     if problems:
@@ -253,10 +254,15 @@ def _gradescope(pairs, results, *, report: ExportReport, assignment: str | None,
         by_id = {i.id: i for i in r.items}
         rows.append([student.get("name"), student.get("sid"), student.get("email"), student.get("section"),
                      _num(r.final_score), _num(r.max_score), "Graded" if r.complete else "Ungraded"]
-                    + (_late_cells(r, (docs.get(sid) or {}).get("intake") or {}) if late else [])
+                    + (_late_cells(r, _intake(docs.get(sid))) if late else [])
                     + [_num(by_id[i.id].points) if i.id in by_id else "" for i in items])
     report.rows = len(pairs)
     return rows
+
+
+def _intake(doc: ResultDocument | None) -> Mapping:
+    """A submission's result.json ``intake`` ({} when none)."""
+    return doc.intake if doc is not None and doc.intake is not None else {}
 
 
 def _late_cells(r: Result, intake: Mapping) -> list[str]:
@@ -271,7 +277,7 @@ def _late_cells(r: Result, intake: Mapping) -> list[str]:
 
 
 def _long(pairs, results, *, report: ExportReport, assignment: str | None, source: str,
-          docs: Mapping[str, Mapping]) -> list[list[str]]:
+          docs: Mapping[str, ResultDocument]) -> list[list[str]]:
     rows = [list(LONG_COLUMNS)]
     for student, sid in pairs:
         who = [_text(student.get(f)) if student else "" for f in

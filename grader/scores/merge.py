@@ -12,17 +12,17 @@ be merged over the first one, and a sheet holding only some columns or rows touc
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from grader.errors import GraderError
 from grader.report.html import write_html
 from grader.report.index import read_docs, write_index
-from grader.report.result import read_result, result_to_dict, write_grades_csv, write_result
+from grader.contracts.result_document import ResultDocument
+from grader.report.result import read_document, result_from_document, write_grades_csv, write_result
+from grader.report.seal import check_doc
 from grader.rubric.result import Result
 from grader.scores import transaction
 from grader.scores.sheet import LATE, SheetRow, read_sheet
@@ -67,7 +67,7 @@ class _Graded:
     """One submission as it is on disk."""
 
     sid: str
-    doc: dict[str, Any]
+    doc: ResultDocument
     result: Result
 
 
@@ -75,10 +75,11 @@ def load_graded(out: Path) -> dict[str, _Graded]:
     """Every instructor-view result under ``out`` (all of one lab)."""
     graded: dict[str, _Graded] = {}
     for path in sorted(out.glob("*/result.json")):
-        sid, result = read_result(path)
-        if result.student_view:
+        doc = read_document(path)
+        check_doc(doc, path)
+        if doc.view == "student":
             continue
-        graded[sid] = _Graded(sid, json.loads(path.read_text(encoding="utf-8")), result)
+        graded[doc.submission] = _Graded(doc.submission, doc, result_from_document(doc))
     if not graded:
         raise GraderError(f"{out} holds no graded submissions (no <id>/result.json); run "
                           "`grader grade` first")
@@ -158,8 +159,8 @@ def merge_manual_scores(out: str | os.PathLike[str], sheet: str | os.PathLike[st
         with transaction.staging(out) as stage:
             for sid, scores in new_scores.items():
                 _stage_submission(stage, out, graded[sid], results[sid], scores, new_late[sid])
-            write_grades_csv(stage, results, intake={sid: g.doc["intake"] for sid, g in graded.items()
-                                                     if isinstance(g.doc.get("intake"), dict)})
+            write_grades_csv(stage, results, intake={sid: g.doc.intake for sid, g in graded.items()
+                                                     if g.doc.intake is not None})
             write_index(stage, results, docs=read_docs(out, list(results)))
             files = sorted(transaction.changed_files(stage, out),
                            key=lambda rel: (_ORDER.get(rel.name, 9), str(rel)))
@@ -176,16 +177,15 @@ def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
         (stage / g.sid).mkdir(parents=True, exist_ok=True)
         (stage / g.sid / MANUAL_SCORES).write_text(manual_scores_text(result.lab, g.sid, scores, late),
                                                     encoding="utf-8")
-    standard = result_to_dict(result, g.sid)
-    extra = {k: v for k, v in g.doc.items() if k not in standard and k != "seal"}
-    versions = g.doc.get("versions") or {}
+    extra = g.doc.run_records()
+    versions = g.doc.versions
     # the grade still rests on the bags that were graded: keep their recorded digests
-    inputs = (g.doc.get("seal") or {}).get("inputs") or {}
+    inputs = g.doc.seal.inputs if g.doc.seal is not None else {}
     path = write_result(stage, g.sid, result, versions=versions, extra=extra, inputs=inputs)
     if (sub_out / "result.json").read_bytes() == path.read_bytes() and (sub_out / "report.html").exists():
         return
     canvases = {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
 
-    load_recorded_files(g.doc.get("analyzer_files") or [])      # the lab's own figures and labels
+    load_recorded_files(g.doc.analyzer_files)      # the lab's own figures and labels
     write_html(stage, g.sid, result, versions=versions, canvas_png=canvases or None,
-               problems=list(g.doc.get("errors") or []), intake=g.doc.get("intake"))
+               problems=list(g.doc.errors), intake=g.doc.intake)

@@ -35,6 +35,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from grader.analyze._common import end_time, events, rosout_lines, stdout_lines, times
+from grader.contracts.result_document import ItemEntry
 from grader.contracts.events import Graph, GoalSent, ScenarioStart, StepEnd, StepStart
 from grader.analyze.evidence import TIME
 from grader.report.result import atomic_write
@@ -233,25 +234,25 @@ def _scalars(evidence: Mapping[str, Any], skip: set[str]) -> Iterable[tuple[str,
             yield key, float(v)
 
 
-def result_features(doc: Mapping[str, Any], item_scenarios: Mapping[str, list[str]],
+def result_features(items: Iterable[ItemEntry], item_scenarios: Mapping[str, list[str]],
                     labels: Mapping[str, Mapping[str, Any]] | None = None) -> list[Feature]:
-    """Features of a result.json: failing items with their values, and every item's measured
-    numbers (``labels``: item id -> its analyzer's evidence table; unlabelled keys, thresholds and
-    times are left out)."""
+    """Features of a result.json's ``items``: failing items with their values, and every item's
+    measured numbers (``labels``: item id -> its analyzer's evidence table; unlabelled keys,
+    thresholds and times are left out)."""
     feats = []
-    for item in doc.get("items") or ():
-        iid, status = str(item.get("id")), str(item.get("status"))
-        if item.get("kind") not in ("auto", "advisory", "integrity") or status not in ("pass", "partial", "fail"):
+    for item in items:
+        iid, status = item.id, item.status
+        if item.kind not in ("auto", "advisory", "integrity") or status not in ("pass", "partial", "fail"):
             continue
         scenario = ",".join(item_scenarios.get(iid, []))
-        if status != "pass" and item.get("value") is not None:     # no value: nothing was measured
-            value = item.get("value")
+        if status != "pass" and item.value is not None:     # no value: nothing was measured
+            value = item.value
             feats.append(Feature(f"item|{iid}|outcome", "token", "failure", f"{iid}: {status}, {_value_text(value)}",
                                  f"{status}:{_value_text(value)}", scenario))
         table = (labels or {}).get(iid) or {}
-        params = set((item.get("params") or {}).keys())
+        params = set(item.params)
         skip = params | {"scenario_start"} | {k for k, lab in table.items() if lab is None or lab[1] == TIME}
-        for key, v in _scalars(item.get("evidence") or {}, skip):
+        for key, v in _scalars(item.evidence, skip):
             if table and key not in table:
                 continue
             words = table.get(key)

@@ -15,7 +15,10 @@ from grader.audit.mutate import mutants
 from grader.audit.outcome import Outcome
 from grader.audit.run import _outcome, choose, find_reference, given_files
 from grader.errors import GraderError
+from grader.report.result import write_result
 from grader.rubric.load import load_rubric
+from grader.rubric.result import ItemResult, Result
+from grader.rubric.schema import Section
 
 REPO = Path(__file__).resolve().parents[2]
 SUBS = REPO / "fixtures" / "submissions"
@@ -50,12 +53,13 @@ def test_code_the_handout_gives_unchanged_is_not_mutated() -> None:
 
 
 def _result(folder: Path, points: dict[str, tuple[float, float]]) -> None:
-    folder.mkdir(parents=True)
-    items = [{"id": k, "kind": "auto", "points": p, "max_points": mx} for k, (p, mx) in points.items()]
-    items.append({"id": "flag", "kind": "integrity", "points": 0, "max_points": 0})
-    folder.joinpath("result.json").write_text(json.dumps({
-        "auto_score": sum(p for p, _ in points.values()), "auto_max": sum(m for _, m in points.values()),
-        "items": items, "timings": {"build_s": 1.5, "scenarios_wall_s": 10}}))
+    def item(iid: str, kind: str, p: float, mx: float) -> ItemResult:
+        return ItemResult(id=iid, title=iid, section=Section("exercise", 1), kind=kind, public=True, points=p,
+                          max_points=mx, status="pass" if p == mx else "partial", feedback="")
+
+    items = [item(k, "auto", p, mx) for k, (p, mx) in points.items()] + [item("flag", "integrity", 0, 0)]
+    write_result(folder.parent, folder.name, Result(lab="first-nodes", title="t", items=tuple(items)),
+                 extra={"timings": {"build_s": 1.5, "scenarios_wall_s": 10}})
 
 
 def test_outcomes_killed_equivalent_surviving_error(tmp_path: Path) -> None:

@@ -47,7 +47,7 @@ def test_run_until_settled_records_two_runs_when_they_agree_three_when_not(tmp_p
     def record(k: int, folder: Path) -> dict:
         folder.mkdir(parents=True)
         made.append(k)
-        return {"errors": [f"e{k}"] if k == 3 else [], "parent_wall_s": 10.0, "active_s": 8.0}
+        return {"scenario": "sc", "errors": [f"e{k}"] if k == 3 else [], "parent_wall_s": 10.0, "active_s": 8.0}
 
     rec = run_until_settled(record, tmp_path / "a", "sc", 3, lambda folders: len(folders) >= 2)
     assert made == [1, 2] and rec["runs"] == 2 and rec["parent_wall_s"] == 20.0
@@ -106,7 +106,7 @@ def test_worst_runs_stop_at_the_first_run_that_fails_every_item_and_not_before()
 
     def record(k: int, folder: Path) -> dict:
         made.append(k)
-        return {"errors": []}
+        return {"scenario": "sc", "errors": []}
 
     run_until_settled(record, Path("/nonexistent"), "sc", 3, lambda folders: len(folders) == 1)
     assert made == [1]                  # a first run that settles it (a worst of fail) is the only one

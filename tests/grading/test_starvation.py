@@ -10,7 +10,7 @@ from grader.grading.starvation import record_unstarved, starved
 
 
 def rec(share: float | None) -> dict:
-    return {"errors": [], "cpu_wait": {} if share is None else {"turtlesim": {"wait_share": share},
+    return {"scenario": "sc", "errors": [], "cpu_wait": {} if share is None else {"turtlesim": {"wait_share": share},
                                                                  "controller": {"wait_share": 3.0}}}
 
 
@@ -73,7 +73,7 @@ def test_starved_every_time_keeps_the_last_and_says_so(tmp_path: Path) -> None:
 
 
 def busy(share: float, student_cpu_s: float, alive_s: float = 10.0) -> dict:
-    return {"errors": [], "cpu_wait": {"turtlesim": {"wait_share": share},
+    return {"scenario": "sc", "errors": [], "cpu_wait": {"turtlesim": {"wait_share": share},
                                        "server": {"cpu_s": student_cpu_s, "alive_s": alive_s}}}
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from grader.contracts.result_document import ResultDocument
 from grader.grading.pipeline import regrade_submission
 from grader.rubric import load_rubric
 from grader.testing.batch import recorded_batch
@@ -65,11 +66,22 @@ def test_a_cut_bag_is_not_regraded(graded: Path) -> None:
     mcap = next((graded / "scenarios" / "ex3_action" / "bag").glob("*.mcap"))
     mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
     # the cut also changes its digest; make the seal agree so the finalisation check is what refuses
-    doc = json.loads((graded / "result.json").read_text())
+    doc = ResultDocument.read(graded / "result.json")
     from grader.report.result import dumps
     from grader.report.seal import input_digests, sealed
-    (graded / "result.json").write_text(dumps(sealed(doc, input_digests(graded))))
+    (graded / "result.json").write_text(dumps(sealed(doc, input_digests(graded)).to_json()))
     regrade_submission(graded, load_rubric(RUBRIC))
     got = items(graded)
     assert got["ex3.goals_succeed"]["status"] == "error"
     assert "not finalised cleanly" in got["ex3.goals_succeed"]["feedback"]
+
+
+def test_a_damaged_result_json_is_regraded_from_the_bags(graded: Path) -> None:
+    """A result.json that is not one (cut short, another program's) does not stop a regrade: the
+    bags are what a grade comes from; the problems say why nothing of the old file was kept."""
+    before = items(graded)
+    (graded / "result.json").write_text(json.dumps({"schema": 1, "items": "none"}))
+    regrade_submission(graded, load_rubric(RUBRIC))
+    doc = ResultDocument.read(graded / "result.json")
+    assert {i.id: i.status for i in doc.items} == {k: v["status"] for k, v in before.items()}
+    assert any("result.json: " in e and "regraded from the bags as they are" in e for e in doc.errors)

@@ -8,6 +8,7 @@ import json
 
 import pytest
 
+from grader.contracts.result_document import ResultDocument
 from grader.errors import GraderError
 from grader.report import read_result, result_from_dict, result_to_dict, write_batch, write_result
 from grader.rubric import score
@@ -70,16 +71,24 @@ def test_a_result_removed_while_the_batch_is_listed_is_left_out(tmp_path, lab3, 
         batch.load_results(tmp_path, lab3)
 
 
-def test_unreadable_result_is_a_clear_error(tmp_path):
+def test_unreadable_result_is_a_clear_error(tmp_path, lab3):
     bad = tmp_path / "x" / "result.json"
     bad.parent.mkdir()
     bad.write_text("{not json")
     with pytest.raises(GraderError, match="cannot read"):
         read_result(bad)
     bad.write_text(json.dumps({"schema": 99}))
-    with pytest.raises(GraderError, match="no seal"):
+    with pytest.raises(GraderError, match="schema 99 is not 1"):      # a newer grader's: said before the seal
         read_result(bad)
-    with pytest.raises(GraderError, match="schema 99"):
+    with pytest.raises(GraderError, match="schema 99 is not 1"):
+        read_result(bad, verify=False)
+    doc = json.loads(write_result(tmp_path, "y", score(lab3, {})).read_text())
+    (tmp_path / "y" / "result.json").write_text(json.dumps({k: v for k, v in doc.items() if k != "seal"}))
+    with pytest.raises(GraderError, match="no seal"):
+        read_result(tmp_path / "y" / "result.json")
+    doc["items"][0]["points"] = "many"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(GraderError, match=r"x/result.json: items\[0\]\.points: .*'many'"):
         read_result(bad, verify=False)
 
 
@@ -104,4 +113,4 @@ def test_a_result_changed_after_grading_is_refused(tmp_path, monkeypatch, lab3_r
     with pytest.raises(GraderError, match=r"s1/result.json was changed after the grader wrote it"):
         load_results(tmp_path / "out")
     (bag / "x.mcap").write_bytes(b"edited")                   # and a changed bag is noticed
-    assert changed_inputs(doc, path.parent) == ["scenarios/a/bag/x.mcap"]
+    assert changed_inputs(ResultDocument.read(path), path.parent) == ["scenarios/a/bag/x.mcap"]

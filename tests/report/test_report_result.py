@@ -115,9 +115,9 @@ def test_result_json_keeps_number_lists_on_one_line(tmp_path, lab3, make_finding
 
 
 def test_previous_summary_is_what_a_regrade_keeps(lab3_result):
-    from grader.report import previous_summary, result_to_dict
+    from grader.report.result import previous_summary, result_document
 
-    prev = previous_summary(result_to_dict(lab3_result, "alice", versions={"grader": "0.1.0"}))
+    prev = previous_summary(result_document(lab3_result, "alice", versions={"grader": "0.1.0"}))
     assert prev["auto_score"] == 47 and prev["versions"] == {"grader": "0.1.0"}
     assert prev["items"]["ex1.pub_rate"] == {"points": 1.5, "status": "partial"}
-    assert previous_summary({"schema": 1}) is None
+    assert previous_summary(None) is None

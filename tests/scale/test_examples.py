@@ -187,11 +187,15 @@ def test_classroom_runner_result_is_what_the_reporter_reads(tmp_path: Path) -> N
 
     from grader.lms.classroom import points, step_output
 
-    doc = {"items": [
-        {"id": "ex1.a", "title": "A", "kind": "auto", "status": "pass", "points": 4, "max_points": 4, "feedback": "ok"},
+    section = {"section": {"exercise": 1}, "public": True}
+    doc = {"schema": 1, "submission": "check", "lab": "l", "title": "L", "view": "student", "score": 6.5,
+           "auto_score": 6.5, "auto_max": 10, "max_score": 10, "manual_max": 0, "pending_max": 0, "total": 6.5,
+           "complete": True, "items": [
+        {"id": "ex1.a", "title": "A", "kind": "auto", "status": "pass", "points": 4, "max_points": 4, "feedback": "ok", **section},
         {"id": "ex1.b", "title": "B", "kind": "auto", "status": "partial", "points": 2.5, "max_points": 6,
-         "feedback": "half", "hint": "use math.log"},
-        {"id": "ex1.c", "title": "C", "kind": "advisory", "status": "fail", "points": 0, "max_points": 0, "feedback": ""}]}
+         "feedback": "half", "hint": "use math.log", **section},
+        {"id": "ex1.c", "title": "C", "kind": "advisory", "status": "fail", "points": 0, "max_points": 0, "feedback": "",
+         **section}]}
     (tmp_path / "result.json").write_text(json.dumps(doc))
     line, runner = step_output(tmp_path / "result.json")
     assert line.startswith("result=")

@@ -367,10 +367,10 @@ def test_lockstep_needs_the_simulator_and_simulated_time(extra: dict, message: s
 
 
 def test_an_exact_lockstep_run_settles_a_repeated_scenario_at_once(tmp_path: Path) -> None:
-    exact = {"lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0}, "errors": []}
-    loose = {"lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 2}, "errors": []}
-    cut = {"lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0, "wall_cuts": 1}, "errors": []}
-    fell_back = {"lockstep": {"used": False, "fallback": "wall-clock pacing"}, "errors": []}
+    exact = {"scenario": "s", "lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0}, "errors": []}
+    loose = {"scenario": "s", "lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 2}, "errors": []}
+    cut = {"scenario": "s", "lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0, "wall_cuts": 1}, "errors": []}
+    fell_back = {"scenario": "s", "lockstep": {"used": False, "fallback": "wall-clock pacing"}, "errors": []}
     assert lockstep_record_exact(exact)
     assert not any(lockstep_record_exact(r) for r in (loose, cut, fell_back))
     for record, runs in ((exact, 1), (loose, 3), (cut, 3), (fell_back, 3)):

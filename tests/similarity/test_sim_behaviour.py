@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from grader.contracts.result_document import ItemEntry
 from grader.similarity.behaviour import Feature, result_features, template
 from grader.similarity.compare import cap, compare_behaviour
 
@@ -70,11 +71,12 @@ def test_rarity_counts_the_submissions_that_ran_the_scenario() -> None:
 
 
 def test_result_features_skip_items_that_measured_nothing() -> None:
-    doc = {"items": [
+    common = {"title": "", "section": {"exercise": 2}, "public": True, "points": 0, "max_points": 1, "feedback": ""}
+    items = [ItemEntry(**common, **i) for i in (
         {"id": "ex2.goals_reached", "kind": "auto", "status": "fail", "value": 0.25, "evidence": {"n_goals": 4}},
         {"id": "ex2.control_rate", "kind": "auto", "status": "fail", "value": None, "evidence": {}},
-        {"id": "ex2.turn_direction", "kind": "auto", "status": "pass", "value": 1.0, "evidence": {"share": 1.0}}]}
-    feats = result_features(doc, {"ex2.goals_reached": ["sc"], "ex2.control_rate": ["sc"],
+        {"id": "ex2.turn_direction", "kind": "auto", "status": "pass", "value": 1.0, "evidence": {"share": 1.0}})]
+    feats = result_features(items, {"ex2.goals_reached": ["sc"], "ex2.control_rate": ["sc"],
                                   "ex2.turn_direction": ["sc"]})
     failures = [f.key for f in feats if f.group == "failure"]
     assert failures == ["item|ex2.goals_reached|outcome"]
