@@ -7,9 +7,12 @@ key and maker, the time-scale or lockstep decision, a starved run made again). I
 analysis (a bag on simulated time), a repeat (was the lockstep run exact), provenance (who made
 the recording a grade rests on) and the sandbox summary of result.json.
 
-The working record the child and the pipeline fill in is a plain dict (many hands add to it while
-the run goes on); it becomes this model where it is written (``ScenarioRecord.from_working``) and
-every file is read through it. Fields are declared in the order the child writes them, so a
+The child fills in a plain dict while the run goes on and writes it through this model
+(``ScenarioRecord.from_working``); from there on the record in memory is this model too: what
+``run_scenario`` returns and the pipeline passes on (time scale, starvation retries, reuse,
+repeats, the analysis) is read by attribute, and every note is an amendment through the model
+(:meth:`ScenarioRecord.amended`, validated as a whole), so what the pipeline holds is what the
+file would say. Fields are declared in the order the child writes them, so a
 record written again is the same bytes in the usual case (``tests/grading/test_scenario_record.py``
 reads every committed record of ``fixtures/bags``); unknown keys are kept, after the known ones.
 """
@@ -31,6 +34,10 @@ __all__ = ["ClockRecord", "ProcessRecord", "RecordingNote", "ReusedNote", "Scena
 
 class _Entry(BaseModel):
     model_config = ConfigDict(extra="allow", allow_inf_nan=False, populate_by_name=True)
+
+    def to_json(self) -> dict[str, JsonValue]:
+        """The JSON object of this entry: the keys it was given (unknown ones after them)."""
+        return self.model_dump(mode="json", by_alias=True, exclude_unset=True)
 
 
 class StepRecord(_Entry):
@@ -106,6 +113,9 @@ class ScenarioRecord(Document):
     recording: RecordingNote | None = None
     starved: dict[str, JsonValue] | None = None
     cpu_quota: dict[str, JsonValue] | None = None
+    # -- in memory only, never written: a repeated scenario's runs, the CPU of all of them --
+    runs: int | None = None
+    cpu_s: Number | None = None
 
     @classmethod
     def from_working(cls, record: dict[str, JsonValue], where: str) -> Self:

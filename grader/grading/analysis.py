@@ -64,7 +64,7 @@ def scenario_frames(scenario_dir: Path) -> dict:
     if canvas.exists():
         frames["__canvas__"] = canvas_frame(canvas)
     if record is not None:
-        frames["__meta__"].attrs["scenario"] = record.to_json()     # the starvation checks read the working form
+        frames["__meta__"].attrs["scenario"] = record               # the starvation checks read it
     return frames
 
 
@@ -133,7 +133,7 @@ def starved_timing(item: Item, finding: Finding, frames: dict) -> Finding | None
     words = timing(item.analyzer, item.timing)
     meta = frames.get("__meta__")
     record = meta.attrs.get("scenario") if meta is not None else None
-    if finding.status not in ("fail", "partial") or not words or not record:
+    if finding.status not in ("fail", "partial") or not words or not isinstance(record, ScenarioRecord):
         return None
     scale = recorded_scale(record)
     found = starvation(record, scale=scale)

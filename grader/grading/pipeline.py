@@ -31,6 +31,7 @@ from grader.grading.schedule import Slots
 from grader.intake.apply import apply_intake
 from grader.intake.model import public_record, write_record
 from grader.contracts.result_document import ResultDocument
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.report.result import previous_summary, read_document
 from grader.report.seal import input_digests, mac_ok, changed_inputs
 from grader.rubric.score import score
@@ -46,13 +47,19 @@ if TYPE_CHECKING:
     from grader.scenario.model import Scenario
 
 
-def early_ends(record: dict, scenario: Any) -> list[dict]:
+def early_ends(record: ScenarioRecord, scenario: Any) -> list[dict]:
     """The steps of a scenario record that ended once their outcome was decided (``ended_by:
     decided``), with the step's limit, for the result and its notes."""
     limits = {step.id: step.limit_s for step in scenario.steps}
-    return [{"step": st["id"], "at_s": st.get("duration_s"), "limit_s": limits.get(st["id"]),
-             "reason": (st.get("detail") or {}).get("ended_early")}
-            for st in record.get("steps", []) if st.get("ended_by") == "decided"]
+    return [{"step": st.id, "at_s": st.duration_s, "limit_s": limits.get(st.id),
+             "reason": st.detail.get("ended_early")}
+            for st in record.steps if st.ended_by == "decided"]
+
+
+def _or_zero(record: ScenarioRecord, key: str) -> float:
+    """A timing of the record: 0.0 when it has none (a record cut short: no ``active_s``)."""
+    value = getattr(record, key)
+    return 0.0 if key not in record.model_fields_set else value
 
 
 def selected_items(rubric: Rubric, public_only: bool) -> list[Item]:
@@ -196,16 +203,16 @@ def _run_scenarios(sid: str, rubric: Rubric, items: list, build: Any, out: Path,
                 for sc_id in longest_first}
         for sc_id in scenario_ids:
             record = runs[sc_id].result()
-            timings[f"scenario:{sc_id}:wall_s"] = record.get("parent_wall_s", 0.0)
-            timings[f"scenario:{sc_id}:active_s"] = record.get("active_s", 0.0)
-            timings[f"scenario:{sc_id}:cpu_s"] = record["cpu_s"]
-            ran.errors += [f"scenario {sc_id}: {e}" for e in record.get("errors", [])]
-            if record.get("reused"):
-                ran.reused[sc_id] = record["reused"]
-            if time_scale > 1 and record.get("time_scale"):
-                ran.time_scales[sc_id] = record["time_scale"]
-            if record.get("lockstep"):        # how a lockstep scenario's clock ran (and why not)
-                ran.time_scales[sc_id] = {"clock": "lockstep", **record["lockstep"]}
+            timings[f"scenario:{sc_id}:wall_s"] = _or_zero(record, "parent_wall_s")
+            timings[f"scenario:{sc_id}:active_s"] = _or_zero(record, "active_s")
+            timings[f"scenario:{sc_id}:cpu_s"] = record.cpu_s or 0.0
+            ran.errors += [f"scenario {sc_id}: {e}" for e in record.errors]
+            if record.reused is not None and record.reused.to_json():
+                ran.reused[sc_id] = record.reused.to_json()
+            if time_scale > 1 and record.time_scale is not None and record.time_scale.to_json():
+                ran.time_scales[sc_id] = record.time_scale.to_json()
+            if record.lockstep is not None and record.lockstep.to_json():   # how a lockstep clock ran (and why not)
+                ran.time_scales[sc_id] = {"clock": "lockstep", **record.lockstep.to_json()}
             if early := early_ends(record, rubric.scenarios[sc_id]):
                 ran.ended_early[sc_id] = early
     timings["scenarios_wall_s"] = round(time.monotonic() - t1, 2)
@@ -213,7 +220,8 @@ def _run_scenarios(sid: str, rubric: Rubric, items: list, build: Any, out: Path,
 
 
 def _run_one(sid: str, sc_id: str, scenario: Scenario, build: Any, out: Path, slots: Slots, recordings: Path | None,
-             time_scale: float = 1.0, rates: tuple = (), settles: Callable[[list[Path]], bool] | None = None) -> dict:
+             time_scale: float = 1.0, rates: tuple = (), settles: Callable[[list[Path]], bool] | None = None
+             ) -> ScenarioRecord:
     """One scenario; a repeated one (``repeat: N``) run by run until its median is settled, each
     run recorded or reused by ``grader.grading.reuse.record_or_reuse``."""
     cpu0 = children_cpu_s()
@@ -222,7 +230,7 @@ def _run_one(sid: str, sc_id: str, scenario: Scenario, build: Any, out: Path, sl
                                           run=k),
         out / SCENARIOS_DIR, sc_id, scenario.repeat, settles)
     # every run and retry of it (this thread's), reused ones costing nothing
-    return {**record, "cpu_s": round(children_cpu_s() - cpu0, 2)}
+    return record.amended({"cpu_s": round(children_cpu_s() - cpu0, 2)})
 
 
 def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = False) -> GradedSubmission:

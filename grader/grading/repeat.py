@@ -80,10 +80,10 @@ def settled(outcomes_per_item: Iterable[Sequence[tuple[str, float]]], planned: i
     return all(lst and Counter(lst).most_common(1)[0][1] * 2 > planned for lst in outcomes_per_item)
 
 
-def lockstep_record_exact(record: dict) -> bool:
+def lockstep_record_exact(record: ScenarioRecord) -> bool:
     """A record of a lockstep run with every tick quiet and no wait cut short by its wall-time
     limit: running it again repeats it exactly."""
-    return ScenarioRecord.from_working(record, "scenario record").exact_lockstep
+    return record.exact_lockstep
 
 
 def exact_lockstep(folder: Path) -> bool:
@@ -94,12 +94,12 @@ def exact_lockstep(folder: Path) -> bool:
         return False
 
 
-def run_until_settled(record_one: Callable[[int, Path], dict], scenarios_dir: Path, sc_id: str, planned: int,
-                      settles: Callable[[list[Path]], bool] | None) -> dict:
+def run_until_settled(record_one: Callable[[int, Path], ScenarioRecord], scenarios_dir: Path, sc_id: str,
+                      planned: int, settles: Callable[[list[Path]], bool] | None) -> ScenarioRecord:
     """Record run 1, 2, ... of a scenario (``record_one(k, folder)``) until ``planned`` runs, or
     until ``settles`` says the runs so far decide every item. The record: the first
     run's, with every run's errors and the times of all of them (``runs``: how many)."""
-    records: list[dict] = []
+    records: list[ScenarioRecord] = []
     for k in range(1, planned + 1):
         records.append(record_one(k, run_folder(scenarios_dir, sc_id, k)))
         if k == 1 and lockstep_record_exact(records[0]):
@@ -109,12 +109,11 @@ def run_until_settled(record_one: Callable[[int, Path], dict], scenarios_dir: Pa
             break
     if len(records) == 1:
         return records[0]
-    first = dict(records[0])
-    first["errors"] = [f"run {k}: {e}" if k > 1 else e for k, r in enumerate(records, 1) for e in r.get("errors", [])]
-    for key in ("parent_wall_s", "active_s"):
-        first[key] = round(sum(float(r.get(key) or 0.0) for r in records), 3)
-    first["runs"] = len(records)
-    return first
+    return records[0].amended({
+        "errors": [f"run {k}: {e}" if k > 1 else e for k, r in enumerate(records, 1) for e in r.errors],
+        "parent_wall_s": round(sum(float(r.parent_wall_s or 0.0) for r in records), 3),
+        "active_s": round(sum(float(r.active_s or 0.0) for r in records), 3),
+        "runs": len(records)})
 
 
 def repeated_finding(findings: Sequence[Any], planned: int, lockstep: bool = False, by: str = "median") -> Any:

@@ -138,9 +138,9 @@ class RecordingCache:
         os.replace(tmp, final)
 
 
-def reusable(record: dict[str, Any]) -> bool:
+def reusable(record: ScenarioRecord) -> bool:
     """A recording worth keeping: the scenario ran to its end without a grader-side problem."""
-    return not record.get("errors") and not record.get("interrupted") and bool(record.get("steps"))
+    return not record.errors and not record.interrupted and bool(record.steps)
 
 
 def recording_settings(time_scale: float = 1.0, rates: tuple = (), run: int = 1) -> str:
@@ -154,22 +154,22 @@ def recording_settings(time_scale: float = 1.0, rates: tuple = (), run: int = 1)
     return f"sandbox={info['mode']}:{','.join(sorted(info['active']))}{scaled}{again}"
 
 
-def _note_recording(folder: Path, record: dict[str, Any], key: str | None) -> dict[str, Any]:
+def _note_recording(folder: Path, record: ScenarioRecord, key: str | None) -> ScenarioRecord:
     """Keep the recording's key and maker in the record and its ``scenario.json`` (a copy made
     from the cache carries the maker of the original)."""
-    record["recording"] = {"key": key, "made_by": made_by()}
-    ScenarioRecord.amend(folder / "scenario.json", {"recording": record["recording"]})
-    return record
+    note = {"key": key, "made_by": made_by()}
+    ScenarioRecord.amend(folder / "scenario.json", {"recording": note})
+    return record.amended({"recording": note})
 
 
 def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder: Path, slots: Any,
                     recordings: Path | None, time_scale: float = 1.0, rates: tuple = (),
-                    run: int = 1) -> dict[str, Any]:
+                    run: int = 1) -> ScenarioRecord:
     """One recording of a scenario into ``folder``: copied from an identical earlier recording
     under ``recordings`` (None: ``--no-reuse``), or run within one of ``slots`` (and made again
     while the machine starves it, ``grader.grading.starvation``); returns its record. Run ``run``
     > 1 of a repeated scenario is a recording of its own (its own key)."""
-    def make() -> dict[str, Any]:
+    def make() -> ScenarioRecord:
         with slots.taken():
             return record_unstarved(ScaledRecording(resolve(sc_id, scenario, build), folder, time_scale,
                                                     build, rates), folder)
@@ -187,7 +187,7 @@ def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder
                             "made_by": source.get("made_by")},
                  "parent_wall_s": round(time.monotonic() - t0, 3)}, str(folder / "scenario.json"))
             reused.write(folder / "scenario.json")
-            return reused.to_json()
+            return reused
         record = _note_recording(folder, make(), key)
         if reusable(record):
             cache.put(key, folder, sid)

@@ -50,7 +50,7 @@ import shutil
 import time
 from pathlib import Path
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Callable
 
 from grader.contracts.scenario_record import ScenarioRecord
 from grader.sandbox import allotment
@@ -89,9 +89,10 @@ class Starvation:
     own: bool = False
 
 
-def recorded_scale(record: dict[str, Any]) -> float:
+def recorded_scale(record: ScenarioRecord) -> float:
     """How many times faster than real time the recording ran (``time_scale.used``; 1 without)."""
-    used = (record.get("time_scale") or {}).get("used", 1.0)
+    ts = record.time_scale
+    used = ts.used if ts is not None and "used" in ts.model_fields_set else 1.0
     return max(1.0, float(used)) if isinstance(used, (int, float)) else 1.0
 
 
@@ -99,8 +100,8 @@ def _bound(most: float, scale: float) -> str:
     return f"at most {most:g}" if scale == 1.0 else f"at most {most:g} at {scale:g}x: {most * scale:g} at 1x"
 
 
-def _probe_waited(record: dict[str, Any], scale: float) -> str | None:
-    waits = record.get("cpu_wait") or {}
+def _probe_waited(record: ScenarioRecord, scale: float) -> str | None:
+    waits = record.cpu_wait or {}
     name = next((n for n in PROBES if n in waits), None)
     if name is None:
         return None
@@ -112,8 +113,8 @@ def _probe_waited(record: dict[str, Any], scale: float) -> str | None:
     return None
 
 
-def _quota_throttled(record: dict[str, Any], scale: float) -> str | None:
-    quota = record.get("cpu_quota") or {}
+def _quota_throttled(record: ScenarioRecord, scale: float) -> str | None:
+    quota = record.cpu_quota or {}
     held, wall = quota.get("throttled_s"), quota.get("wall_s")
     if not isinstance(held, (int, float)) or not wall:
         return None
@@ -125,30 +126,30 @@ def _quota_throttled(record: dict[str, Any], scale: float) -> str | None:
     return None
 
 
-def _students_busy(record: dict[str, Any]) -> str | None:
+def _students_busy(record: ScenarioRecord) -> str | None:
     """The student's processes took the CPUs themselves (None: they did not)."""
-    waits = record.get("cpu_wait") or {}
+    waits = record.cpu_wait or {}
     cpu = sum(float((w or {}).get("cpu_s") or 0.0) for n, w in waits.items() if n not in PROBES)
     alive = max((float((w or {}).get("alive_s") or 0.0) for n, w in waits.items() if n not in PROBES), default=0.0)
-    capacity = min(1.0, float((record.get("cpu_quota") or {}).get("cpus") or 1.0))
+    capacity = min(1.0, float((record.cpu_quota or {}).get("cpus") or 1.0))
     if alive > 0 and cpu / alive >= OWN_CPU_SHARE * capacity:
         return f"the submission's own processes used {cpu / alive:.2f} CPU s per second"
-    throttled = (((record.get("sandbox") or {}).get("counters")) or {}).get("cpu_throttled_s", 0.0)
+    throttled = ((record.sandbox or {}).get("counters") or {}).get("cpu_throttled_s", 0.0)
     if throttled and throttled >= 1.0:
         return f"the submission's own processes were held at their CPU limit for {throttled:.1f} s"
     return None
 
 
-def exact_lockstep(record: dict[str, Any]) -> bool:
+def exact_lockstep(record: ScenarioRecord) -> bool:
     """A lockstep run whose every tick waited for every process to be quiet: each node saw the
     same messages at the same simulated times however slow the machine was, so a starved CPU
     made it slower, not different (the Lab 3 reference's ex3_action under a 0.5-CPU quota:
     recorded three times, 121 s each, for nothing)."""
-    ls = record.get("lockstep") or {}
-    return bool(ls.get("used")) and not ls.get("fallback") and ls.get("quiet_timeouts") == 0
+    ls = record.lockstep
+    return ls is not None and bool(ls.used) and not ls.fallback and ls.quiet_timeouts == 0
 
 
-def starvation(record: dict[str, Any], scale: float = 1.0) -> Starvation | None:
+def starvation(record: ScenarioRecord, scale: float = 1.0) -> Starvation | None:
     """Why the recording is not a measurement of the code (None: it is), and who caused it.
     ``scale``: the limits are a ``scale``-th of those of a 1x recording (a timing item's verdict
     on a recording made ``scale`` times faster than real time, :func:`recorded_scale`)."""
@@ -161,29 +162,29 @@ def starvation(record: dict[str, Any], scale: float = 1.0) -> Starvation | None:
     return Starvation(f"{reason}; {busy}" if busy else reason, own=busy is not None)
 
 
-def starved(record: dict[str, Any]) -> str | None:
+def starved(record: ScenarioRecord) -> str | None:
     """Why the recording is not a measurement of the code (None: it is)."""
     found = starvation(record)
     return found.reason if found else None
 
 
-def measure_quota(record_once: Callable[[], dict[str, Any]]) -> Callable[[], dict[str, Any]]:
+def measure_quota(record_once: Callable[[], ScenarioRecord]) -> Callable[[], ScenarioRecord]:
     """``record_once`` that also keeps, in its record, how long the grader's CPU quota held the
     grader back while it ran (``cpu_quota``; nothing without a quota)."""
-    def once() -> dict[str, Any]:
+    def once() -> ScenarioRecord:
         given = allotment.current()
         before, t0 = allotment.throttled_s(given), time.monotonic()
         record = record_once()
         after = allotment.throttled_s(given)
         if before is not None and after is not None:
-            record["cpu_quota"] = {"cpus": given.quota_cpus, "throttled_s": round(after - before, 3),
-                                   "wall_s": round(time.monotonic() - t0, 3)}
+            record = record.amended({"cpu_quota": {"cpus": given.quota_cpus, "throttled_s": round(after - before, 3),
+                                                   "wall_s": round(time.monotonic() - t0, 3)}})
         return record
     return once
 
 
-def record_unstarved(record_once: Callable[[], dict[str, Any]], folder: Path,
-                     pause: Callable[[float], None] = time.sleep) -> dict[str, Any]:
+def record_unstarved(record_once: Callable[[], ScenarioRecord], folder: Path,
+                     pause: Callable[[float], None] = time.sleep) -> ScenarioRecord:
     """``record_once()`` (which records into ``folder``) until a recording is not starved, at most
     1 + ``RETRIES`` times; the record says how many were starved (``starved``)."""
     reasons: list[str] = []
@@ -203,24 +204,26 @@ def record_unstarved(record_once: Callable[[], dict[str, Any]], folder: Path,
         _save(folder, record, "cpu_quota")
         return record
     kept_starved = found is not None
-    record["starved"] = {"recordings": len(reasons) + (0 if kept_starved else 1), "starved": len(reasons),
-                         "reasons": reasons, "kept": "starved" if kept_starved else "not starved",
-                         "own": bool(found is not None and found.own)}
-    if record["starved"]["own"]:
-        record.setdefault("errors", []).append(
-            f"{reasons[-1]}: this submission's own processes kept the CPUs busy (a loop that never "
-            "sleeps), so its timing was measured as it ran")
+    own = bool(found is not None and found.own)
+    note = {"recordings": len(reasons) + (0 if kept_starved else 1), "starved": len(reasons),
+            "reasons": reasons, "kept": "starved" if kept_starved else "not starved", "own": own}
+    errors = list(record.errors)
+    if own:
+        errors.append(f"{reasons[-1]}: this submission's own processes kept the CPUs busy (a loop that never "
+                      "sleeps), so its timing was measured as it ran")
     elif kept_starved:
-        record.setdefault("errors", []).append(
+        errors.append(
             f"{reasons[-1]} in each of {len(reasons)} recordings: the grading machine was too busy; an item "
             "that depends on timing and lost points on this recording is not charged for them (it is an error "
             "until it is measured on a quieter machine)")
+    record = record.amended({"starved": note, "errors": errors} if own or kept_starved else {"starved": note})
     _save(folder, record, "starved", "cpu_quota")
     return record
 
 
-def _save(folder: Path, record: dict[str, Any], *keys: str) -> None:
+def _save(folder: Path, record: ScenarioRecord, *keys: str) -> None:
     """Copy ``keys`` of the record (those it has) into the folder's ``scenario.json``."""
-    present = {k: record[k] for k in keys if k in record}
+    given = record.to_json()
+    present = {k: given[k] for k in keys if k in given}
     if present:
         ScenarioRecord.amend(Path(folder) / "scenario.json", present)

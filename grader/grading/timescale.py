@@ -189,7 +189,7 @@ def expected_rates(rubric: Any, scenario_id: str) -> tuple[RateExpectation, ...]
 
 
 def run_at_scale(run: ScenarioRun, folder: Path, time_scale: float, build: Any,
-                 rates: tuple[RateExpectation, ...] = ()) -> dict[str, Any]:
+                 rates: tuple[RateExpectation, ...] = ()) -> ScenarioRecord:
     """Run the scenario at ``time_scale`` when the scan allows it, else (or when the run says it
     would not grade like 1x) at 1x; the record's ``time_scale`` says which and why."""
     if run.scenario.lockstep:
@@ -201,19 +201,17 @@ def run_at_scale(run: ScenarioRun, folder: Path, time_scale: float, build: Any,
     if reason is None:
         record = run_scenario(run.model_copy(update={"time_scale": time_scale, "expected_rates": rates}),
                               folder)
-        ts = record.get("time_scale") or {}
-        reason = ts.get("fallback")
-        if reason is None and record.get("errors"):
-            reason = "the run on simulated time failed: " + str(record["errors"][0]).splitlines()[0]
+        ts = record.time_scale.to_json() if record.time_scale is not None else {}
+        reason = record.time_scale.fallback if record.time_scale is not None else None
+        if reason is None and record.errors:
+            reason = "the run on simulated time failed: " + str(record.errors[0]).splitlines()[0]
         if reason is None:
             reason = too_busy_for(record, time_scale)
         if reason is None:
             return _note(folder, record, {**ts, "requested": time_scale})
-        attempt = {"attempt_wall_s": record.get("parent_wall_s")}
+        attempt = {"attempt_wall_s": record.parent_wall_s}
         shutil.rmtree(folder, ignore_errors=True)
-    record = run_scenario(run, folder)
-    if attempt.get("attempt_wall_s") is not None:
-        record["parent_wall_s"] = round(record.get("parent_wall_s", 0.0) + attempt["attempt_wall_s"], 3)
+    record = _with_attempt(run_scenario(run, folder), attempt)
     return _note(folder, record, {"requested": time_scale, "used": 1.0, "fallback": reason, **attempt})
 
 
@@ -223,7 +221,7 @@ def machine_time_scale(requested: float | None = None) -> float:
     return default_time_scale(allotment.current().cpus) if requested is None else requested
 
 
-def too_busy_for(record: dict[str, Any], time_scale: float) -> str | None:
+def too_busy_for(record: ScenarioRecord, time_scale: float) -> str | None:
     """Why a run at ``time_scale`` starved (``grader.grading.starvation``, not by the student's
     own processes) goes again at 1x, or None. At K x every process wakes K times as often per
     wall second, so the same machine starves it sooner (a make test's fixture batch beside the
@@ -250,17 +248,17 @@ class ScaledRecording:
         self.run, self.folder, self.time_scale, self.build, self.rates = run, folder, time_scale, build, rates
         self.busy_note: dict[str, Any] | None = None
 
-    def __call__(self) -> dict[str, Any]:
+    def __call__(self) -> ScenarioRecord:
         if self.busy_note is not None and not self.run.scenario.lockstep:
             return _note(self.folder, run_at_scale(self.run, self.folder, 1.0, self.build), self.busy_note)
         record = run_at_scale(self.run, self.folder, self.time_scale, self.build, self.rates)
-        ts = record.get("time_scale") or {}
+        ts = record.time_scale.to_json() if record.time_scale is not None else {}
         if str(ts.get("fallback") or "").startswith(TOO_BUSY):
             self.busy_note = {k: v for k, v in ts.items() if k != "attempt_wall_s"}
         return record
 
 
-def run_lockstep(run: ScenarioRun, folder: Path, build: Any) -> dict[str, Any]:
+def run_lockstep(run: ScenarioRun, folder: Path, build: Any) -> ScenarioRecord:
     """A scenario marked ``lockstep: true``: on the simulator's lockstep clock when the scan
     allows it (the same rule as a time scale: nodes paced by ROS time only), else, or when the
     lockstep run could not go on, on the wall clock; the record's ``lockstep`` says which and why
@@ -269,26 +267,31 @@ def run_lockstep(run: ScenarioRun, folder: Path, build: Any) -> dict[str, Any]:
     attempt: dict[str, Any] = {}
     if reason is None:
         record = run_scenario(run.model_copy(update={"lockstep": True}), folder)
-        ls = record.get("lockstep") or {}
-        reason = ls.get("fallback")
-        if reason is None and record.get("errors"):
-            reason = "the lockstep run failed: " + str(record["errors"][0]).splitlines()[0]
+        ls = record.lockstep.to_json() if record.lockstep is not None else {}
+        reason = record.lockstep.fallback if record.lockstep is not None else None
+        if reason is None and record.errors:
+            reason = "the lockstep run failed: " + str(record.errors[0]).splitlines()[0]
         if reason is None:
             return record
-        attempt = {"attempt_wall_s": record.get("parent_wall_s"), "attempt": ls}
+        attempt = {"attempt_wall_s": record.parent_wall_s, "attempt": ls}
         shutil.rmtree(folder, ignore_errors=True)
-    record = run_scenario(run.model_copy(update={"lockstep": False}), folder)
-    if attempt.get("attempt_wall_s") is not None:
-        record["parent_wall_s"] = round(record.get("parent_wall_s", 0.0) + attempt["attempt_wall_s"], 3)
+    record = _with_attempt(run_scenario(run.model_copy(update={"lockstep": False}), folder), attempt)
     return _note(folder, record, {"used": False, "fallback": reason, **attempt}, key="lockstep")
 
 
-def _note(folder: Path, record: dict[str, Any], time_scale: dict[str, Any],
-          key: str = "time_scale") -> dict[str, Any]:
+def _with_attempt(record: ScenarioRecord, attempt: dict[str, Any]) -> ScenarioRecord:
+    """The 1x record with the wall time of the attempt before it added (in memory: the file keeps
+    its own run's, and the attempt's in its ``time_scale`` or ``lockstep`` note)."""
+    if attempt.get("attempt_wall_s") is None:
+        return record
+    return record.amended({"parent_wall_s": round((record.parent_wall_s or 0.0) + attempt["attempt_wall_s"], 3)})
+
+
+def _note(folder: Path, record: ScenarioRecord, time_scale: dict[str, Any],
+          key: str = "time_scale") -> ScenarioRecord:
     """Keep the decision in the record and in scenario.json (a reuse or a regrade reads it)."""
-    record[key] = time_scale
     ScenarioRecord.amend(Path(folder) / "scenario.json", {key: time_scale})
-    return record
+    return record.amended({key: time_scale})
 
 
 def describe(scenario_id: str, ts: dict[str, Any]) -> str:

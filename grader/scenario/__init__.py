@@ -126,7 +126,7 @@ def resolve(scenario_id: str, scenario: Scenario, build: Any) -> ScenarioRun:
 TERMINATE_WAIT_S = 40.0
 
 
-def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = None) -> dict[str, Any]:
+def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = None) -> ScenarioRecord:
     """Run one resolved scenario in a child process; returns its record (see grader.scenario.run)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -173,16 +173,16 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
         raise KeyboardInterrupt
     record_path = out / "scenario.json"
     try:
-        record = ScenarioRecord.read(record_path).to_json()
+        record = ScenarioRecord.read(record_path)
     except (OSError, ValueError) as exc:       # none (killed before it wrote one), or cut short
         tail = (out / "scenario.log").read_text(errors="replace")[-1500:]
         what = "a record" if isinstance(exc, FileNotFoundError) else f"a readable record ({exc})"
-        record = {"scenario": run.id, "steps": [], "processes": {}, "bag": str(out / "bag"),
-                  "errors": [f"scenario process ended with code {proc.returncode} without {what}:\n{tail}"]}
-    record["sandbox"] = sandbox.report(record)
-    record["limits_hit"] = [hit["detail"] for hit in record["sandbox"]["limits_hit"]]
-    record["parent_wall_s"] = round(time.monotonic() - t0, 3)
-    ScenarioRecord.from_working(record, str(record_path)).write(record_path)
+        record = ScenarioRecord(scenario=run.id, steps=[], processes={}, bag=str(out / "bag"),
+                                errors=[f"scenario process ended with code {proc.returncode} without {what}:\n{tail}"])
+    report = sandbox.report(record.to_json())
+    record = record.amended({"sandbox": report, "limits_hit": [hit["detail"] for hit in report["limits_hit"]],
+                             "parent_wall_s": round(time.monotonic() - t0, 3)}, str(record_path))
+    record.write(record_path)
     return record
 
 

@@ -86,7 +86,7 @@ def sandbox_selftest(timeout_s: float = 30.0) -> tuple[bool, str]:
         if not lines:
             err = Path(tmp) / "out" / "logs" / "listener.stderr.log"
             tail = (err.read_text(errors="replace").strip().splitlines() if err.exists() else [])[-1:]
-            return False, f"the sandboxed node reported nothing ({'; '.join(record.get('errors', []) + tail)})"
+            return False, f"the sandboxed node reported nothing ({'; '.join(record.errors + tail)})"
         report = json.loads(lines[-1][len("SELFTEST "):])
     problems = []
     if report["poses"] < 10:

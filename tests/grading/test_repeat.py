@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from grader.analyze import Finding
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.grading.repeat import (repeated_finding, run_folder, run_folders, run_until_settled, scenario_of,
                                    settled)
 from grader.report.readable import spread_text
@@ -44,22 +45,22 @@ def test_runs_stop_once_more_than_half_agree_on_every_item() -> None:
 def test_run_until_settled_records_two_runs_when_they_agree_three_when_not(tmp_path: Path) -> None:
     made: list[int] = []
 
-    def record(k: int, folder: Path) -> dict:
+    def record(k: int, folder: Path) -> ScenarioRecord:
         folder.mkdir(parents=True)
         made.append(k)
-        return {"scenario": "sc", "errors": [f"e{k}"] if k == 3 else [], "parent_wall_s": 10.0, "active_s": 8.0}
+        return ScenarioRecord(scenario="sc", errors=[f"e{k}"] if k == 3 else [], parent_wall_s=10.0, active_s=8.0)
 
     rec = run_until_settled(record, tmp_path / "a", "sc", 3, lambda folders: len(folders) >= 2)
-    assert made == [1, 2] and rec["runs"] == 2 and rec["parent_wall_s"] == 20.0
+    assert made == [1, 2] and rec.runs == 2 and rec.parent_wall_s == 20.0 and rec.active_s == 16.0
     made.clear()
     rec = run_until_settled(record, tmp_path / "b", "sc", 3, lambda folders: False)
-    assert made == [1, 2, 3] and rec["runs"] == 3 and rec["errors"] == ["run 3: e3"]
+    assert made == [1, 2, 3] and rec.runs == 3 and rec.errors == ["run 3: e3"]
     assert [p.name for p in run_folders(tmp_path / "b", "sc")] == ["sc", "sc.run2", "sc.run3"]
     assert run_folders(tmp_path / "b", "other") == [tmp_path / "b" / "other"]
     assert run_folder(tmp_path, "sc", 1) == tmp_path / "sc" and scenario_of("sc.run3") == "sc"
     made.clear()
     rec = run_until_settled(record, tmp_path / "c", "sc", 1, None)
-    assert made == [1] and "runs" not in rec
+    assert made == [1] and rec.runs is None and "runs" not in rec.to_json()
 
 
 def test_result_and_report_say_how_an_item_was_decided() -> None:
@@ -104,9 +105,9 @@ def test_worst_runs_stop_at_the_first_run_that_fails_every_item_and_not_before()
     assert settled([[("pass", 1.0), ("pass", 1.0)]], planned=3)                       # the median would stop
     made: list[int] = []
 
-    def record(k: int, folder: Path) -> dict:
+    def record(k: int, folder: Path) -> ScenarioRecord:
         made.append(k)
-        return {"scenario": "sc", "errors": []}
+        return ScenarioRecord(scenario="sc", errors=[])
 
     run_until_settled(record, Path("/nonexistent"), "sc", 3, lambda folders: len(folders) == 1)
     assert made == [1]                  # a first run that settles it (a worst of fail) is the only one

@@ -14,6 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "analyze"))
 
 from analyze_synth import T0, frame, with_meta  # noqa: E402
 from grader import analyze  # noqa: E402
+from grader.contracts.scenario_record import ScenarioRecord  # noqa: E402
 from grader.grading.analysis import analyze_item  # noqa: E402
 from grader.report.index import render_index  # noqa: E402
 from grader.rubric import load_rubric  # noqa: E402
@@ -34,7 +35,7 @@ def cmd_vel_at(hz: float, record: dict, seconds: float = 20.0) -> dict:
     t = T0 + np.arange(0.0, seconds, 1.0 / hz)
     frames = with_meta({"/turtle1/cmd_vel": frame(t, linear_x=np.full(len(t), 0.5), angular_z=np.zeros(len(t)))},
                        publishers={"/turtle1/cmd_vel": ["/controller"]})
-    frames["__meta__"].attrs["scenario"] = record
+    frames["__meta__"].attrs["scenario"] = ScenarioRecord.parse({"scenario": "ex2_controller", **record}, "test record")
     return frames
 
 

@@ -42,7 +42,7 @@ def test_include_parameters_remappings_and_timer(built, tmp_path: Path) -> None:
     assert (greeter.name, greeter.node_name, greeter.start_delay) == ("app.greeter", "greeter", 0.0)
     assert (late.name, late.start_delay) == ("app.late", 1.0)
     assert run.launch_installed == {"app": True} and run.notes["app"] == ()
-    record = run_scenario(run, tmp_path / "run")
+    record = run_scenario(run, tmp_path / "run").to_json()
     assert record["errors"] == [], record
     assert record["steps"][0]["ended_by"] == "condition"
 

@@ -66,7 +66,7 @@ def run_hostile(prefix: Path, out: Path, procs: dict[str, list[str]], *, wait_s:
     launched = {n: (LaunchedProcess(name=n, process=n, argv=(sys.executable, str(lib / args[0]), *args[1:])),)
                 for n, args in procs.items()}
     run = ScenarioRun(id="hostile", scenario=scenario, launched=launched, prefixes=(str(prefix),))
-    return run_scenario(run, out)
+    return run_scenario(run, out).to_json()
 
 
 def log(out: Path, name: str, stream: str = "stdout") -> str:

@@ -21,6 +21,7 @@ import pytest
 from pydantic import ValidationError
 
 from grader.bag.timebase import TimeMap
+from grader.contracts.scenario_record import ScenarioRecord
 from grader.grading.repeat import lockstep_record_exact, repeated_finding, run_until_settled
 from grader.scenario.model import Scenario
 from grader.scenario.quiescence import Quiescence, descendants
@@ -367,15 +368,14 @@ def test_lockstep_needs_the_simulator_and_simulated_time(extra: dict, message: s
 
 
 def test_an_exact_lockstep_run_settles_a_repeated_scenario_at_once(tmp_path: Path) -> None:
-    exact = {"scenario": "s", "lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0}, "errors": []}
-    loose = {"scenario": "s", "lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 2}, "errors": []}
-    cut = {"scenario": "s", "lockstep": {"used": True, "ticks": 10, "quiet_timeouts": 0, "wall_cuts": 1}, "errors": []}
-    fell_back = {"scenario": "s", "lockstep": {"used": False, "fallback": "wall-clock pacing"}, "errors": []}
+    exact, loose, cut, fell_back = (ScenarioRecord.parse({"scenario": "s", "lockstep": ls, "errors": []}, "record") for ls in (
+        {"used": True, "ticks": 10, "quiet_timeouts": 0}, {"used": True, "ticks": 10, "quiet_timeouts": 2},
+        {"used": True, "ticks": 10, "quiet_timeouts": 0, "wall_cuts": 1}, {"used": False, "fallback": "wall-clock pacing"}))
     assert lockstep_record_exact(exact)
     assert not any(lockstep_record_exact(r) for r in (loose, cut, fell_back))
     for record, runs in ((exact, 1), (loose, 3), (cut, 3), (fell_back, 3)):
         made: list[int] = []
-        run_until_settled(lambda k, _folder, r=record, m=made: m.append(k) or dict(r), tmp_path, "drive", 3,
+        run_until_settled(lambda k, _folder, r=record, m=made: m.append(k) or r, tmp_path, "drive", 3,
                           settles=lambda folders: False)
         assert len(made) == runs, record
 
@@ -477,10 +477,10 @@ def test_a_chaotic_controller_draws_the_same_path_in_lockstep_however_busy(pacin
     from grader.scenario import resolve
 
     run = resolve("chase", chase_scenario(), pacing_build)
-    quiet = run_at_scale(run, tmp_path / "quiet", 1.0, pacing_build)
+    quiet = run_at_scale(run, tmp_path / "quiet", 1.0, pacing_build).to_json()
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(3)]
     try:
-        busy = run_at_scale(run, tmp_path / "busy", 1.0, pacing_build)
+        busy = run_at_scale(run, tmp_path / "busy", 1.0, pacing_build).to_json()
     finally:
         for b in burners:
             b.kill()
@@ -522,7 +522,7 @@ def test_a_wall_paced_node_runs_on_the_wall_clock_and_says_why(pacing_build, tmp
 
     scenario = chase_scenario().model_copy(update={"processes": (
         chase_scenario().processes[0].model_copy(update={"package": "sleepers", "executable": "sleep_node"}),)})
-    record = run_at_scale(resolve("chase", scenario, pacing_build), tmp_path / "wall", 1.0, pacing_build)
+    record = run_at_scale(resolve("chase", scenario, pacing_build), tmp_path / "wall", 1.0, pacing_build).to_json()
     ls = record["lockstep"]
     assert ls["used"] is False and "time.sleep()" in ls["fallback"] and "attempt" not in ls
     assert describe_lockstep("chase", ls).startswith("scenario chase ran on the wall clock instead of lockstep")

@@ -37,7 +37,7 @@ def test_drive_turtle_and_record(tmp_path: Path) -> None:
     from grader.scenario import children_cpu_s
 
     counted, reaped = children_cpu_s(), resource.getrusage(resource.RUSAGE_CHILDREN)
-    record = run_scenario(resolve("drive", scenario, None), tmp_path / "drive")
+    record = run_scenario(resolve("drive", scenario, None), tmp_path / "drive").to_json()
     assert record["errors"] == [], record
     # the scenario child's CPU and its processes' (simulator, recorder) is this thread's to read:
     # what the kernel says every child of this test process used
@@ -121,7 +121,7 @@ def test_a_placement_with_spawn_makes_a_missing_turtle_there(tmp_path: Path) -> 
     scenario = Scenario.model_validate({"steps": [place("first", 2.0, True), place("again", 4.0, True)],
                                         "limits": {"wall_s": 30}, "lockstep": True})
     run = resolve("spawn", scenario, None).model_copy(update={"lockstep": True})
-    record = run_scenario(run, tmp_path / "spawn")
+    record = run_scenario(run, tmp_path / "spawn").to_json()
     assert record["errors"] == [] and record["lockstep"]["used"] and "fallback" not in record["lockstep"], record
     first, again = (s["detail"]["placed"] for s in record["steps"])
     assert first["spawned"] is True and first["shown"] is True
@@ -138,7 +138,7 @@ def test_a_placement_with_spawn_makes_a_missing_turtle_there(tmp_path: Path) -> 
     without = Scenario.model_validate({"steps": [place("first", 2.0, False)], "limits": {"wall_s": 30},
                                        "lockstep": True})
     record = run_scenario(resolve("nospawn", without, None).model_copy(update={"lockstep": True}),
-                          tmp_path / "nospawn")
+                          tmp_path / "nospawn").to_json()
     placed = record["steps"][0]["detail"]["placed"]
     assert placed["spawned"] is False and placed["shown"] is False
     frames = load_frames(tmp_path / "nospawn" / "bag")
@@ -165,7 +165,7 @@ def test_place_puts_the_turtle_there_before_the_action(tmp_path: Path, time_scal
          "publish": {"topic": "/marker", "type": "std_msgs/msg/Empty"}, "timeout": 0.2},
     ], "limits": {"wall_s": 30}})
     run = resolve("place", scenario, None).model_copy(update={"time_scale": time_scale})
-    record = run_scenario(run, tmp_path / "place")
+    record = run_scenario(run, tmp_path / "place").to_json()
     assert record["errors"] == [], record
     placed = record["steps"][1]["detail"]["placed"]
     assert placed["pose"] == [2.0, 7.0, 2.1] and placed["shown"] is True
@@ -212,7 +212,7 @@ def test_the_turtle_is_held_at_the_scenarios_end(tmp_path: Path) -> None:
         {"id": "drive", "publish": {"topic": "/turtle1/cmd_vel", "type": "geometry_msgs/msg/Twist",
                                     "msg": {"linear": {"x": 1.0}}, "count": 15, "rate_hz": 10}, "timeout": 1.5},
     ], "limits": {"wall_s": 30}})
-    record = run_scenario(resolve("end", scenario, None), tmp_path / "end")
+    record = run_scenario(resolve("end", scenario, None), tmp_path / "end").to_json()
     assert record["errors"] == [], record
     frames = load_frames(tmp_path / "end" / "bag")
     t_end = events(frames, ScenarioEnd)[0].t
@@ -350,11 +350,11 @@ def test_a_turtle_at_a_fixed_point_ends_its_goal_step_early(tmp_path: Path) -> N
             {"id": "reach", "until": until, "timeout": timeout},
         ], "limits": {"wall_s": 60}})
 
-    record = run_scenario(resolve("still", steps(2.0, 30.0), None), tmp_path / "still")
+    record = run_scenario(resolve("still", steps(2.0, 30.0), None), tmp_path / "still").to_json()
     assert record["errors"] == [], record
     reach = record["steps"][1]
     assert reach["ended_by"] == "decided", reach
     assert 2.0 <= reach["duration_s"] <= 6.0, reach
     assert "stood still" in reach["detail"]["ended_early"] and "give_up_still" in reach["detail"]["ended_early"]
-    waited = run_scenario(resolve("waited", steps(None, 4.0), None), tmp_path / "waited")["steps"][1]
+    waited = run_scenario(resolve("waited", steps(None, 4.0), None), tmp_path / "waited").steps[1].to_json()
     assert waited["ended_by"] == "timeout" and waited["duration_s"] >= 4.0, waited

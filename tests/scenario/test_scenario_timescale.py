@@ -203,7 +203,7 @@ def test_drive_scenario_at_4x_records_clock_and_the_1x_motion(tmp_path: Path) ->
     from grader.bag.reader import open_bag
 
     run = resolve("drive", Scenario.model_validate(DRIVE), None).model_copy(update={"time_scale": 4.0})
-    record = run_scenario(run, tmp_path / "drive")
+    record = run_scenario(run, tmp_path / "drive").to_json()
     assert record["errors"] == [], record
     assert record["time_scale"]["used"] == 4.0 and "fallback" not in record["time_scale"]
     # step limits are simulated seconds: the 6 s coast lasts 6 s of simulated time
@@ -250,7 +250,7 @@ def test_ros_timer_node_runs_at_4x_and_keeps_its_rate(pacing_build, tmp_path: Pa
 
     run = resolve("ticks", ticks_scenario("pacers", "timer_node"), pacing_build)
     assert pacing_reason(pacing_build, run) is None
-    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,))
+    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,)).to_json()
     assert record["errors"] == []
     assert record["time_scale"] == {**record["time_scale"], "requested": 4.0, "used": 4.0}
     assert "fallback" not in record["time_scale"]
@@ -268,7 +268,7 @@ def test_sleep_paced_node_is_found_by_the_scan_and_runs_at_1x(pacing_build, tmp_
     run = resolve("ticks", ticks_scenario("sleepers", "sleep_node"), pacing_build)
     reason = pacing_reason(pacing_build, run)
     assert reason and "sleepers/sleep_node.py:" in reason and "time.sleep()" in reason
-    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,))
+    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,)).to_json()
     assert record["errors"] == []
     ts = record["time_scale"]
     assert ts["requested"] == 4.0 and ts["used"] == 1.0 and ts["fallback"] == reason
@@ -288,7 +288,7 @@ def test_wall_paced_node_the_scan_misses_is_caught_at_run_time(pacing_build, tmp
 
     run = resolve("ticks", ticks_scenario("pacers", "spin_node"), pacing_build)
     assert pacing_reason(pacing_build, run) is None
-    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,))
+    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,)).to_json()
     assert record["errors"] == []
     ts = record["time_scale"]
     assert ts["used"] == 1.0 and "/ticks was published at" in ts["fallback"], ts
@@ -304,7 +304,7 @@ def test_a_node_using_the_clock_service_sends_the_run_back_to_1x(pacing_build, t
     """The clock owner counts the hold requests it serves; any beyond the driver's own means a
     student node reached for simulated time itself."""
     run = resolve("ticks", ticks_scenario("pacers", "meddler"), pacing_build)
-    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,))
+    record = run_at_scale(run, tmp_path / "ticks", 4.0, pacing_build, (TICKS,)).to_json()
     assert record["errors"] == []
     ts = record["time_scale"]
     assert ts["used"] == 1.0 and "held or stopped the simulated clock" in ts["fallback"], ts

@@ -181,7 +181,7 @@ def _run(name: str, scenario, built, out: Path) -> tuple[dict, dict]:
     from grader.scenario import resolve, run_scenario
 
     run = resolve(name, scenario, built)
-    record = run_scenario(run, out)
+    record = run_scenario(run, out).to_json()
     frames = load_frames(out / "bag")
     return record, frames
 
