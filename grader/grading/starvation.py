@@ -52,6 +52,7 @@ from pathlib import Path
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from grader.contracts.output_folder import SCENARIO_JSON
 from grader.contracts.scenario_record import ScenarioRecord
 from grader.sandbox import allotment
 
@@ -223,4 +224,4 @@ def _save(folder: Path, record: dict[str, Any], *keys: str) -> None:
     """Copy ``keys`` of the record (those it has) into the folder's ``scenario.json``."""
     present = {k: record[k] for k in keys if k in record}
     if present:
-        ScenarioRecord.amend(Path(folder) / "scenario.json", present)
+        ScenarioRecord.amend(Path(folder) / SCENARIO_JSON, present)
