@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 from pydantic import ValidationError
 
 from grader.errors import GraderError
+from grader.contracts.output_folder import SCENARIOS_DIR, SubmissionFolder
 from grader.cache import default_cache_dir
 from grader.cache.store import end_batch
 from grader.grading.batch import grade_batch
@@ -280,7 +281,7 @@ def graded_and_measured(sub_out: Path) -> bool:
     recording the grading machine did not starve (``Result.starved``)."""
     from grader.report.result import read_result  # noqa: PLC0415 - report.result loads pandas, numpy (424 ms CPU), only on this path
 
-    path = sub_out / "result.json"
+    path = SubmissionFolder(sub_out).result_json
     if not path.exists():
         return False
     try:
@@ -334,7 +335,6 @@ def regrade(path: PathLike, rubric: PathLike | Rubric, *,
     or one submission (``OUT/<id>``). ``on_done`` gets each one as it is regraded.
     """
     from grader.grading.outputs import write_batch_outputs  # noqa: PLC0415 - grading.outputs loads pandas, numpy (424 ms CPU), only on this path
-    from grader.grading.analysis import SCENARIOS_DIR  # noqa: PLC0415 - grading.analysis loads pandas, numpy (424 ms CPU), only on this path
     from grader.grading.pipeline import regrade_submission  # noqa: PLC0415 - grading.pipeline loads pandas, numpy (424 ms CPU), only on this path
 
     loaded = _rubric(rubric)

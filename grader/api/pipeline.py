@@ -14,7 +14,7 @@ rebuilds ``grades.csv`` and ``index.html`` of a batch; :func:`check_table` and
 
 from __future__ import annotations
 
-from grader.grading.analysis import SCENARIOS_DIR
+from grader.contracts.output_folder import SCENARIOS_DIR
 from grader.grading.outputs import check_table, contract_lines, write_batch_outputs
 from grader.grading.pipeline import grade_submission, regrade_submission
 from grader.report.result import atomic_write

@@ -36,6 +36,7 @@ from grader.audit.mutate import COPY_IGNORE, Mutant, mutants, sample, source_fil
 from grader.audit.outcome import AuditReport, Outcome
 from grader.audit.report import write_report
 from grader.contracts.result_document import ResultDocument
+from grader.contracts.output_folder import OutputFolder, SubmissionFolder
 from grader.errors import GraderError
 from grader.api import load_rubric
 from grader.api.batch import Slots, find_packages, grade_batch, machine_time_scale
@@ -118,7 +119,7 @@ def run_audit(rubric_path: Path, out: Path, *, reference: Path | None = None, jo
     ref_copy = workspaces / REFERENCE_ID
     if not regrade:
         _fresh_copy(ref, ref_copy)
-    if not ((resume or regrade) and (graded / REFERENCE_ID / "result.json").exists()):
+    if not ((resume or regrade) and OutputFolder(graded).submission(REFERENCE_ID).result_json.exists()):
         say(f"grading the reference ({REFERENCE_ID})")
         grade_submission(ref_copy, rubric, graded, cache_dir=cache_dir, sid=REFERENCE_ID, slots=slots,
                          reuse=reuse, time_scale=time_scale)
@@ -183,7 +184,7 @@ def _write_mutants(chosen: list[Mutant], workspaces: Path, graded: Path, keep_gr
     todo = []
     for m in chosen:
         dest = workspaces / m.id
-        if keep_graded and (graded / m.id / "result.json").exists():
+        if keep_graded and OutputFolder(graded).submission(m.id).result_json.exists():
             continue
         if dest.exists():
             shutil.rmtree(dest)
@@ -241,7 +242,7 @@ def _regrade_all(rubric: Any, graded: Path, ids: list[str], say: Callable[[str],
         if not (folder / SCENARIOS_DIR).is_dir():
             continue          # never graded: graded now, below
         for sc_id, scenario in rubric.scenarios.items():
-            run_json = folder / SCENARIOS_DIR / sc_id / "run.json"
+            run_json = SubmissionFolder(folder).scenario(sc_id).run_json
             if run_json.is_file():
                 recorded = ScenarioRun.model_validate_json(run_json.read_text()).scenario
                 if recorded != scenario:
@@ -263,7 +264,7 @@ def _fresh_copy(src: Path, dest: Path) -> None:
 
 
 def _read_result(folder: Path) -> ResultDocument:
-    path = folder / "result.json"
+    path = SubmissionFolder(folder).result_json
     if not path.is_file():
         raise GraderError(f"{folder.name} has no result.json (grading did not finish)")
     try:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence, cast
 
 from grader.contracts.scenario_record import ScenarioRecord
+from grader.contracts.output_folder import BAG_DIR, CANVAS_PNG, SCENARIO_JSON, SCENARIOS_DIR
 from grader.analyze import timing, Finding
 from grader.analyze._common import events, own_exits, stdout_lines
 from grader.errors import GraderError
@@ -32,18 +33,15 @@ if TYPE_CHECKING:
     from grader.analyze import Finding
     from grader.rubric.schema import Item, Rubric
 
-#: a submission's output folder keeps each scenario run's folder (bag, record, canvas) in here
-SCENARIOS_DIR = "scenarios"
-
 
 def scenario_frames(scenario_dir: Path) -> dict:
     """Frames of one scenario's bag plus ``__meta__`` (topic, type, count, publishers)."""
     import pandas as pd  # noqa: PLC0415 - pandas: 424 ms CPU to import, paid only on this path
 
-    bag = scenario_dir / "bag"
+    bag = scenario_dir / BAG_DIR
     if not bag.exists():
         return {"__meta__": pd.DataFrame(columns=["topic", "type", "count", "publishers"])}
-    record_file = scenario_dir / "scenario.json"
+    record_file = scenario_dir / SCENARIO_JSON
     record = ScenarioRecord.read(record_file) if record_file.exists() else None
     # a run on simulated time is read in simulated seconds (grader.bag.timebase): the bag's own
     # metadata says so (sealed with it); the record speaks only for a bag never finalised
@@ -60,7 +58,7 @@ def scenario_frames(scenario_dir: Path) -> dict:
     frames["__meta__"] = pd.DataFrame(
         [{"topic": n, "type": t.type, "count": t.count, "publishers": sorted(publishers.get(n, set()))}
          for n, t in meta.topics.items()], columns=["topic", "type", "count", "publishers"])
-    canvas = scenario_dir / "canvas.png"
+    canvas = scenario_dir / CANVAS_PNG
     if canvas.exists():
         frames["__canvas__"] = canvas_frame(canvas)
     if record is not None:

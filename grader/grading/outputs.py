@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from grader import __version__, analyze
+from grader.contracts.output_folder import CANVAS_PNG, SCENARIOS_DIR, SubmissionFolder
 from grader.report.replay import replays
 from grader.grading.provenance import by_other_grader, notes, scenario_recordings
 from grader.grading.repeat import scenario_of
@@ -32,7 +33,7 @@ def versions() -> dict[str, str]:
 
 def _canvases(sub_out: Path) -> dict[str, str]:
     """Each scenario's canvas (of its first run when it ran more than once)."""
-    return {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))
+    return {p.parent.name: str(p) for p in sorted(sub_out.glob(f"{SCENARIOS_DIR}/*/{CANVAS_PNG}"))
             if scenario_of(p.parent.name) == p.parent.name}
 
 
@@ -54,7 +55,7 @@ def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public
     ver = versions()
     # which protections student code ran under, and each limit it reached (from the scenario
     # records, so a regrade reports the grading run): a line each in errors and the report
-    sandbox = recorded_summary(sorted(p for p in (graded.out / "scenarios").glob("*") if p.is_dir()))
+    sandbox = recorded_summary(sorted(p for p in SubmissionFolder(graded.out).scenarios.glob("*") if p.is_dir()))
     problems = list(graded.errors)
     if sandbox is not None:
         # a self-check runs the student's own code on their own machine: no isolation warning there
@@ -64,27 +65,28 @@ def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public
     problems = list(dict.fromkeys(problems))         # a regrade that keeps stored errors adds none twice
     extra: dict[str, Any] = {"build": {"ok": graded.build_ok, "failed": graded.build_failed},
              "errors": problems, "timings": graded.timings,
-             "scenarios": sorted(p.name for p in (graded.out / "scenarios").glob("*") if p.is_dir()),
-             "scenarios_reused": dict(getattr(graded, "reused", {}) or {})}
+             "scenarios": sorted(p.name for p in SubmissionFolder(graded.out).scenarios.glob("*") if p.is_dir()),
+             "scenarios_reused": {sc: r.to_json() for sc, r in graded.reused.items()}}
     if sandbox is not None:
         extra["sandbox"] = sandbox
-    if getattr(graded, "previous", None):
-        extra["previous"] = graded.previous
+    if graded.previous is not None:
+        extra["previous"] = graded.previous.model_dump(mode="json")
     # the key and maker of each recording, and those another grader made (a regrade after an
     # upgrade, or a recording reused from before it): instructors are told, students are not
-    recordings = dict(getattr(graded, "recordings", {}) or {}) or scenario_recordings(graded.out)
+    recordings = graded.recordings or scenario_recordings(graded.out)
     other = by_other_grader(recordings) if recordings else {}
-    extra["recordings"] = recordings
+    extra["recordings"] = {sc: r.to_json() for sc, r in recordings.items()}
     if other:
         extra["recordings_by_other_grader"] = other
-    if getattr(graded, "intake", None):
-        extra["intake"] = graded.intake           # who and when, as the LMS said (grader.intake)
+    intake = graded.intake.public() if graded.intake is not None else None
+    if intake:
+        extra["intake"] = intake           # who and when, as the LMS said (grader.intake)
     if rubric.analyzers:        # the rubric's own analyzer files: a page redrawn later draws their figures
         extra["analyzer_files"] = [str(p) for p in rubric.analyzers]
-    time_scales = dict(getattr(graded, "time_scales", {}) or {})
+    time_scales = _time_scales(graded)
     if time_scales:                 # --time-scale or lockstep: how each scenario ran, and why not
         extra["time_scale"] = time_scales
-    ended_early = dict(getattr(graded, "ended_early", {}) or {})
+    ended_early = _ended_early(graded)
     if ended_early:                 # steps ended once their outcome was decided
         extra["ended_early"] = ended_early
     out_dir, sid = graded.out.parent, graded.out.name
@@ -93,8 +95,18 @@ def write_submission_outputs(graded: GradedSubmission, rubric: Rubric, *, public
                problems=problems, params=effective_params(rubric),
                notes=time_scale_notes(time_scales) + early_end_notes(ended_early)
                + ([] if public_only else notes(other, recordings)),
-               intake=getattr(graded, "intake", None), replays=replays(graded.out),
+               intake=intake, replays=replays(graded.out),
                item_scenarios={item.id: list(item.scenario) for item in rubric.items})
+
+
+def _time_scales(graded: GradedSubmission) -> dict[str, dict[str, Any]]:
+    """result.json's ``time_scale`` (and what the notes read): each scenario's clock as JSON."""
+    return {sc: ts.to_json() for sc, ts in graded.time_scales.items()}
+
+
+def _ended_early(graded: GradedSubmission) -> dict[str, list[dict[str, Any]]]:
+    """result.json's ``ended_early``: each scenario's steps ended once decided, as JSON."""
+    return {sc: [e.to_json() for e in ends] for sc, ends in graded.ended_early.items()}
 
 
 def write_batch_outputs(out: Path, rubric: Rubric) -> None:
@@ -140,8 +152,7 @@ def check_table(graded: GradedSubmission, rubric: Rubric) -> tuple[bool, list[st
     for sc_id, src in (getattr(graded, "reused", {}) or {}).items():
         out.append(f"\n  note: scenario {sc_id} was not run again: nothing it runs changed since "
                    f"{src.get('recorded', 'an earlier run')} (its recording was reused; --no-reuse runs it)")
-    for line in (time_scale_notes(getattr(graded, "time_scales", {}) or {})
-                 + early_end_notes(getattr(graded, "ended_early", {}) or {})):
+    for line in time_scale_notes(_time_scales(graded)) + early_end_notes(_ended_early(graded)):
         out.append(f"\n  note: {line}")
     for err in graded.errors:
         out.append(f"\n  problem: {err.splitlines()[0]}")

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from grader.errors import GraderError
-from grader.grading.analysis import SCENARIOS_DIR, analyze_bags, settles_check
+from grader.grading.analysis import analyze_bags, settles_check
 from grader.grading.graded import GradedSubmission
 from grader.grading.repeat import run_until_settled
 from grader.grading.timescale import expected_rates, machine_time_scale
@@ -29,9 +29,11 @@ from grader.grading.provenance import scenario_recordings
 from grader.grading.reuse import record_or_reuse
 from grader.grading.schedule import Slots
 from grader.intake.apply import apply_intake
-from grader.intake.model import public_record, write_record
+from grader.intake.model import read_record, write_record
 from grader.contracts.result_document import ResultDocument
 from grader.contracts.scenario_record import ScenarioRecord
+from grader.contracts.run_records import ClockUse, EarlyEnd, ReusedRecording
+from grader.contracts.output_folder import SCENARIOS_DIR, SubmissionFolder
 from grader.report.result import previous_summary, read_document
 from grader.report.seal import input_digests, mac_ok, changed_inputs
 from grader.rubric.score import score
@@ -124,10 +126,15 @@ def grade_submission(path: Path, rubric: Rubric, out_root: Path, *, cache_dir: P
         result = result.for_student()
     graded = GradedSubmission(sid, out, result, build_ok=bool(build and build.ok),
                               build_failed=list(build.failed) if build else ["(no build)"],
-                              errors=errors, timings=timings, reused=ran.reused, time_scales=ran.time_scales,
-                              ended_early=ran.ended_early, recordings=recordings_made,
-                              cache=submission_cache_use(build, recordings_made, reuse),
-                              intake=public_record(out))
+                              errors=errors, timings=timings,
+                              reused={sc: ReusedRecording.model_validate(r) for sc, r in ran.reused.items()},
+                              time_scales={sc: ClockUse.model_validate(t) for sc, t in ran.time_scales.items()},
+                              ended_early={sc: [EarlyEnd.model_validate(e) for e in ends]
+                                           for sc, ends in ran.ended_early.items()},
+                              recordings=recordings_made,
+                              cache=submission_cache_use(build, {sc: r.to_json() for sc, r in recordings_made.items()},
+                                                         reuse),
+                              intake=read_record(out))
     write_outputs(graded, rubric, public_only=public_only)
     return graded
 
@@ -242,9 +249,9 @@ def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = Fal
 
     items = selected_items(rubric, public_only)
     old, unreadable = None, []
-    if (sub_out / "result.json").exists():
+    if SubmissionFolder(sub_out).result_json.exists():
         try:
-            old = read_document(sub_out / "result.json")
+            old = read_document(SubmissionFolder(sub_out).result_json)
         except GraderError as exc:     # damaged, or not a result.json: the bags are what a grade comes from
             unreadable = [f"{exc}; regraded from the bags as they are"]
     unusable, notes = recordings_to_refuse(sub_out, old)
@@ -262,10 +269,14 @@ def regrade_submission(sub_out: Path, rubric: Rubric, *, public_only: bool = Fal
                               build_failed=old.build.failed if old is not None and old.build is not None else [],
                               errors=list(dict.fromkeys([*(old.errors if old is not None else []), *problems])),
                               timings=old.timings if old is not None else {}, previous=previous_summary(old),
-                              time_scales=old.time_scale if old is not None else {},
-                              ended_early=old.ended_early if old is not None else {},
+                              time_scales={sc: ClockUse.model_validate(t)
+                                           for sc, t in (old.time_scale if old is not None else {}).items()},
+                              ended_early={sc: [EarlyEnd.model_validate(e) for e in ends]
+                                           for sc, ends in (old.ended_early if old is not None else {}).items()},
                               recordings=scenario_recordings(sub_out),
-                              reused=old.scenarios_reused if old is not None else {}, intake=public_record(sub_out))
+                              reused={sc: ReusedRecording.model_validate(r)
+                                      for sc, r in (old.scenarios_reused if old is not None else {}).items()},
+                              intake=read_record(sub_out))
     write_outputs(graded, rubric, public_only=public_only, inputs=inputs)
     return graded
 

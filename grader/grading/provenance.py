@@ -13,41 +13,41 @@ shows them, so an instructor knows which grades rest on recordings another grade
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
+from grader.contracts.output_folder import SCENARIO_JSON, SCENARIOS_DIR
+from grader.contracts.run_records import Recording, ReusedFrom
 from grader.contracts.scenario_record import RecordingNote, ScenarioRecord
 from grader.grading.reuse import made_by
 
 
-def scenario_recordings(sub_out: Path) -> dict[str, dict[str, Any]]:
+def scenario_recordings(sub_out: Path) -> dict[str, Recording]:
     """``{scenario: {"key", "made_by", "reused_from"?}}`` from each ``scenario.json`` of a
     graded submission (``made_by`` None: recorded by a grader that did not note it)."""
-    from grader.grading.analysis import SCENARIOS_DIR  # noqa: PLC0415 - grading.analysis loads pandas, numpy (424 ms CPU), only on this path
-
-    out: dict[str, dict[str, Any]] = {}
-    for record_file in sorted(Path(sub_out).glob(f"{SCENARIOS_DIR}/*/scenario.json")):
+    out: dict[str, Recording] = {}
+    for record_file in sorted(Path(sub_out).glob(f"{SCENARIOS_DIR}/*/{SCENARIO_JSON}")):
         try:
             record = ScenarioRecord.read(record_file)
         except (OSError, ValueError):
             continue
         noted, reused = record.recording or RecordingNote(), record.reused
-        entry: dict[str, Any] = {"key": noted.key or (reused.key if reused else None),
-                                 "made_by": noted.made_by or (reused.made_by if reused else None)}
+        entry = Recording(key=noted.key or (reused.key if reused else None),
+                          made_by=noted.made_by or (reused.made_by if reused else None))
         if reused:
-            entry["reused_from"] = {"from": reused.from_, "recorded": reused.recorded}
+            entry.reused_from = ReusedFrom.model_validate({"from": reused.from_, "recorded": reused.recorded})
         out[record_file.parent.name] = entry
     return out
 
 
-def by_other_grader(recordings: dict[str, dict[str, Any]],
+def by_other_grader(recordings: Mapping[str, Recording],
                     current: dict[str, str] | None = None) -> dict[str, str]:
     """``{scenario: why}`` for every recording whose maker is not ``current`` (this grader)."""
     if current is None:
         current = made_by()
     out: dict[str, str] = {}
     for sc, entry in sorted(recordings.items()):
-        maker = entry.get("made_by")
+        maker = entry.made_by
         if not maker:
             out[sc] = "recorded by an older grader that did not note its version"
         elif maker.get("code") != current["code"]:
@@ -60,12 +60,13 @@ def by_other_grader(recordings: dict[str, dict[str, Any]],
     return out
 
 
-def notes(other: dict[str, str], recordings: dict[str, dict[str, Any]]) -> list[str]:
+def notes(other: dict[str, str], recordings: Mapping[str, Recording]) -> list[str]:
     """One line per recording another grader made, for the instructor's report and regrade."""
     lines = []
     for sc, why in other.items():
-        origin = (recordings.get(sc) or {}).get("reused_from")
-        source = (f" (reused from {origin.get('from')}'s recording of {origin.get('recorded')})"
+        entry = recordings.get(sc)
+        origin = entry.reused_from if entry is not None else None
+        source = (f" (reused from {origin.from_}'s recording of {origin.recorded})"
                   if origin else "")
         lines.append(f"scenario {sc}: its grade rests on a recording {why}{source}; "
                      "`grader grade --no-reuse` records it again with this grader")

@@ -33,6 +33,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
+from grader.contracts.output_folder import SCENARIO_JSON
 from grader.contracts.scenario_record import ScenarioRecord
 from grader.rubric.score import _RANK
 
@@ -89,7 +90,7 @@ def lockstep_record_exact(record: ScenarioRecord) -> bool:
 def exact_lockstep(folder: Path) -> bool:
     """Whether the recorded run in ``folder`` (its scenario.json) was an exact lockstep run."""
     try:
-        return ScenarioRecord.read(Path(folder) / "scenario.json").exact_lockstep
+        return ScenarioRecord.read(Path(folder) / SCENARIO_JSON).exact_lockstep
     except (OSError, ValueError):
         return False
 

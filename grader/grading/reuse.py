@@ -39,6 +39,7 @@ from typing import Any, Iterator
 from grader.contracts.scenario_record import ScenarioRecord
 from grader import __version__
 from grader.cache import locks
+from grader.contracts.output_folder import BAG_DIR, CANVAS_PNG, LOGS_DIR, RUN_JSON, SCENARIO_JSON, SCENARIO_LOG
 from grader.cache.code import recording_code
 from grader.cache.environment import runtime
 from grader.grading.scenario_packages import packages_run, workspace_packages
@@ -49,7 +50,7 @@ from grader.sandbox import summary
 from grader.scenario import resolve
 
 #: files of a scenario folder that make up its recording
-RECORDING = ("bag", "logs", "canvas.png", "scenario.json", "run.json", "scenario.log")
+RECORDING = (BAG_DIR, LOGS_DIR, CANVAS_PNG, SCENARIO_JSON, RUN_JSON, SCENARIO_LOG)
 
 
 def _tree_digest(path: Path) -> str:
@@ -158,7 +159,7 @@ def _note_recording(folder: Path, record: ScenarioRecord, key: str | None) -> Sc
     """Keep the recording's key and maker in the record and its ``scenario.json`` (a copy made
     from the cache carries the maker of the original)."""
     note = {"key": key, "made_by": made_by()}
-    ScenarioRecord.amend(folder / "scenario.json", {"recording": note})
+    ScenarioRecord.amend(folder / SCENARIO_JSON, {"recording": note})
     return record.amended({"recording": note})
 
 
@@ -182,11 +183,11 @@ def record_or_reuse(sid: str, sc_id: str, scenario: Scenario, build: Any, folder
         t0 = time.monotonic()
         source = cache.get(key, folder)
         if source is not None:
-            reused = ScenarioRecord.read(folder / "scenario.json").amended(
+            reused = ScenarioRecord.read(folder / SCENARIO_JSON).amended(
                 {"reused": {"from": source.get("submission"), "key": key, "recorded": source.get("recorded"),
                             "made_by": source.get("made_by")},
-                 "parent_wall_s": round(time.monotonic() - t0, 3)}, str(folder / "scenario.json"))
-            reused.write(folder / "scenario.json")
+                 "parent_wall_s": round(time.monotonic() - t0, 3)}, str(folder / SCENARIO_JSON))
+            reused.write(folder / SCENARIO_JSON)
             return reused
         record = _note_recording(folder, make(), key)
         if reusable(record):

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from grader.contracts.result_document import ResultDocument
+from grader.contracts.output_folder import SubmissionFolder
 from grader.errors import GraderError
 
 if TYPE_CHECKING:
@@ -56,9 +57,9 @@ def merge_outputs(parts: list[Path], out: Path, rubric: Rubric) -> list[str]:
             if meta.get("rubric") != digest:
                 problems.append(f"{part} was graded with another rubric (lab {meta.get('lab')}, rubric "
                                 f"{meta.get('rubric')}; this one is {rubric.lab} {digest})")
-        for sub in sorted(p for p in part.iterdir() if (p / "result.json").is_file()):
+        for sub in sorted(p for p in part.iterdir() if SubmissionFolder(p).result_json.is_file()):
             try:
-                lab = ResultDocument.read(sub / "result.json").lab
+                lab = ResultDocument.read(SubmissionFolder(sub).result_json).lab
             except (OSError, ValueError) as exc:
                 problems.append(str(exc))     # names the file
                 continue

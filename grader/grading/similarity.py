@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from grader.errors import GraderError
+from grader.contracts.output_folder import OutputFolder, SubmissionFolder
 from grader.similarity import behaviour, code
 from grader.similarity.compare import analyse, BehaviourAnalysis, BehaviourMatch, TOLERANCE, UNIFORM_SHARE
 from grader.similarity.files import SOURCE_DIR
@@ -115,7 +116,7 @@ def _scenario_features(sub_out: Path) -> list[behaviour.Feature]:
 
 
 def _first_runs(sub_out: Path) -> list[Path]:
-    return sorted(p for p in (Path(sub_out) / "scenarios").glob("*") if p.is_dir() and scenario_of(p.name) == p.name)
+    return sorted(p for p in SubmissionFolder(Path(sub_out)).scenarios.glob("*") if p.is_dir() and scenario_of(p.name) == p.name)
 
 
 def _labels(rubric: Rubric) -> tuple[dict[str, list[str]], dict[str, dict]]:
@@ -175,7 +176,7 @@ def compute(out: Path, rubric: Rubric, settings: Settings, jobs: int = 2) -> dic
                           "(or --known)")
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    docs = {sid: read_document(out / sid / "result.json") for sid in ids}
+    docs = {sid: read_document(OutputFolder(out).submission(sid).result_json) for sid in ids}
     feats, item_scenarios = _behaviour_features(out, ids, docs, rubric, jobs)
     timings["behaviour_features_s"] = time.perf_counter() - t0
 

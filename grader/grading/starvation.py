@@ -52,6 +52,7 @@ from pathlib import Path
 from dataclasses import dataclass
 from typing import Callable
 
+from grader.contracts.output_folder import SCENARIO_JSON
 from grader.contracts.scenario_record import ScenarioRecord
 from grader.sandbox import allotment
 
@@ -226,4 +227,4 @@ def _save(folder: Path, record: ScenarioRecord, *keys: str) -> None:
     given = record.to_json()
     present = {k: given[k] for k in keys if k in given}
     if present:
-        ScenarioRecord.amend(Path(folder) / "scenario.json", present)
+        ScenarioRecord.amend(Path(folder) / SCENARIO_JSON, present)

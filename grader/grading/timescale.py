@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 from typing import Any, Iterable
 
+from grader.contracts.output_folder import SCENARIO_JSON
 from grader.contracts.scenario_record import ScenarioRecord
 from grader import rclpy_fix
 from grader.grading.scenario_packages import packages_run, workspace_packages
@@ -290,7 +291,7 @@ def _with_attempt(record: ScenarioRecord, attempt: dict[str, Any]) -> ScenarioRe
 def _note(folder: Path, record: ScenarioRecord, time_scale: dict[str, Any],
           key: str = "time_scale") -> ScenarioRecord:
     """Keep the decision in the record and in scenario.json (a reuse or a regrade reads it)."""
-    ScenarioRecord.amend(Path(folder) / "scenario.json", {key: time_scale})
+    ScenarioRecord.amend(Path(folder) / SCENARIO_JSON, {key: time_scale})
     return record.amended({key: time_scale})
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
 from grader.contracts.intake_record import INTAKE_SCHEMA, IntakeRecord
+from grader.contracts.output_folder import INTAKE_JSON
 from grader.intake.late import SubmissionTime
 from grader.errors import GraderError
 from grader.report.result import atomic_write
@@ -19,7 +20,7 @@ from grader.report.result import atomic_write
 if TYPE_CHECKING:
     from grader.scores.roster import Student
 
-INTAKE_FILE = "intake.json"
+INTAKE_FILE = INTAKE_JSON
 #: the kinds of input ``grader grade`` reads, in the words the table uses
 SOURCES = {"canvas": "Canvas download", "gradescope": "Gradescope export",
            "classroom": "GitHub Classroom clones", "folder": "folder of submissions",

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from grader.report import readable
+from grader.contracts.output_folder import REPORT_HTML
 from grader.report.figures import FigureContext, figures_for
 from grader.report.player import PLAYER_CSS, moment_link, player_html
 from grader.report.result import atomic_write, check_submission_id, plain_file_name
@@ -366,7 +367,7 @@ def _summary_html(result: Result) -> str:
 
 
 def write_html(out_dir: str | os.PathLike[str], submission: str, result: Result, *,
-               filename: str = "report.html", **kwargs: Any) -> Path:
+               filename: str = REPORT_HTML, **kwargs: Any) -> Path:
     """Write ``out_dir/<submission>/report.html`` (kwargs as for render_html; ``filename``
     e.g. ``student.html`` for the self-check view next to the full report)."""
     check_submission_id(submission)

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from grader.contracts.late import late_by_text
+from grader.contracts.output_folder import OutputFolder
 from grader.contracts.result_document import ResultDocument
 from grader.report.result import atomic_write, check_submission_id
 from grader.report.style import CSS, INDEX_JS
@@ -341,7 +342,7 @@ def render_index(results: Mapping[str, Result], *, title: str | None = None,
 
 
 def write_index(out_dir: str | os.PathLike[str], results: Mapping[str, Result], **kwargs: Any) -> Path:
-    path = Path(out_dir) / "index.html"
+    path = OutputFolder(Path(out_dir)).index_html
     atomic_write(path, render_index(results, **kwargs))
     return path
 
@@ -352,7 +353,7 @@ def read_docs(out_dir: str | os.PathLike[str], ids: Sequence[str]) -> dict[str, 
     docs = {}
     for sid in ids:
         try:
-            docs[sid] = ResultDocument.read(Path(out_dir) / sid / "result.json")
+            docs[sid] = ResultDocument.read(OutputFolder(Path(out_dir)).submission(sid).result_json)
         except (OSError, ValueError):
             continue
     return docs

@@ -21,10 +21,10 @@ from html import escape
 from typing import Any, Mapping, Sequence
 
 from grader.report.replay import REPLAY_FILE
+from grader.contracts.output_folder import SCENARIOS_DIR
 from grader.rubric.result import ItemResult
 
 #: where a report finds a scenario's folder, relative to the report
-SCENARIOS_DIR = "scenarios"
 TICK_S = 0.016                       # turtlesim's update period: one "tick" of the step buttons
 SPEEDS = (0.25, 0.5, 1, 2, 4, 8)
 

@@ -29,6 +29,7 @@ from grader.analyze.goals import goal_xy
 from grader.report.result import atomic_write
 from grader.contracts import events as ev
 from grader.contracts.world import WORLD_SIZE_M
+from grader.contracts.output_folder import SCENARIOS_DIR
 
 REPLAY_FILE = "replay.js"
 POSE_STRIDE = 2              # every second pose of turtlesim's 62.5 Hz (see the module's docstring)
@@ -220,7 +221,7 @@ def write_replay(scenario_dir: Path, frames: Frames) -> None:
     atomic_write(path, replay_script(replay_data(frames, Path(scenario_dir).name)))
 
 
-def replays(sub_out: Path, scenarios_dir: str = "scenarios") -> list[str]:
+def replays(sub_out: Path, scenarios_dir: str = SCENARIOS_DIR) -> list[str]:
     """The scenario folders of a submission's output that have replay data, in order."""
     root = Path(sub_out) / scenarios_dir
     return sorted(p.parent.name for p in root.glob(f"*/{REPLAY_FILE}")) if root.is_dir() else []

@@ -23,6 +23,7 @@ from grader.contracts.jsonable import jsonable
 from grader.contracts.contract import Mismatch
 from grader.contracts.late import LatePenalty, late_by_text
 from grader.contracts.document import DocumentError
+from grader.contracts.output_folder import RESULT_JSON, OutputFolder
 from grader.contracts.result_document import RESULT_SCHEMA, PreviousEntry, PreviousItem, ResultDocument
 SUBMISSION_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@+-]{0,127}$")
 
@@ -143,12 +144,12 @@ def result_from_document(doc: ResultDocument) -> Result:
 def result_from_dict(doc: Any) -> Result:
     """:func:`result_from_document` of a parsed JSON object (a GraderError when it is not one)."""
     try:
-        return result_from_document(ResultDocument.parse(doc, "result.json"))
+        return result_from_document(ResultDocument.parse(doc, RESULT_JSON))
     except DocumentError as exc:
         raise GraderError(str(exc)) from None
 
 
-def previous_summary(doc: ResultDocument | None) -> dict[str, Any] | None:
+def previous_summary(doc: ResultDocument | None) -> PreviousEntry | None:
     """What a regrade keeps of the result.json it replaces (stored as its ``previous`` key), so
     the class view can show who changed and by how much: totals and each item's points and
     status. None when there is no result."""
@@ -157,7 +158,7 @@ def previous_summary(doc: ResultDocument | None) -> dict[str, Any] | None:
     return PreviousEntry(
         auto_score=doc.auto_score, score=doc.score, total=doc.total, versions=doc.versions,
         items={i.id: PreviousItem(points=i.points, status=i.status) for i in doc.items},
-    ).model_dump(mode="json")
+    )
 
 
 def read_document(path: str | os.PathLike[str]) -> ResultDocument:
@@ -192,7 +193,7 @@ def atomic_write(path: Path, text: str) -> None:
 
 def write_result(out_dir: str | os.PathLike[str], submission: str, result: Result, *,
                  versions: Mapping[str, str] | None = None, extra: Mapping[str, Any] | None = None,
-                 filename: str = "result.json", inputs: Mapping[str, str] | None = None) -> Path:
+                 filename: str = RESULT_JSON, inputs: Mapping[str, str] | None = None) -> Path:
     """Write ``out_dir/<submission>/result.json``, sealed (``grader.report.seal``); ``versions``
     come from the caller (grader version, ROS distro, rmw, python...) because only it knows what
     actually ran. ``inputs``: digests of the files the grade was computed from (default: the
@@ -295,6 +296,6 @@ def grades_csv_text(results: Mapping[str, Result], rubric: Rubric | None = None,
 def write_grades_csv(out_dir: str | os.PathLike[str], results: Mapping[str, Result], *,
                      rubric: Rubric | None = None, intake: Mapping[str, Mapping[str, Any]] | None = None) -> Path:
     """Write ``out_dir/grades.csv`` for a batch (columns in rubric order when given)."""
-    path = Path(out_dir) / "grades.csv"
+    path = OutputFolder(Path(out_dir)).grades_csv
     atomic_write(path, grades_csv_text(results, rubric, intake))
     return path

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from grader.contracts.scenario_record import ScenarioRecord
+from grader.contracts.output_folder import SCENARIO_JSON
 from grader.errors import GraderError
 from grader.sandbox import allotment, cgroups
 from grader.sandbox.capture import DEFAULT_CAP_BYTES
@@ -258,7 +259,7 @@ def recorded_summary(scenario_dirs: Sequence[Path]) -> dict[str, Any] | None:
     seen = []
     for d in scenario_dirs:
         try:
-            record = ScenarioRecord.read(Path(d) / "scenario.json")
+            record = ScenarioRecord.read(Path(d) / SCENARIO_JSON)
         except (OSError, ValueError):
             continue
         if record.sandbox is not None:

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from grader.contracts.scenario_record import ScenarioRecord
+from grader.contracts.output_folder import RUN_JSON, SCENARIO_JSON
 from grader.errors import GraderError
 from grader.scenario.model import Scenario
 from grader.scenario.runspec import LaunchedProcess, PackageFacts, ScenarioRun
@@ -130,7 +131,7 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
     """Run one resolved scenario in a child process; returns its record (see grader.scenario.run)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    run_file = out / "run.json"
+    run_file = out / RUN_JSON
     run_file.write_text(run.model_dump_json(indent=1))
     if env is None:
         from grader.rosenv import child_env  # noqa: PLC0415 - scenario loads in every scenario child process; rosenv only on this path
@@ -171,7 +172,7 @@ def run_scenario(run: ScenarioRun, out: Path, *, env: dict[str, str] | None = No
                 pass
     if CANCELLED.is_set():
         raise KeyboardInterrupt
-    record_path = out / "scenario.json"
+    record_path = out / SCENARIO_JSON
     try:
         record = ScenarioRecord.read(record_path)
     except (OSError, ValueError) as exc:       # none (killed before it wrote one), or cut short

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, Iterator, cast
 
 from grader.contracts.scenario_record import ScenarioRecord
+from grader.contracts.output_folder import CANVAS_PNG, SCENARIO_JSON
 from grader.bag.recorder_thread import RecorderThread
 from grader.errors import GraderError
 from grader.runner import ManagedProcess, ProcessSpec, RosGraph
@@ -146,7 +147,7 @@ def run_scenario_here(run: ScenarioRun, out: Path) -> dict[str, Any]:
             _wind_down(record, graph, out, driver, recorder, sim, students, scale)
     record["active_s"] = round(sum(s["duration_s"] for s in record["steps"]), 3)
     record["wall_s"] = round(time.monotonic() - t_start, 3)
-    ScenarioRecord.from_working(record, str(out / "scenario.json")).write(out / "scenario.json")
+    ScenarioRecord.from_working(record, str(out / SCENARIO_JSON)).write(out / SCENARIO_JSON)
     return record
 
 
@@ -329,7 +330,7 @@ def _start_clock_owner(graph: RosGraph, run: ScenarioRun, out: Path, record: dic
     ``steps``: the simulator's end of lockstep's step channel, which it alone inherits (closed
     here once it has it)."""
     if run.scenario.sim:
-        canvas = out / "canvas.png"
+        canvas = out / CANVAS_PNG
         record["canvas"] = str(canvas)
         fds = () if steps is None else (steps.fileno(),)
         try:

@@ -21,6 +21,7 @@ from grader.errors import GraderError
 from grader.report.html import write_html
 from grader.report.index import read_docs, write_index
 from grader.contracts.result_document import ResultDocument
+from grader.contracts.output_folder import GRADES_CSV, INDEX_HTML, REPORT_HTML, RESULT_JSON, SubmissionFolder
 from grader.report.result import read_document, result_from_document, write_grades_csv, write_result
 from grader.report.seal import check_doc
 from grader.rubric.result import Result
@@ -31,7 +32,7 @@ from grader.scores.store import (MANUAL_SCORES, ManualScore, apply_manual_scores
 from grader.analyze.plugins import load_recorded_files
 
 #: order of the moves: the record of the TA's scores first, the batch overview last
-_ORDER = {MANUAL_SCORES: 0, "result.json": 1, "report.html": 2, "grades.csv": 3, "index.html": 4}
+_ORDER = {MANUAL_SCORES: 0, RESULT_JSON: 1, REPORT_HTML: 2, GRADES_CSV: 3, INDEX_HTML: 4}
 
 
 @dataclass(frozen=True)
@@ -96,7 +97,7 @@ def _baseline(sub_out: Path, result: Result) -> dict[str, ManualScore]:
     scores = load_manual_scores(sub_out)
     for item in result.items:
         if item.kind == "manual" and item.points is not None and item.id not in scores:
-            scores[item.id] = ManualScore(item.points, item.feedback or "", "result.json")
+            scores[item.id] = ManualScore(item.points, item.feedback or "", RESULT_JSON)
     return scores
 
 
@@ -182,7 +183,7 @@ def _stage_submission(stage: Path, out: Path, g: _Graded, result: Result,
     # the grade still rests on the bags that were graded: keep their recorded digests
     inputs = g.doc.seal.inputs if g.doc.seal is not None else {}
     path = write_result(stage, g.sid, result, versions=versions, extra=extra, inputs=inputs)
-    if (sub_out / "result.json").read_bytes() == path.read_bytes() and (sub_out / "report.html").exists():
+    if SubmissionFolder(sub_out).result_json.read_bytes() == path.read_bytes() and SubmissionFolder(sub_out).report_html.exists():
         return
     canvases = {p.parent.name: str(p) for p in sorted(sub_out.glob("scenarios/*/canvas.png"))}
 

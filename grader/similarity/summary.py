@@ -11,7 +11,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-OUT_DIR = "similarity"
+from grader.contracts.output_folder import SIMILARITY_DIR
+OUT_DIR = SIMILARITY_DIR
 SUMMARY = "similarity.json"
 PAIRS_CSV = "pairs.csv"
 #: the id prefix of a known solution (``--known DIR``) among the class's submissions

@@ -41,7 +41,8 @@ def test_the_pipeline_reads_records_by_their_model(tmp_path: Path) -> None:
     folder.mkdir(parents=True)
     (folder / "scenario.json").write_text(src.read_text())
     got = scenario_recordings(tmp_path / "sub")["ex2_controller"]
-    assert got["key"] == "6fa91f5599655c16d62b294a" and got["reused_from"]["from"] == "reference"
+    assert got.key == "6fa91f5599655c16d62b294a" and got.reused_from is not None
+    assert got.reused_from.from_ == "reference"
     assert recorded_summary([folder])["mode"] == "auto"
     assert not exact_lockstep(folder)
     ScenarioRecord.amend(folder / "scenario.json", {"lockstep": {"used": True, "quiet_timeouts": 0, "ticks": 5}})

@@ -118,6 +118,6 @@ def test_previous_summary_is_what_a_regrade_keeps(lab3_result):
     from grader.report.result import previous_summary, result_document
 
     prev = previous_summary(result_document(lab3_result, "alice", versions={"grader": "0.1.0"}))
-    assert prev["auto_score"] == 47 and prev["versions"] == {"grader": "0.1.0"}
-    assert prev["items"]["ex1.pub_rate"] == {"points": 1.5, "status": "partial"}
+    assert prev is not None and prev.auto_score == 47 and prev.versions == {"grader": "0.1.0"}
+    assert prev.model_dump(mode="json")["items"]["ex1.pub_rate"] == {"points": 1.5, "status": "partial"}
     assert previous_summary(None) is None
