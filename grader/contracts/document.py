@@ -27,11 +27,12 @@ import os
 from pathlib import Path
 from typing import Annotated, Self, TypeAlias
 
-from pydantic import BaseModel, ConfigDict, PlainValidator, ValidationError
+from pydantic import (BaseModel, ConfigDict, ModelWrapValidatorHandler, PlainValidator, PrivateAttr,
+                      SerializerFunctionWrapHandler, ValidationError, model_serializer, model_validator)
 
 from grader.contracts.values import JsonValue
 
-__all__ = ["Document", "DocumentError", "Number", "explain"]
+__all__ = ["Document", "DocumentError", "KeptOrder", "Number", "explain"]
 
 def _number(value: JsonValue) -> int | float:
     """One check, one message (a union would report ``.int`` and ``.float`` separately)."""
@@ -94,3 +95,32 @@ def explain(exc: ValidationError, where: str, most: int = 3) -> str:
         lines.append(f"{field or '(top)'}: {error['msg'].removeprefix('Value error, ')}{got}")
     more = exc.error_count() - most
     return f"{where}: " + "; ".join(lines) + (f" (and {more} more)" if more > 0 else "")
+
+
+class KeptOrder(BaseModel):
+    """A record that remembers the order of the keys it was made from and writes them back so: a
+    note the pipeline makes (``{"requested", "used", "fallback"}``) keeps its order through
+    scenario.json and into result.json, whose bytes the seal covers."""
+
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False, populate_by_name=True)
+
+    _order: list[str] = PrivateAttr(default_factory=list)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _keep_order(cls, data: JsonValue, handler: ModelWrapValidatorHandler[Self]) -> Self:
+        made = handler(data)
+        if isinstance(data, dict):
+            made._order = [str(k) for k in data]
+        return made
+
+    @model_serializer(mode="wrap")
+    def _in_order(self, handler: SerializerFunctionWrapHandler) -> dict[str, JsonValue]:
+        """Every dump (this record's own, and a document's that holds it) in the given order."""
+        dumped: dict[str, JsonValue] = handler(self)
+        first = {k: dumped[k] for k in self._order if k in dumped}
+        return first | {k: v for k, v in dumped.items() if k not in first}
+
+    def to_json(self) -> dict[str, JsonValue]:
+        """The keys it was given, in the order it was given them."""
+        return self.model_dump(mode="json", by_alias=True, exclude_unset=True)

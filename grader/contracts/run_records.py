@@ -13,47 +13,23 @@ one. result.json has always written these dicts as the pipeline built them (``{"
 
 from __future__ import annotations
 
-from typing import Self
+from pydantic import Field
 
-from pydantic import BaseModel, ConfigDict, Field, ModelWrapValidatorHandler, PrivateAttr, model_validator
-
-from grader.contracts.document import Number
+from grader.contracts.document import KeptOrder, Number
 from grader.contracts.scenario_record import ClockRecord, ReusedNote
 from grader.contracts.values import JsonValue
 
-__all__ = ["ClockUse", "EarlyEnd", "KeptOrder", "Recording", "ReusedFrom", "ReusedRecording"]
+__all__ = ["ClockUse", "EarlyEnd", "Recording", "ReusedFrom", "ReusedRecording"]
 
 
-class KeptOrder(BaseModel):
-    """A record that remembers the order of the keys it was made from and writes them back so."""
-
-    model_config = ConfigDict(extra="allow", allow_inf_nan=False, populate_by_name=True)
-
-    _order: list[str] = PrivateAttr(default_factory=list)
-
-    @model_validator(mode="wrap")
-    @classmethod
-    def _keep_order(cls, data: JsonValue, handler: ModelWrapValidatorHandler[Self]) -> Self:
-        made = handler(data)
-        if isinstance(data, dict):
-            made._order = [str(k) for k in data]
-        return made
-
-    def to_json(self) -> dict[str, JsonValue]:
-        """The keys it was given, in the order it was given them."""
-        dumped = self.model_dump(mode="json", by_alias=True, exclude_unset=True)
-        first = {k: dumped[k] for k in self._order if k in dumped}
-        return first | {k: v for k, v in dumped.items() if k not in first}
-
-
-class ClockUse(KeptOrder, ClockRecord):
+class ClockUse(ClockRecord):
     """result.json's ``time_scale[scenario]``: the scenario record's ``time_scale`` (at
     ``--time-scale`` K > 1), or its ``lockstep`` with ``clock: "lockstep"`` first."""
 
     clock: str | None = None
 
 
-class ReusedRecording(KeptOrder, ReusedNote):
+class ReusedRecording(ReusedNote):
     """result.json's ``scenarios_reused[scenario]``: the scenario record's ``reused``."""
 
 

@@ -24,20 +24,16 @@ import os
 from pathlib import Path
 from typing import Self
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from grader.contracts.document import Document, Number
+from grader.contracts.document import Document, KeptOrder, Number
 from grader.contracts.values import JsonValue
 
 __all__ = ["ClockRecord", "ProcessRecord", "RecordingNote", "ReusedNote", "ScenarioRecord", "StepRecord"]
 
 
-class _Entry(BaseModel):
-    model_config = ConfigDict(extra="allow", allow_inf_nan=False, populate_by_name=True)
-
-    def to_json(self) -> dict[str, JsonValue]:
-        """The JSON object of this entry: the keys it was given (unknown ones after them)."""
-        return self.model_dump(mode="json", by_alias=True, exclude_unset=True)
+class _Entry(KeptOrder):
+    """A part of the record: written back with the keys it was given, in their order."""
 
 
 class StepRecord(_Entry):

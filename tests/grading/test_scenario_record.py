@@ -66,3 +66,15 @@ def test_a_newer_writers_keys_are_kept_and_a_bad_record_is_named(tmp_path: Path)
         ScenarioRecord.parse({"scenario": "s", "processes": {"node": {"returncode": "x"}}}, "r")
     ScenarioRecord.amend(tmp_path / "none.json", {"errors": ["x"]})           # no record: nothing written
     assert not (tmp_path / "none.json").exists()
+
+
+def test_a_note_keeps_the_order_it_was_made_in_through_the_record():
+    """The pipeline's 1x note is made as requested, used, fallback; result.json (sealed bytes) has
+    always written it so. Declared order (used, fallback, ...) would change those bytes."""
+    record = ScenarioRecord.model_validate({"scenario": "ex2_controller"})
+    note = {"requested": 4.0, "used": 1.0, "fallback": "the machine was too busy", "attempt_wall_s": 3.2}
+    amended = record.amended({"time_scale": note})
+    assert list(amended.to_json()["time_scale"]) == list(note)
+    assert list(amended.time_scale.to_json()) == list(note)
+    again = ScenarioRecord.model_validate_json(json.dumps(amended.to_json()))
+    assert list(again.to_json()["time_scale"]) == list(note)
