@@ -167,8 +167,9 @@ def test_the_contract_round_trips_through_result_json(write_rubric) -> None:
 
 
 def test_the_contract_goes_to_the_report_and_the_check_table(write_rubric) -> None:
-    from types import SimpleNamespace
+    from pathlib import Path
 
+    from grader.grading.graded import GradedSubmission
     from grader.grading.outputs import check_table, contract_lines
     from grader.report.html import render_html
 
@@ -178,7 +179,8 @@ def test_the_contract_goes_to_the_report_and_the_check_table(write_rubric) -> No
     result = score(r, {"name": _finding("fail")}, contract=[m])
     page = render_html(result, "s")
     assert 'id="contract"' in page and "Your node is called /hello" in page and 'href="#item-name"' in page
-    ok, table = check_table(SimpleNamespace(result=result.for_student(), errors=[]), r)
+    graded = GradedSubmission(id="s", out=Path("unused"), result=result.for_student(), build_ok=True)
+    ok, table = check_table(graded, r)
     out = "\n".join(contract_lines(r) + table)
     assert not ok
     assert "executable  number_subscriber  ros2 run my_first_package number_subscriber" in out
