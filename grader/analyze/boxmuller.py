@@ -34,8 +34,8 @@ from grader.analyze import Finding, graded, register
 from grader.analyze._common import ROSOUT, Frames, meta_row, stdout_lines, thin, topic
 from grader.analyze.evidence import SHARE
 from grader.analyze.boxmuller_formulas import FORMULAS
-from grader.analyze.boxmuller_pairing import (BoxMullerInputParams, _examples, _inputs, _no_output_finding, _pair_series,
-                                              _sources, _unanswered, select)
+from grader.analyze.boxmuller_evidence import examples, no_output_finding, pair_series, unanswered
+from grader.analyze.boxmuller_pairing import BoxMullerInputParams, _inputs, _sources, select
 
 #: labels and units of the evidence (see grader.analyze.evidence)
 EVIDENCE = {
@@ -112,7 +112,7 @@ class BoxMullerParams(BoxMullerInputParams):
 def boxmuller(frames: Frames, p: BoxMullerParams) -> Finding:
     """Share of published pairs for which the student printed the correct Box-Muller z."""
     sel = select(frames, p, tail_grace_s=p.tail_grace_s)
-    early = _no_output_finding(frames, p, sel)
+    early = no_output_finding(frames, p, sel)
     if early:
         return early
     best, cp = sel.best, sel.correct
@@ -130,32 +130,32 @@ def boxmuller(frames: Frames, p: BoxMullerParams) -> Finding:
         "best_ratio": best.ratio,
     }
     shown = best if best.formula != "correct" and best.ratio >= p.bug_min_ratio else cp
-    ev["pairs"] = _pair_series(sel, shown)
+    ev["pairs"] = pair_series(sel, shown)
     if best.source.n_numeric < p.min_outputs:
-        ev["examples"] = _examples(sel, best)
+        ev["examples"] = examples(sel, best)
         return Finding(f"{best.source.n_numeric} lines", 0.0, "fail",
                        f"Only {best.source.n_numeric} printed value(s) for {len(sel.inputs)} published pairs: "
                        "log one z per received message.", ev)
     value = f"{cp.matched}/{cp.expected} matched"
     if cp.ratio >= p.pass_ratio:
-        ev["examples"] = _examples(sel, cp, 3)
+        ev["examples"] = examples(sel, cp, 3)
         return Finding(value, 1.0, "pass",
                        f"{cp.matched} of {cp.expected} printed values match z = sqrt(-2 ln u1)·cos(2πu2).", ev)
     if best.formula != "correct" and best.ratio >= p.bug_min_ratio:
         frac = float((p.bug_credit or {}).get(best.formula, 0.0))
-        ev["examples"] = _examples(sel, best, 3)
+        ev["examples"] = examples(sel, best, 3)
         ev["bug"] = best.formula
         value = f"values follow {FORMULAS[best.formula][0]}"
         return Finding(value, frac, graded(frac), FORMULAS[best.formula][2], ev)
     if cp.chance > p.max_chance:
-        ev["examples"] = _examples(sel, cp, 3)
+        ev["examples"] = examples(sel, cp, 3)
         return Finding(value, 0.0, "fail",
                        f"Your values are printed too coarsely to be checked (a random number would match "
                        f"{cp.chance:.0%} of them): print z with at least 4 decimals, e.g. f\"{{z:.6f}}\".", ev)
-    wrong = _examples(sel, cp, 5, only_unmatched=True)
-    n_missing, missing = _unanswered(sel, cp)
+    wrong = examples(sel, cp, 5, only_unmatched=True)
+    n_missing, missing = unanswered(sel, cp)
     ev["unanswered"] = n_missing
-    ev["examples"] = wrong or missing or _examples(sel, cp, 5)
+    ev["examples"] = wrong or missing or examples(sel, cp, 5)
     detail = ""
     if wrong:
         ex = wrong[0]
@@ -258,7 +258,7 @@ def normality(frames: Frames, p: NormalityParams) -> Finding:
     elif sel.sources:
         src, pos = max(sel.sources, key=lambda s: (s.kind == "rosout", s.n_numeric)), -1
     else:
-        early = _no_output_finding(frames, p, sel)
+        early = no_output_finding(frames, p, sel)
         return early or Finding.fail("No printed values to test.")
     v, _ = src.column(pos)
     x = v[np.isfinite(v)]
