@@ -17,8 +17,9 @@ scale (:mod:`grader.sim.clock`) the node owns simulated time: every tick advance
 16 ms and the physics runs on that time instead of the wall clock.
 
 A little over the project's ~400 lines: one method per endpoint of turtlesim's interface (8
-services, the rotate action, parameters, per-turtle topics), each a few lines, kept in the one
-class that owns the node, as the C++ original keeps them. The process around the node (executor,
+services, the rotate action, parameters, per-turtle topics) and the two lockstep steps (called
+over the stepper's socket, :mod:`grader.sim.stepchannel`, or the DDS step services), each a few
+lines, kept in the one class that owns the node, as the C++ original keeps them. The process around the node (executor,
 signals, what it saves on exit) is :mod:`grader.sim.process`.
 """
 
