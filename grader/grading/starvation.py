@@ -141,11 +141,12 @@ def _students_busy(record: ScenarioRecord) -> str | None:
     return None
 
 
-def exact_lockstep(record: ScenarioRecord) -> bool:
+def starvation_proof_lockstep(record: ScenarioRecord) -> bool:
     """A lockstep run whose every tick waited for every process to be quiet: each node saw the
     same messages at the same simulated times however slow the machine was, so a starved CPU
     made it slower, not different (the Lab 3 reference's ex3_action under a 0.5-CPU quota:
-    recorded three times, 121 s each, for nothing)."""
+    recorded three times, 121 s each, for nothing). Weaker than ``ScenarioRecord.exact_lockstep``
+    (a repeat's rule, which also needs no wall cut and no error): a cut wait is not starvation."""
     ls = record.lockstep
     return ls is not None and bool(ls.used) and not ls.fallback and ls.quiet_timeouts == 0
 
@@ -154,7 +155,7 @@ def starvation(record: ScenarioRecord, scale: float = 1.0) -> Starvation | None:
     """Why the recording is not a measurement of the code (None: it is), and who caused it.
     ``scale``: the limits are a ``scale``-th of those of a 1x recording (a timing item's verdict
     on a recording made ``scale`` times faster than real time, :func:`recorded_scale`)."""
-    if exact_lockstep(record):
+    if starvation_proof_lockstep(record):
         return None
     reason = _probe_waited(record, scale) or _quota_throttled(record, scale)
     if reason is None:
